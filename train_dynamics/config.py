@@ -1,0 +1,349 @@
+"""Simulation parameters: one table shared by ``sim_node`` and the offline command.
+
+Every parameter of the product contract (``shared/interface.md``) is declared here once,
+with its default, type, unit, range and whether it may change while the simulation runs.
+The node declares its ROS parameters from :data:`PARAMETERS` and validates ``ros2 param
+set`` with :func:`validate_value`; the offline command reads the same ROS 2 parameter file
+with :func:`load_param_file`. Pressures in parameters are GAUGE pressures [Pa].
+
+This module never imports rclpy.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any
+
+# Kinds of value, named after the ROS 2 parameter types they map to.
+DOUBLE = 'double'
+INTEGER = 'integer'
+STRING = 'string'
+BOOL = 'bool'
+DOUBLE_ARRAY = 'double_array'
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """Declaration of one parameter: what ``ros2 param describe`` shows."""
+
+    name: str
+    default: Any
+    kind: str
+    description: str
+    min: float | None = None          # inclusive unless min_exclusive
+    max: float | None = None
+    min_exclusive: bool = False
+    choices: tuple[str, ...] = ()
+    dynamic: bool = False             # may change while running without a reset
+    structural: bool = True           # takes effect through the `reset` service
+
+
+# Quick-acting passenger (UIC "P") brake: cylinder filling and release characteristics,
+# as fractions of the maximum cylinder pressure against time [s]. Filling reaches 95 % in
+# 4.0 s (UIC 540: 3-5 s); release from maximum to 0.4 bar (10.5 % of 3.8 bar) in 17 s
+# (UIC: 15-20 s). The filling curve has the shape of the paper's measured Fig. 4: a fast
+# first stage, then an exponential approach.
+P_FILL_TIME = [0.0, 0.3, 0.6, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0]
+P_FILL_FRACTION = [0.0, 0.16, 0.28, 0.41, 0.55, 0.66, 0.75, 0.83, 0.90, 0.95, 0.99, 1.0]
+P_RELEASE_TIME = [0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 17.0, 20.0, 24.0, 28.0]
+P_RELEASE_FRACTION = [1.0, 0.768, 0.589, 0.452, 0.347, 0.267, 0.205, 0.157, 0.105, 0.07, 0.03, 0.0]
+# Goods (UIC "G") brake: the same shapes stretched to 95 % filling in 24 s (UIC: 18-30 s)
+# and release to 0.4 bar in 52 s (UIC: 45-60 s).
+G_FILL_TIME = [round(t * 6.0, 3) for t in P_FILL_TIME]
+G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
+
+_PARAMS = [
+    ParamSpec('model_type', 'tanh', STRING,
+              'Coupler friction law: "tanh" uses tanh(u*ydot) (paper eqs. 14-16), '
+              '"sign" uses sgn(ydot) (paper eqs. 2-3).',
+              choices=('tanh', 'sign'), dynamic=True, structural=False),
+    ParamSpec('scale_factor', 1000.0, DOUBLE,
+              'u in tanh(u*ydot) [s/m], > 0 (paper eq. 14).',
+              min=0.0, max=1.0e7, min_exclusive=True, dynamic=True, structural=False),
+    ParamSpec('num_coaches', 3, INTEGER, 'Number of coaches N >= 2 (ignored when masses is set).',
+              min=2, max=100000),
+    ParamSpec('coach_mass', 45000.0, DOUBLE, 'Mass of every coach m_i [kg], unless masses is set.',
+              min=0.0, max=1.0e7, min_exclusive=True),
+    ParamSpec('masses', [], DOUBLE_ARRAY,
+              'Per-coach masses [kg], front to rear; non-empty overrides num_coaches and coach_mass.',
+              min=0.0, max=1.0e7, min_exclusive=True),
+    ParamSpec('coach_length', 25.0, DOUBLE, 'Coach length [m]: brake-pipe length per coach.',
+              min=0.0, max=1000.0, min_exclusive=True),
+    ParamSpec('buffer_stiffness', 2.8e6, DOUBLE, 'Buffer stiffness k_e [N/m] (paper eq. 2).',
+              min=0.0, max=1.0e12, min_exclusive=True),
+    ParamSpec('buffer_friction', 1.4e6, DOUBLE,
+              'Buffer friction constant k_f [N/m] (paper eq. 2), 0 <= k_f < k_e.',
+              min=0.0, max=1.0e12),
+    ParamSpec('draw_gear_stiffness', 5.46e6, DOUBLE, 'Draw-gear stiffness k_ec [N/m] (paper eq. 3).',
+              min=0.0, max=1.0e12, min_exclusive=True),
+    ParamSpec('draw_gear_friction', 2.43e6, DOUBLE,
+              'Draw-gear friction constant k_fc [N/m] (paper eq. 3), 0 <= k_fc < k_ec.',
+              min=0.0, max=1.0e12),
+    ParamSpec('adhesion_coefficient', 0.1, DOUBLE,
+              'Wheel-rail adhesion coefficient mu_a (paper eqs. 12-13): full braking force '
+              'is mu_a*m*g per coach.', min=0.0, max=1.0, min_exclusive=True),
+    ParamSpec('gravity', 9.81, DOUBLE, 'Gravitational acceleration g [m/s^2].',
+              min=0.0, max=100.0, min_exclusive=True),
+    ParamSpec('max_cylinder_pressure', 380000.0, DOUBLE,
+              'Maximum brake-cylinder pressure p_max, gauge [Pa] (paper eq. 13).',
+              min=0.0, max=2.0e6, min_exclusive=True),
+    ParamSpec('initial_speed', 44.444, DOUBLE, 'Initial speed of every coach v_i(0) [m/s].',
+              min=0.0, max=200.0),
+    ParamSpec('brake_input', 'pipe_head', STRING,
+              'Which input drives the brakes: pipe_head, pipe_per_coach or cylinder_per_coach.',
+              choices=('pipe_head', 'pipe_per_coach', 'cylinder_per_coach')),
+    ParamSpec('brake_propagation_speed', 250.0, DOUBLE,
+              'Brake-wave propagation speed along the pipe [m/s].',
+              min=0.0, max=1.0e5, min_exclusive=True),
+    ParamSpec('integration_step', 2.0e-3, DOUBLE,
+              'Fixed integrator step [s] (linearly implicit ROS2 method).',
+              min=1.0e-6, max=0.05),
+    ParamSpec('publish_rate', 100.0, DOUBLE, 'Output rate [Hz] in simulation time.',
+              min=0.0, max=10000.0, min_exclusive=True),
+    ParamSpec('real_time_factor', 1.0, DOUBLE,
+              'Simulation seconds per wall second; 0 = as fast as possible.',
+              min=0.0, max=1000.0, dynamic=True, structural=False),
+    ParamSpec('publish_clock', False, BOOL, 'Publish /clock with the simulation time.',
+              dynamic=True, structural=False),
+    ParamSpec('record_bag', '', STRING,
+              'When set, a path: record inputs and outputs to a rosbag2 (MCAP).'),
+    ParamSpec('atmospheric_pressure', 101325.0, DOUBLE,
+              'Atmospheric pressure [Pa]: converts the absolute pressures of FluidPressure '
+              'messages to gauge.', min=50000.0, max=150000.0),
+    # Brake system (beyond the contract; documented in the README).
+    ParamSpec('brake_regime', 'P', STRING,
+              'Brake regime for the default cylinder characteristics: "P" passenger '
+              '(fill 95 % in 4 s, release in 17 s) or "G" goods (24 s, 52 s).',
+              choices=('P', 'G')),
+    ParamSpec('cylinder_fill_time', [], DOUBLE_ARRAY,
+              'Filling characteristic, times [s] (increasing, from 0); empty = regime default.',
+              min=0.0, max=1000.0),
+    ParamSpec('cylinder_fill_fraction', [], DOUBLE_ARRAY,
+              'Filling characteristic, p/p_max at cylinder_fill_time (increasing 0 -> 1).',
+              min=0.0, max=1.0),
+    ParamSpec('cylinder_release_time', [], DOUBLE_ARRAY,
+              'Release characteristic, times [s] (increasing, from 0); empty = regime default.',
+              min=0.0, max=1000.0),
+    ParamSpec('cylinder_release_fraction', [], DOUBLE_ARRAY,
+              'Release characteristic, p/p_max at cylinder_release_time (decreasing 1 -> 0).',
+              min=0.0, max=1.0),
+    ParamSpec('pipe_nominal_pressure', 500000.0, DOUBLE,
+              'Brake-pipe running pressure, gauge [Pa] (UIC: 5 bar).', min=1.0e5, max=1.0e6),
+    ParamSpec('full_service_pressure', 350000.0, DOUBLE,
+              'Brake-pipe pressure at full service, gauge [Pa] (UIC: 3.5 bar).',
+              min=0.0, max=1.0e6),
+    ParamSpec('distributor_sensitivity', 30000.0, DOUBLE,
+              'Pipe-pressure drop below nominal [Pa] that a distributor ignores; a larger '
+              'drop applies the brake (first stage).', min=0.0, max=5.0e5),
+    ParamSpec('max_coupler_displacement', 5.0, DOUBLE,
+              'Numerical-fault bound on |y| [m]: beyond it the coaches would overlap or part '
+              '(a real buffer strokes ~0.1 m); the integration stops with a fault.',
+              min=0.0, max=1000.0, min_exclusive=True),
+    # Node behaviour (issue 6).
+    ParamSpec('input_timeout', 0.0, DOUBLE,
+              'Seconds (wall) without any brake input before it is reported stale; 0 = never.',
+              min=0.0, max=3600.0, dynamic=True, structural=False),
+    ParamSpec('on_input_timeout', 'hold', STRING,
+              'On a stale input: "hold" the last value or apply an "emergency" brake.',
+              choices=('hold', 'emergency'), dynamic=True, structural=False),
+]
+
+PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
+
+
+class ConfigError(ValueError):
+    """A parameter value or a parameter file that cannot be used; the message says why."""
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def validate_value(name: str, value: Any) -> Any:
+    """Check one parameter value; return it normalised (ints to float for doubles).
+
+    Raises :class:`ConfigError` with a one-line reason.
+    """
+    spec = PARAMETERS.get(name)
+    if spec is None:
+        raise ConfigError(f'unknown parameter {name!r}')
+    kind = spec.kind
+    if kind == DOUBLE:
+        if not _is_number(value):
+            raise ConfigError(f'{name}: expected a number, got {type(value).__name__} {value!r}')
+        value = float(value)
+        _check_range(spec, value, name)
+        return value
+    if kind == INTEGER:
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise ConfigError(f'{name}: expected an integer, got {type(value).__name__} {value!r}')
+        _check_range(spec, value, name)
+        return int(value)
+    if kind == BOOL:
+        if not isinstance(value, bool):
+            raise ConfigError(f'{name}: expected true or false, got {value!r}')
+        return value
+    if kind == STRING:
+        if not isinstance(value, str):
+            raise ConfigError(f'{name}: expected a string, got {type(value).__name__} {value!r}')
+        if spec.choices and value not in spec.choices:
+            raise ConfigError(f'{name}: {value!r} is not one of {", ".join(spec.choices)}')
+        return value
+    if kind == DOUBLE_ARRAY:
+        if isinstance(value, (str, bytes)) or not hasattr(value, '__iter__'):
+            raise ConfigError(f'{name}: expected a list of numbers, got {value!r}')
+        out = []
+        for k, item in enumerate(value):
+            if not _is_number(item):
+                raise ConfigError(f'{name}[{k}]: expected a number, got {item!r}')
+            item = float(item)
+            _check_range(spec, item, f'{name}[{k}]')
+            out.append(item)
+        return out
+    raise AssertionError(kind)
+
+
+def _check_range(spec: ParamSpec, value: float, label: str) -> None:
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ConfigError(f'{label}: must be finite, got {value}')
+    if spec.min is not None:
+        if spec.min_exclusive and not value > spec.min:
+            raise ConfigError(f'{label}: must be > {spec.min:g}, got {value:g}')
+        if not spec.min_exclusive and not value >= spec.min:
+            raise ConfigError(f'{label}: must be >= {spec.min:g}, got {value:g}')
+    if spec.max is not None and not value <= spec.max:
+        raise ConfigError(f'{label}: must be <= {spec.max:g}, got {value:g}')
+
+
+@dataclass
+class SimConfig:
+    """All parameters, validated as a whole. Build with :meth:`from_dict`."""
+
+    values: dict[str, Any] = field(default_factory=lambda: {
+        n: (list(s.default) if isinstance(s.default, list) else s.default)
+        for n, s in PARAMETERS.items()})
+
+    def __getattr__(self, name: str) -> Any:
+        try:
+            return self.__dict__['values'][name]
+        except KeyError:
+            raise AttributeError(name) from None
+
+    @classmethod
+    def from_dict(cls, overrides: dict[str, Any] | None = None, *,
+                  ignore_unknown: bool = False) -> 'SimConfig':
+        cfg = cls()
+        for name, value in (overrides or {}).items():
+            if name not in PARAMETERS:
+                if ignore_unknown:
+                    continue
+                raise ConfigError(f'unknown parameter {name!r}')
+            cfg.values[name] = validate_value(name, value)
+        cfg.check()
+        return cfg
+
+    def replace(self, **changes: Any) -> 'SimConfig':
+        merged = dict(self.values)
+        merged.update(changes)
+        return SimConfig.from_dict(merged)
+
+    # -- derived quantities -------------------------------------------------------------
+    @property
+    def n_coaches(self) -> int:
+        return len(self.masses) if self.masses else int(self.num_coaches)
+
+    @property
+    def mass_array(self) -> list[float]:
+        return list(self.masses) if self.masses else [float(self.coach_mass)] * int(self.num_coaches)
+
+    def fill_table(self) -> tuple[list[float], list[float]]:
+        if self.cylinder_fill_time:
+            return list(self.cylinder_fill_time), list(self.cylinder_fill_fraction)
+        times = P_FILL_TIME if self.brake_regime == 'P' else G_FILL_TIME
+        return list(times), list(P_FILL_FRACTION)
+
+    def release_table(self) -> tuple[list[float], list[float]]:
+        if self.cylinder_release_time:
+            return list(self.cylinder_release_time), list(self.cylinder_release_fraction)
+        times = P_RELEASE_TIME if self.brake_regime == 'P' else G_RELEASE_TIME
+        return list(times), list(P_RELEASE_FRACTION)
+
+    def check(self) -> None:
+        """Cross-parameter checks; raises :class:`ConfigError`."""
+        v = self.values
+        if self.masses and len(self.masses) < 2:
+            raise ConfigError(f'masses: a train needs at least 2 coaches, got {len(self.masses)}')
+        if not v['buffer_friction'] < v['buffer_stiffness']:
+            raise ConfigError('buffer_friction must be < buffer_stiffness (k_f < k_e), or the '
+                              'buffer force would change sign on unloading')
+        if not v['draw_gear_friction'] < v['draw_gear_stiffness']:
+            raise ConfigError('draw_gear_friction must be < draw_gear_stiffness (k_fc < k_ec)')
+        if not v['full_service_pressure'] + v['distributor_sensitivity'] < v['pipe_nominal_pressure']:
+            raise ConfigError('full_service_pressure + distributor_sensitivity must be below '
+                              'pipe_nominal_pressure')
+        for kind in ('fill', 'release'):
+            t_name, f_name = f'cylinder_{kind}_time', f'cylinder_{kind}_fraction'
+            times, fracs = v[t_name], v[f_name]
+            if len(times) != len(fracs):
+                raise ConfigError(f'{t_name} and {f_name} must have the same length '
+                                  f'({len(times)} != {len(fracs)})')
+            if not times:
+                continue
+            if len(times) < 2:
+                raise ConfigError(f'{t_name}: a characteristic needs at least 2 points')
+            if times[0] != 0.0 or any(b <= a for a, b in zip(times, times[1:])):
+                raise ConfigError(f'{t_name}: must start at 0 and strictly increase')
+            if kind == 'fill':
+                ok = fracs[0] == 0.0 and fracs[-1] == 1.0 and all(
+                    b > a for a, b in zip(fracs, fracs[1:]))
+                if not ok:
+                    raise ConfigError(f'{f_name}: must rise strictly from 0 to 1')
+            else:
+                ok = fracs[0] == 1.0 and fracs[-1] == 0.0 and all(
+                    b < a for a, b in zip(fracs, fracs[1:]))
+                if not ok:
+                    raise ConfigError(f'{f_name}: must fall strictly from 1 to 0')
+
+
+def read_param_file(path: str, node_name: str = 'train_dynamics') -> dict[str, Any]:
+    """Read the ``ros__parameters`` of ``node_name`` from a ROS 2 parameter file.
+
+    Accepts the node's own key, ``/node``, a namespaced ``/ns/node`` and the ``/**``
+    wildcard (more specific sections win). Returns ``{}`` when the node has no section.
+    Raises :class:`ConfigError` for a missing or malformed file.
+    """
+    import yaml
+
+    try:
+        with open(path, encoding='utf-8') as fh:
+            doc = yaml.safe_load(fh)
+    except FileNotFoundError:
+        raise ConfigError(f'parameter file not found: {path}') from None
+    except (OSError, yaml.YAMLError) as exc:
+        raise ConfigError(f'cannot read parameter file {path}: {exc}'.splitlines()[0]) from None
+    if doc is None:
+        return {}
+    if not isinstance(doc, dict):
+        raise ConfigError(f'{path}: not a ROS 2 parameter file (top level is not a mapping)')
+    merged: dict[str, Any] = {}
+    keys = ['/**'] + [k for k in doc if isinstance(k, str) and k.rstrip('/').split('/')[-1] == node_name]
+    for key in keys:
+        section = doc.get(key)
+        if section is None:
+            continue
+        if not isinstance(section, dict) or 'ros__parameters' not in section:
+            raise ConfigError(f'{path}: section {key!r} has no ros__parameters')
+        params = section['ros__parameters'] or {}
+        if not isinstance(params, dict):
+            raise ConfigError(f'{path}: {key}.ros__parameters is not a mapping')
+        merged.update(params)
+    return merged
+
+
+def load_param_file(path: str) -> SimConfig:
+    """The simulator configuration from a ROS 2 parameter file (``train_dynamics`` node)."""
+    params = read_param_file(path, 'train_dynamics')
+    try:
+        return SimConfig.from_dict(params)
+    except ConfigError as exc:
+        raise ConfigError(f'{path}: {exc}') from None

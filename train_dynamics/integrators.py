@@ -1,0 +1,412 @@
+"""Integrators of the coach chain: the fixed-step real-time method and a reference.
+
+Fixed step: **ROS2**, the two-stage, second-order, L-stable Rosenbrock method of Verwer,
+Spee, Blom and Hundsdorfer (SIAM J. Sci. Comput. 20, 1999), gamma = 1 + 1/sqrt(2).
+
+Why this method: the tanh friction term makes the chain stiff. Its derivative with respect
+to the coupler velocity is u k_f |y| sech^2(u ydot), about 1.4e6 * 0.02 * 1e3 = 3e7 N s/m at
+u = 1e3 and ten times that at u = 1e4; on a 22.5 t reduced mass that is a decay rate of
+1e3 - 1e4 1/s, so an explicit method would need steps of ~1e-5 s. A Rosenbrock method solves
+one linear system per stage with the exact Jacobian instead of iterating Newton to
+convergence: deterministic cost per step, no convergence failure. L-stability damps the
+stiff friction modes in one step instead of letting them ring (the trapezoidal rule would
+ring, and ringing around ydot = 0 is exactly the chattering the paper warns of). ROS2 keeps
+order two for any Jacobian approximation (it is a W-method), so the sign model, whose
+friction has no usable derivative, still integrates consistently: its friction is then
+explicit and chatters around ydot = 0 as the paper reports, bounded by k_f |y|.
+
+The Jacobian of the chain is block structured: d(x')/dv = I and
+M d(v')/d(x, v) = -(D^T K D, D^T C D) with K = diag(dF/dy), C = diag(dF/dydot), so the stage
+equations reduce to one tridiagonal system in the velocity stage,
+(M + g h C_c + g^2 h^2 K_c) b = rhs, solved in O(N) by the Thomas algorithm (the matrix is
+diagonally dominant: masses on the diagonal, k > k_friction in every branch).
+
+Braking is friction: a coach at rest stays at rest while the braking force can hold it
+(|net coupler force| <= Fb), and the brake never pushes a coach backwards. The step treats
+resting coaches as held (their rows fixed at zero velocity) and finds the set of held
+coaches by a short active-set iteration: a held coach whose required holding force exceeds
+the available braking force is released, a moving coach whose velocity would change sign is
+stopped. Momentum bookkeeping is exact: the held coaches' brake force is the one that the
+stage equations require.
+
+Reference: :func:`reference_solution`, scipy ``solve_ivp`` (Radau by default) with the
+analytical sparse Jacobian and tight tolerances, for tests and benchmarks.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import brakes, couplers
+from ._jit import jit
+
+GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
+
+OK = 0
+NON_FINITE = 1
+OUT_OF_RANGE = 2
+STATUS_TEXT = {
+    NON_FINITE: 'state became non-finite at t = {t:.4f} s; integration stopped',
+    OUT_OF_RANGE: 'a coupler displacement left the physically possible range at '
+                  't = {t:.4f} s; integration stopped',
+}
+
+
+@jit
+def solve_tridiagonal(lower: np.ndarray, diag: np.ndarray, upper: np.ndarray,
+                      rhs: np.ndarray) -> np.ndarray:
+    """Thomas algorithm: solve A z = rhs, A tridiagonal (lower[i] = A[i+1, i],
+    upper[i] = A[i, i+1]); A must be diagonally dominant."""
+    n = diag.shape[0]
+    c = np.empty(n)
+    w = np.empty(n)
+    _factor(lower, diag, upper, c, w)
+    z = np.empty(n)
+    _substitute(lower, c, w, rhs, z)
+    return z
+
+
+@jit
+def _factor(lower, diag, upper, c, w):
+    """LU factors of the tridiagonal matrix: c (modified upper), w (pivots)."""
+    n = diag.shape[0]
+    w[0] = diag[0]
+    for i in range(1, n):
+        c[i - 1] = upper[i - 1] / w[i - 1]
+        w[i] = diag[i] - lower[i - 1] * c[i - 1]
+
+
+@jit
+def _substitute(lower, c, w, rhs, z):
+    """Forward and back substitution with the factors of :func:`_factor`; z = A^-1 rhs."""
+    n = w.shape[0]
+    z[0] = rhs[0] / w[0]
+    for i in range(1, n):
+        z[i] = (rhs[i] - lower[i - 1] * z[i - 1]) / w[i]
+    for i in range(n - 2, -1, -1):
+        z[i] -= c[i] * z[i + 1]
+
+
+@jit
+def chain_matvec(k: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """(D^T diag(k) D) w: a coupler property k spread onto the coaches [N]."""
+    dk = k * (w[:-1] - w[1:])
+    out = np.zeros(w.shape[0])
+    out[:-1] += dk
+    out[1:] -= dk
+    return out
+
+
+@jit
+def _net_coupler(F: np.ndarray) -> np.ndarray:
+    out = np.zeros(F.shape[0] + 1)
+    out[:-1] -= F
+    out[1:] += F
+    return out
+
+
+def make_workspace(n: int) -> np.ndarray:
+    """Scratch memory of the kernel: 20 arrays of N (no allocation inside the step loop)."""
+    return np.zeros((20, n))
+
+
+@jit
+def _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws):
+    """F (ws[0]), dF/dy (ws[2]) and the stage-matrix weights g h dF/dydot + (g h)^2 dF/dy
+    (ws[3]) of every coupler at (x, v)."""
+    F0 = ws[0]
+    dfdy = ws[2]
+    kk = ws[3]
+    for j in range(x.shape[0] - 1):
+        f, dy, dv = couplers.coupler_force_scalar(x[j] - x[j + 1], v[j] - v[j + 1], ke[j],
+                                                  kf[j], kec[j], kfc[j], model, u)
+        F0[j] = f
+        dfdy[j] = dy
+        kk[j] = gh * dv + gh * gh * dy
+
+
+@jit
+def _ros2_step(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, ws,
+               x_new, v_new, hold):
+    """One ROS2 step with the coaches in ``held`` fixed at rest, written as fused loops.
+
+    ``brake`` [N] is the signed braking force on the moving coaches (positive retarding).
+    Fills x_new, v_new and ``hold``: the holding force [N] the stage equations require of
+    each held coach (signed, positive retarding; 0 on moving coaches). The couplers'
+    forces and Jacobian at (x, v) must be in ws (:func:`_eval_couplers`).
+    """
+    n = x.shape[0]
+    m = n - 1
+    gh = GAMMA * h
+    F0 = ws[0]
+    dfdy = ws[2]
+    kk = ws[3]
+    diag = ws[4]
+    lower = ws[5]
+    upper = ws[6]
+    rhs1 = ws[7]
+    rhs2 = ws[8]
+    b1 = ws[9]
+    b2 = ws[10]
+    cfac = ws[11]
+    wfac = ws[12]
+    r = ws[13]
+    F2 = ws[14]
+    # A = M + g h C_c + (g h)^2 K_c; rhs1 = g(x, v) - g h K_c v  (free rows, brake apart)
+    for i in range(n):
+        d = masses[i]
+        g = 0.0
+        kv = 0.0
+        if i > 0:
+            d += kk[i - 1]
+            g += F0[i - 1]
+            kv -= dfdy[i - 1] * (v[i - 1] - v[i])
+        if i < m:
+            d += kk[i]
+            g -= F0[i]
+            kv += dfdy[i] * (v[i] - v[i + 1])
+        diag[i] = d
+        rhs1[i] = g - gh * kv
+    for j in range(m):
+        upper[j] = 0.0 if held[j] else -kk[j]
+        lower[j] = 0.0 if held[j + 1] else -kk[j]
+    # the held rows become identity rows with zero right-hand side
+    for i in range(n):
+        b1[i] = diag[i]
+        if held[i]:
+            diag[i] = 1.0
+    _factor(lower, diag, upper, cfac, wfac)
+    for i in range(n):
+        diag[i] = b1[i]          # keep the free diagonal for the holding forces
+        rhs2[i] = 0.0 if held[i] else rhs1[i] - brake[i]
+    _substitute(lower, cfac, wfac, rhs2, b1)
+    # stage 2 at (x + h a1, v + h b1), a1 = v + g h b1
+    for j in range(m):
+        yj = x[j] - x[j + 1] + h * (v[j] - v[j + 1] + gh * (b1[j] - b1[j + 1]))
+        ydj = v[j] - v[j + 1] + h * (b1[j] - b1[j + 1])
+        f, dy, dv = couplers.coupler_force_scalar(yj, ydj, ke[j], kf[j], kec[j], kfc[j],
+                                                  model, u)
+        F2[j] = f
+    for i in range(n):
+        r[i] = v[i] + h * b1[i] - 2.0 * (v[i] + gh * b1[i])
+    for i in range(n):
+        g = 0.0
+        kr = 0.0
+        if i > 0:
+            g += F2[i - 1]
+            kr -= dfdy[i - 1] * (r[i - 1] - r[i])
+        if i < m:
+            g -= F2[i]
+            kr += dfdy[i] * (r[i] - r[i + 1])
+        rhs2[i] = g - 2.0 * masses[i] * b1[i] - gh * kr    # free rows, brake apart
+    for i in range(n):
+        b2[i] = 0.0 if held[i] else rhs2[i] - brake[i]
+    _substitute(lower, cfac, wfac, b2, b2)
+    for i in range(n):
+        a1 = v[i] + gh * b1[i]
+        a2 = r[i] + gh * b2[i]
+        x_new[i] = x[i] + h * (1.5 * a1 + 0.5 * a2)
+        v_new[i] = v[i] + h * (1.5 * b1[i] + 0.5 * b2[i])
+    # holding forces: what the held rows of the full stage equations require
+    for i in range(n):
+        if not held[i]:
+            hold[i] = 0.0
+            continue
+        ab1 = diag[i] * b1[i]
+        ab2 = diag[i] * b2[i]
+        if i > 0:
+            ab1 -= kk[i - 1] * b1[i - 1]
+            ab2 -= kk[i - 1] * b2[i - 1]
+        if i < m:
+            ab1 -= kk[i] * b1[i + 1]
+            ab2 -= kk[i] * b2[i + 1]
+        hold[i] = 0.5 * ((rhs1[i] - ab1) + (rhs2[i] - ab2))
+
+
+# Rows of the coach array and slots of the scalar arrays passed to :func:`advance_chain`
+# (few arguments keep numba's call overhead at a few microseconds).
+X, V, MASS, PCYL, PPIPE, PIPE_IN, CYL_IN, FB_AVAIL, FB_APPLIED, DELAY, APPLIED, HELD = range(12)
+N_COACH_ROWS = 12
+KE, KF, KEC, KFC = range(4)
+S_H, S_U, S_PMAX, S_MU, S_G, S_PNOM, S_PFS, S_SENS, S_HEAD_IN, S_YLIM, S_WB, S_WC = range(12)
+N_SCALARS = 12
+I_MODEL, I_MODE, I_RING_POS = range(3)
+
+
+@jit
+def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
+    """Advance brakes and chain ``n_steps`` fixed steps, in place; returns (steps, status).
+
+    coach: (12, N) rows X..HELD above; cpl: (4, N-1) k_e, k_f, k_ec, k_fc [N/m];
+    sc: float scalars (S_*), iv: int scalars (I_*); fill, rel: (2, L) tables (times [s],
+    p/p_max); ring: head-pressure history; ws: :func:`make_workspace`.
+
+    Each step: the brake system moves to the end of the step (pipe delay, distributors,
+    cylinders: it does not depend on the motion), the braking force over the step is the
+    mean of its values at both ends (trapezoidal, second order), then one ROS2 step with the
+    active set of held coaches.
+    """
+    n = coach.shape[1]
+    m = n - 1
+    x = coach[X]
+    v = coach[V]
+    masses = coach[MASS]
+    p_cyl = coach[PCYL]
+    p_pipe = coach[PPIPE]
+    fb_avail = coach[FB_AVAIL]
+    fb_applied = coach[FB_APPLIED]
+    ke = cpl[KE]
+    kf = cpl[KF]
+    kec = cpl[KEC]
+    kfc = cpl[KFC]
+    h = sc[S_H]
+    u = sc[S_U]
+    p_max = sc[S_PMAX]
+    model = iv[I_MODEL]
+    mode = iv[I_MODE]
+    applied = coach[APPLIED] > 0.5
+    fb = ws[15]
+    signed = ws[16]
+    v_start = ws[17]
+    rel_dir = ws[18]
+    hold = ws[19]
+    x_new = np.empty(n)
+    v_new = np.empty(n)
+    x_old = np.empty(n)
+    hold_set = np.empty(n, dtype=np.bool_)
+    F_old = np.empty(max(m, 1))
+    fill_t = fill[0].copy()
+    fill_f = fill[1].copy()
+    rel_t = rel[0].copy()
+    rel_f = rel[1].copy()
+    gh = GAMMA * h
+    _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws)
+    for step in range(n_steps):
+        # --- brake system to t + h
+        if mode == brakes.PIPE_HEAD:
+            iv[I_RING_POS] = brakes.delay_line_push(ring, iv[I_RING_POS], sc[S_HEAD_IN])
+            brakes.delay_line_read(ring, iv[I_RING_POS], coach[DELAY], p_pipe)
+        elif mode == brakes.PIPE_PER_COACH:
+            p_pipe[:] = coach[PIPE_IN]
+        if mode == brakes.CYLINDER_PER_COACH:
+            p_cyl[:] = coach[CYL_IN]
+        else:
+            target = brakes.distributor_target(p_pipe, applied, sc[S_PNOM], sc[S_PFS],
+                                               sc[S_SENS], p_max)
+            brakes.cylinder_advance(p_cyl, target, h, p_max, fill_t, fill_f, rel_t, rel_f)
+        fb_next = brakes.braking_force(p_cyl, p_max, sc[S_MU], masses, sc[S_G])
+        for i in range(n):
+            fb[i] = 0.5 * (fb_avail[i] + fb_next[i])
+            fb_avail[i] = fb_next[i]
+            hold_set[i] = coach[HELD, i] > 0.5
+            rel_dir[i] = 0.0
+            v_start[i] = v[i]
+        # --- mechanics: active-set iteration over the held coaches
+        extra_work = 0.0
+        for it in range(n + 2):
+            if it > 0:   # the active set changed some starting velocities
+                _eval_couplers(x, v_start, ke, kf, kec, kfc, model, u, gh, ws)
+            for i in range(n):
+                if v_start[i] > 0.0:
+                    signed[i] = fb[i]
+                elif v_start[i] < 0.0:
+                    signed[i] = -fb[i]
+                else:
+                    signed[i] = rel_dir[i] * fb[i]
+            _ros2_step(h, x, v_start, hold_set, signed, masses, ke, kf, kec, kfc, model, u,
+                       ws, x_new, v_new, hold)
+            changed = False
+            for i in range(n):
+                if hold_set[i] and abs(hold[i]) > fb[i] * (1.0 + 1e-12):
+                    # the brake cannot hold it: it slides, braked against its motion
+                    hold_set[i] = False
+                    rel_dir[i] = 1.0 if hold[i] > 0.0 else -1.0
+                    v_start[i] = 0.0
+                    changed = True
+            if not changed:
+                for i in range(n):
+                    if (not hold_set[i]) and rel_dir[i] == 0.0 and v_start[i] != 0.0 and \
+                            v_new[i] * v_start[i] <= 0.0:
+                        # stops within the step: the brake holds it from the step's start
+                        hold_set[i] = True
+                        extra_work += 0.5 * masses[i] * v_start[i] * v_start[i]
+                        v_start[i] = 0.0
+                        changed = True
+            if not changed:
+                break
+        # --- health, then accept
+        for i in range(n):
+            if not (np.isfinite(x_new[i]) and np.isfinite(v_new[i])):
+                _store_flags(coach, applied)
+                return step, NON_FINITE
+        for j in range(m):
+            if abs(x_new[j] - x_new[j + 1]) > sc[S_YLIM]:
+                _store_flags(coach, applied)
+                return step, OUT_OF_RANGE
+        wb = extra_work
+        wc = 0.0
+        F0 = ws[0]
+        for j in range(m):
+            F_old[j] = F0[j]
+        for i in range(n):
+            b = hold[i] if hold_set[i] else signed[i]
+            wb += b * (x_new[i] - x[i])
+            fb_applied[i] = abs(b)
+            x_old[i] = x[i]
+            x[i] = x_new[i]
+            v[i] = v_new[i]
+            coach[HELD, i] = 1.0 if hold_set[i] else 0.0
+        # couplers at the new state: the work over the step, and the next step's start
+        _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws)
+        for j in range(m):
+            wc += 0.5 * (F_old[j] + F0[j]) * ((x[j] - x[j + 1]) - (x_old[j] - x_old[j + 1]))
+        sc[S_WB] += wb
+        sc[S_WC] += wc
+    _store_flags(coach, applied)
+    return n_steps, OK
+
+
+@jit
+def _store_flags(coach, applied):
+    for i in range(applied.shape[0]):
+        coach[APPLIED, i] = 1.0 if applied[i] else 0.0
+
+
+# ----------------------------------------------------------------------------- reference
+def reference_solution(masses, ke, kf, kec, kfc, u, v0, brake_of_t, t_end, *,
+                       t_eval=None, rtol=1e-9, atol=1e-11, method='Radau', x0=None):
+    """Tight-tolerance solution of eqs. (5)-(7) with the tanh law (eqs. 14-16).
+
+    ``brake_of_t(t) -> (N,)`` braking forces [N] (positive retarding), valid while every
+    coach moves forward (the reference does not model the brake holding a coach at rest).
+    Uses scipy ``solve_ivp`` with the analytical sparse Jacobian of the chain (state
+    [x, v]). Returns the ``OdeResult`` (``.t``, ``.y`` with x = y[:N], v = y[N:]).
+    """
+    import scipy.sparse as sp
+    from scipy.integrate import solve_ivp
+
+    masses = np.asarray(masses, float)
+    n = masses.shape[0]
+    args = [np.broadcast_to(np.asarray(k, float), (n - 1,)).copy() for k in (ke, kf, kec, kfc)]
+    model = couplers.TANH
+    inv_m = 1.0 / masses
+    D = sp.diags([np.ones(n - 1), -np.ones(n - 1)], [0, 1], shape=(n - 1, n), format='csr')
+    eye = sp.identity(n, format='csr')
+
+    def rhs(t, z):
+        x, v = z[:n], z[n:]
+        F = couplers.coupler_force(x[:-1] - x[1:], v[:-1] - v[1:], *args, model, float(u))
+        return np.concatenate([v, (_net_coupler(F) - brake_of_t(t)) * inv_m])
+
+    def jac(t, z):
+        x, v = z[:n], z[n:]
+        dfdy, dfdv = couplers.coupler_force_jacobian(x[:-1] - x[1:], v[:-1] - v[1:], *args,
+                                                     model, float(u))
+        minv = sp.diags(inv_m)
+        kx = -(minv @ D.T @ sp.diags(dfdy) @ D)
+        kv = -(minv @ D.T @ sp.diags(dfdv) @ D)
+        return sp.bmat([[None, eye], [kx, kv]], format='csc')
+
+    z0 = np.concatenate([np.zeros(n) if x0 is None else np.asarray(x0, float),
+                         np.broadcast_to(np.asarray(v0, float), (n,))])
+    return solve_ivp(rhs, (0.0, t_end), z0, method=method, jac=jac, t_eval=t_eval,
+                     rtol=rtol, atol=atol)
