@@ -41,6 +41,10 @@ from ._jit import jit
 
 GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 
+#: [m/s] a braked coach slower than this is at rest (1 micrometre per second): without it a
+#: coach whose coupler force exactly balances its sliding brake could creep for ever
+V_REST = 1e-6
+
 OK = 0
 NON_FINITE = 1
 OUT_OF_RANGE = 2
@@ -324,8 +328,9 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
                     changed = True
             if not changed:
                 for i in range(n):
-                    if (not hold_set[i]) and rel_dir[i] == 0.0 and v_start[i] != 0.0 and \
-                            v_new[i] * v_start[i] <= 0.0:
+                    if (not hold_set[i]) and rel_dir[i] == 0.0 and v_start[i] != 0.0 and (
+                            v_new[i] * v_start[i] <= 0.0
+                            or (abs(v_new[i]) < V_REST and fb[i] > 0.0)):
                         # stops within the step: the brake holds it from the step's start
                         hold_set[i] = True
                         extra_work += 0.5 * masses[i] * v_start[i] * v_start[i]
