@@ -29,11 +29,11 @@ def first_time_above(sim, threshold, t_end):
 def test_braking_force_eq13_and_adhesion_limit_eq12():
     m = np.array([45000.0, 45000.0, 80000.0, 45000.0])
     p = np.array([P_MAX, 0.5 * P_MAX, P_MAX, -1e4])
-    Fb = brakes.braking_force(p, P_MAX, 0.1, m, 9.81)
+    Fb = brakes.braking_force(p, P_MAX, 0.1, m, 9.81, np.empty(4))
     np.testing.assert_allclose(Fb, [0.1 * 45000 * 9.81, 0.05 * 45000 * 9.81,
                                     0.1 * 80000 * 9.81, 0.0])
     # a cylinder over p_max cannot exceed the adhesion limit mu_a m g (eq. 12)
-    assert brakes.braking_force(np.array([2 * P_MAX]), P_MAX, 0.1, m[:1], 9.81)[0] == \
+    assert brakes.braking_force(np.array([2 * P_MAX]), P_MAX, 0.1, m[:1], 9.81, np.empty(1))[0] == \
         pytest.approx(0.1 * 45000 * 9.81)
 
 

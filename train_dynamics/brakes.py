@@ -25,6 +25,8 @@ are gauge [Pa]; all functions are vectorised over the coaches and compiled with 
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 
 from ._jit import jit
@@ -42,13 +44,12 @@ RELEASE_FRACTION_OF_SENSITIVITY = 0.5
 
 @jit
 def braking_force(p_cyl: np.ndarray, p_max: float, mu_a: float, mass: np.ndarray,
-                  g: float) -> np.ndarray:
-    """Braking force Fb_i [N], eq. (13), limited by adhesion, eq. (12).
+                  g: float, out: np.ndarray) -> np.ndarray:
+    """Braking force Fb_i [N], eq. (13), limited by adhesion, eq. (12); written to ``out``.
 
     p_cyl gauge [Pa]; p_max gauge [Pa]; mass [kg]; g [m/s^2]. A cylinder pressure above
     p_max cannot brake harder than mu_a m g; a negative one does not brake at all.
     """
-    out = np.empty(p_cyl.shape[0])
     for i in range(p_cyl.shape[0]):
         ratio = min(max(p_cyl[i] / p_max, 0.0), 1.0)
         out[i] = mu_a * mass[i] * g * ratio
@@ -61,33 +62,48 @@ def pipe_delays(n: int, coach_length: float, speed: float) -> np.ndarray:
 
 
 @jit
+def delay_split(delay_steps: np.ndarray, k0: np.ndarray, frac: np.ndarray) -> None:
+    """Split delays in steps into whole steps k0 and a fraction for interpolation."""
+    for i in range(delay_steps.shape[0]):
+        k0[i] = int(np.floor(delay_steps[i]))
+        frac[i] = delay_steps[i] - k0[i]
+
+
+@jit
 def delay_line_push(ring: np.ndarray, pos: int, value: float) -> int:
     """Store the head pressure of a new step in the ring buffer; return the new position."""
-    pos = (pos + 1) % ring.shape[0]
+    pos += 1
+    if pos >= ring.shape[0]:
+        pos = 0
     ring[pos] = value
     return pos
 
 
 @jit
-def delay_line_read(ring: np.ndarray, pos: int, delay_steps: np.ndarray, out: np.ndarray) -> None:
-    """Head pressure ``delay_steps`` integration steps ago (linear interpolation) [Pa]."""
+def delay_line_read(ring: np.ndarray, pos: int, k0: np.ndarray, frac: np.ndarray,
+                    out: np.ndarray) -> None:
+    """Head pressure k0 + frac steps ago at each coach (linear interpolation) [Pa]."""
     size = ring.shape[0]
-    for i in range(delay_steps.shape[0]):
-        k0 = int(np.floor(delay_steps[i]))
-        frac = delay_steps[i] - k0
-        out[i] = (1.0 - frac) * ring[(pos - k0) % size] + frac * ring[(pos - k0 - 1) % size]
+    for i in range(k0.shape[0]):
+        i0 = pos - k0[i]
+        if i0 < 0:
+            i0 += size
+        i1 = i0 - 1
+        if i1 < 0:
+            i1 += size
+        out[i] = (1.0 - frac[i]) * ring[i0] + frac[i] * ring[i1]
 
 
 @jit
 def distributor_target(p_pipe: np.ndarray, applied: np.ndarray, p_nominal: float,
-                       p_full_service: float, sensitivity: float, p_max: float) -> np.ndarray:
-    """Target cylinder pressure [Pa] of each distributor; updates ``applied`` in place.
+                       p_full_service: float, sensitivity: float, p_max: float,
+                       out: np.ndarray) -> np.ndarray:
+    """Target cylinder pressure [Pa] of each distributor into ``out``; updates ``applied``.
 
     drop = p_nominal - p_pipe. Applies when drop > sensitivity, releases when
     drop < sensitivity/2 (hysteresis); while applied, target = p_max * drop /
     (p_nominal - p_full_service), limited to [0, p_max].
     """
-    out = np.empty(p_pipe.shape[0])
     span = p_nominal - p_full_service
     for i in range(p_pipe.shape[0]):
         drop = p_nominal - p_pipe[i]
@@ -99,24 +115,52 @@ def distributor_target(p_pipe: np.ndarray, applied: np.ndarray, p_nominal: float
     return out
 
 
+CylinderTables = namedtuple('CylinderTables', ['fill_t', 'fill_f', 'rel_t', 'rel_f',
+                                               'rel_t_rising', 'rel_f_rising'])
+CylinderTables.__doc__ = """Filling (p/p_max rising 0 -> 1 against time [s]) and release
+(falling 1 -> 0) characteristics; ``*_rising`` are the release table reversed, for the
+inverse look-up."""
+
+
+def cylinder_tables(fill_t, fill_f, rel_t, rel_f) -> CylinderTables:
+    arr = [np.asarray(a, dtype=float) for a in (fill_t, fill_f, rel_t, rel_f)]
+    return CylinderTables(*arr, arr[2][::-1].copy(), arr[3][::-1].copy())
+
+
+@jit
+def table_interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
+    """Piecewise-linear table look-up, clamped at both ends (np.interp for one point;
+    a linear scan is fastest for the short characteristics used here)."""
+    if x <= xp[0]:
+        return fp[0]
+    last = xp.shape[0] - 1
+    if x >= xp[last]:
+        return fp[last]
+    k = 1
+    while xp[k] < x:
+        k += 1
+    w = (x - xp[k - 1]) / (xp[k] - xp[k - 1])
+    return fp[k - 1] + w * (fp[k] - fp[k - 1])
+
+
 @jit
 def cylinder_advance(p_cyl: np.ndarray, target: np.ndarray, dt: float, p_max: float,
-                     fill_t: np.ndarray, fill_f: np.ndarray,
-                     rel_t: np.ndarray, rel_f: np.ndarray) -> None:
+                     tables) -> None:
     """Move the cylinder pressures ``p_cyl`` [Pa] (in place) ``dt`` seconds toward ``target``.
 
-    Rising: along the filling table (fill_t [s], fill_f = p/p_max rising 0 -> 1).
-    Falling: along the release table (rel_t [s], rel_f = p/p_max falling 1 -> 0).
+    Rising: along the filling table; falling: along the release table
+    (:class:`CylinderTables`). The time on the curve at the present pressure is found by
+    inverse interpolation, and the cylinder moves dt further along the curve.
     """
-    rel_f_rising = rel_f[::-1].copy()
-    rel_t_rising = rel_t[::-1].copy()
     for i in range(p_cyl.shape[0]):
         frac = min(max(p_cyl[i] / p_max, 0.0), 1.0)
         goal = min(max(target[i] / p_max, 0.0), 1.0)
-        if goal > frac:      # time on the filling curve at this pressure, then dt further
-            tau = np.interp(frac, fill_f, fill_t)
-            frac = min(np.interp(tau + dt, fill_t, fill_f), goal)
+        if goal > frac:
+            tau = table_interp(frac, tables.fill_f, tables.fill_t)
+            frac = min(table_interp(tau + dt, tables.fill_t, tables.fill_f), goal)
         elif goal < frac:
-            tau = np.interp(frac, rel_f_rising, rel_t_rising)
-            frac = max(np.interp(tau + dt, rel_t, rel_f), goal)
+            tau = table_interp(frac, tables.rel_f_rising, tables.rel_t_rising)
+            frac = max(table_interp(tau + dt, tables.rel_t, tables.rel_f), goal)
+        else:
+            continue
         p_cyl[i] = frac * p_max

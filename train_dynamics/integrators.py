@@ -59,35 +59,20 @@ STATUS_TEXT = {
 def solve_tridiagonal(lower: np.ndarray, diag: np.ndarray, upper: np.ndarray,
                       rhs: np.ndarray) -> np.ndarray:
     """Thomas algorithm: solve A z = rhs, A tridiagonal (lower[i] = A[i+1, i],
-    upper[i] = A[i, i+1]); A must be diagonally dominant."""
+    upper[i] = A[i, i+1]); A must be diagonally dominant (no pivoting)."""
     n = diag.shape[0]
     c = np.empty(n)
-    w = np.empty(n)
-    _factor(lower, diag, upper, c, w)
+    winv = np.empty(n)
     z = np.empty(n)
-    _substitute(lower, c, w, rhs, z)
-    return z
-
-
-@jit
-def _factor(lower, diag, upper, c, w):
-    """LU factors of the tridiagonal matrix: c (modified upper), w (pivots)."""
-    n = diag.shape[0]
-    w[0] = diag[0]
+    winv[0] = 1.0 / diag[0]
+    z[0] = rhs[0] * winv[0]
     for i in range(1, n):
-        c[i - 1] = upper[i - 1] / w[i - 1]
-        w[i] = diag[i] - lower[i - 1] * c[i - 1]
-
-
-@jit
-def _substitute(lower, c, w, rhs, z):
-    """Forward and back substitution with the factors of :func:`_factor`; z = A^-1 rhs."""
-    n = w.shape[0]
-    z[0] = rhs[0] / w[0]
-    for i in range(1, n):
-        z[i] = (rhs[i] - lower[i - 1] * z[i - 1]) / w[i]
+        c[i - 1] = upper[i - 1] * winv[i - 1]
+        winv[i] = 1.0 / (diag[i] - lower[i - 1] * c[i - 1])
+        z[i] = (rhs[i] - lower[i - 1] * z[i - 1]) * winv[i]
     for i in range(n - 2, -1, -1):
         z[i] -= c[i] * z[i + 1]
+    return z
 
 
 @jit
@@ -108,18 +93,25 @@ def _net_coupler(F: np.ndarray) -> np.ndarray:
     return out
 
 
+# Rows of the kernel's scratch memory (one array, no allocation inside the step loop).
+(W_F, W_DFDY, W_KK, W_DIAG, W_LOWER, W_RHS1, W_RHS2, W_B1, W_B2, W_C, W_WINV, W_F2,
+ W_FB, W_SIGNED, W_VSTART, W_RELDIR, W_HOLD, W_TARGET, W_FBNEXT, W_K0, W_FRAC, W_XNEW,
+ W_VNEW, W_XOLD) = range(24)
+N_WORK_ROWS = 24
+
+
 def make_workspace(n: int) -> np.ndarray:
-    """Scratch memory of the kernel: 20 arrays of N (no allocation inside the step loop)."""
-    return np.zeros((20, n))
+    """Scratch memory of the kernel (N_WORK_ROWS arrays of N)."""
+    return np.zeros((N_WORK_ROWS, n))
 
 
 @jit
 def _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws):
-    """F (ws[0]), dF/dy (ws[2]) and the stage-matrix weights g h dF/dydot + (g h)^2 dF/dy
-    (ws[3]) of every coupler at (x, v)."""
-    F0 = ws[0]
-    dfdy = ws[2]
-    kk = ws[3]
+    """F, dF/dy and the stage-matrix weights g h dF/dydot + (g h)^2 dF/dy of every coupler
+    at (x, v), into ws."""
+    F0 = ws[W_F]
+    dfdy = ws[W_DFDY]
+    kk = ws[W_KK]
     for j in range(x.shape[0] - 1):
         f, dy, dv = couplers.coupler_force_scalar(x[j] - x[j + 1], v[j] - v[j + 1], ke[j],
                                                   kf[j], kec[j], kfc[j], model, u)
@@ -131,31 +123,36 @@ def _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws):
 @jit
 def _ros2_step(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, ws,
                x_new, v_new, hold):
-    """One ROS2 step with the coaches in ``held`` fixed at rest, written as fused loops.
+    """One ROS2 step with the coaches in ``held`` fixed at rest.
 
     ``brake`` [N] is the signed braking force on the moving coaches (positive retarding).
     Fills x_new, v_new and ``hold``: the holding force [N] the stage equations require of
     each held coach (signed, positive retarding; 0 on moving coaches). The couplers'
     forces and Jacobian at (x, v) must be in ws (:func:`_eval_couplers`).
+
+    Stage equations, with A = M + g h C_c + (g h)^2 K_c (tridiagonal):
+      A b1 = g(x, v) - g h K_c v - Fb,                        a1 = v + g h b1
+      A b2 = g(x + h a1, v + h b1) - 2 M b1 - g h K_c r - Fb,  r = v + h b1 - 2 a1,
+                                                               a2 = r + g h b2
+      x' = x + h (3/2 a1 + 1/2 a2),  v' = v + h (3/2 b1 + 1/2 b2).
+    Written as fused loops: assembly, LU factorisation and forward substitution in one pass.
     """
     n = x.shape[0]
     m = n - 1
     gh = GAMMA * h
-    F0 = ws[0]
-    dfdy = ws[2]
-    kk = ws[3]
-    diag = ws[4]
-    lower = ws[5]
-    upper = ws[6]
-    rhs1 = ws[7]
-    rhs2 = ws[8]
-    b1 = ws[9]
-    b2 = ws[10]
-    cfac = ws[11]
-    wfac = ws[12]
-    r = ws[13]
-    F2 = ws[14]
-    # A = M + g h C_c + (g h)^2 K_c; rhs1 = g(x, v) - g h K_c v  (free rows, brake apart)
+    F0 = ws[W_F]
+    dfdy = ws[W_DFDY]
+    kk = ws[W_KK]
+    diag = ws[W_DIAG]       # diagonal of the free rows (for the holding forces)
+    lower = ws[W_LOWER]     # A[i+1, i] of the effective matrix
+    rhs1 = ws[W_RHS1]       # right-hand sides of the free rows, brake apart
+    rhs2 = ws[W_RHS2]
+    b1 = ws[W_B1]
+    b2 = ws[W_B2]
+    c = ws[W_C]
+    winv = ws[W_WINV]
+    F2 = ws[W_F2]
+    # stage 1: assemble, factor and forward-substitute in one sweep
     for i in range(n):
         d = masses[i]
         g = 0.0
@@ -163,55 +160,63 @@ def _ros2_step(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, ws,
         if i > 0:
             d += kk[i - 1]
             g += F0[i - 1]
-            kv -= dfdy[i - 1] * (v[i - 1] - v[i])
+            kv += dfdy[i - 1] * (v[i] - v[i - 1])
         if i < m:
             d += kk[i]
             g -= F0[i]
             kv += dfdy[i] * (v[i] - v[i + 1])
         diag[i] = d
         rhs1[i] = g - gh * kv
-    for j in range(m):
-        upper[j] = 0.0 if held[j] else -kk[j]
-        lower[j] = 0.0 if held[j + 1] else -kk[j]
-    # the held rows become identity rows with zero right-hand side
-    for i in range(n):
-        b1[i] = diag[i]
         if held[i]:
-            diag[i] = 1.0
-    _factor(lower, diag, upper, cfac, wfac)
-    for i in range(n):
-        diag[i] = b1[i]          # keep the free diagonal for the holding forces
-        rhs2[i] = 0.0 if held[i] else rhs1[i] - brake[i]
-    _substitute(lower, cfac, wfac, rhs2, b1)
+            d = 1.0
+            r1 = 0.0
+        else:
+            r1 = rhs1[i] - brake[i]
+        if i == 0:
+            winv[0] = 1.0 / d
+            b1[0] = r1 * winv[0]
+        else:
+            up = 0.0 if held[i - 1] else -kk[i - 1]     # A[i-1, i]
+            lo = 0.0 if held[i] else -kk[i - 1]         # A[i, i-1]
+            lower[i - 1] = lo
+            c[i - 1] = up * winv[i - 1]
+            winv[i] = 1.0 / (d - lo * c[i - 1])
+            b1[i] = (r1 - lo * b1[i - 1]) * winv[i]
+    for i in range(n - 2, -1, -1):
+        b1[i] -= c[i] * b1[i + 1]
     # stage 2 at (x + h a1, v + h b1), a1 = v + g h b1
     for j in range(m):
-        yj = x[j] - x[j + 1] + h * (v[j] - v[j + 1] + gh * (b1[j] - b1[j + 1]))
-        ydj = v[j] - v[j + 1] + h * (b1[j] - b1[j + 1])
-        f, dy, dv = couplers.coupler_force_scalar(yj, ydj, ke[j], kf[j], kec[j], kfc[j],
-                                                  model, u)
+        dv = v[j] - v[j + 1]
+        db = b1[j] - b1[j + 1]
+        f, _, _ = couplers.coupler_force_scalar(
+            x[j] - x[j + 1] + h * (dv + gh * db), dv + h * db, ke[j], kf[j], kec[j], kfc[j],
+            model, u)
         F2[j] = f
-    for i in range(n):
-        r[i] = v[i] + h * b1[i] - 2.0 * (v[i] + gh * b1[i])
+    hr = h - 2.0 * gh            # r = v + h b1 - 2 a1 = (h - 2 g h) b1 - v
     for i in range(n):
         g = 0.0
         kr = 0.0
+        ri = hr * b1[i] - v[i]
         if i > 0:
             g += F2[i - 1]
-            kr -= dfdy[i - 1] * (r[i - 1] - r[i])
+            kr += dfdy[i - 1] * (ri - (hr * b1[i - 1] - v[i - 1]))
         if i < m:
             g -= F2[i]
-            kr += dfdy[i] * (r[i] - r[i + 1])
-        rhs2[i] = g - 2.0 * masses[i] * b1[i] - gh * kr    # free rows, brake apart
-    for i in range(n):
-        b2[i] = 0.0 if held[i] else rhs2[i] - brake[i]
-    _substitute(lower, cfac, wfac, b2, b2)
+            kr += dfdy[i] * (ri - (hr * b1[i + 1] - v[i + 1]))
+        rhs2[i] = g - 2.0 * masses[i] * b1[i] - gh * kr
+        r2 = 0.0 if held[i] else rhs2[i] - brake[i]
+        if i == 0:
+            b2[0] = r2 * winv[0]
+        else:
+            b2[i] = (r2 - lower[i - 1] * b2[i - 1]) * winv[i]
+    for i in range(n - 2, -1, -1):
+        b2[i] -= c[i] * b2[i + 1]
+    # the new state, and the holding forces the held rows of the stage equations require
     for i in range(n):
         a1 = v[i] + gh * b1[i]
-        a2 = r[i] + gh * b2[i]
+        a2 = hr * b1[i] - v[i] + gh * b2[i]
         x_new[i] = x[i] + h * (1.5 * a1 + 0.5 * a2)
         v_new[i] = v[i] + h * (1.5 * b1[i] + 0.5 * b2[i])
-    # holding forces: what the held rows of the full stage equations require
-    for i in range(n):
         if not held[i]:
             hold[i] = 0.0
             continue
@@ -268,36 +273,39 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
     model = iv[I_MODEL]
     mode = iv[I_MODE]
     applied = coach[APPLIED] > 0.5
-    fb = ws[15]
-    signed = ws[16]
-    v_start = ws[17]
-    rel_dir = ws[18]
-    hold = ws[19]
-    x_new = np.empty(n)
-    v_new = np.empty(n)
-    x_old = np.empty(n)
+    fb = ws[W_FB]
+    signed = ws[W_SIGNED]
+    v_start = ws[W_VSTART]
+    rel_dir = ws[W_RELDIR]
+    hold = ws[W_HOLD]
+    target = ws[W_TARGET]
+    fb_next = ws[W_FBNEXT]
+    x_new = ws[W_XNEW]
+    v_new = ws[W_VNEW]
+    x_old = ws[W_XOLD]
     hold_set = np.empty(n, dtype=np.bool_)
     F_old = np.empty(max(m, 1))
-    fill_t = fill[0].copy()
-    fill_f = fill[1].copy()
-    rel_t = rel[0].copy()
-    rel_f = rel[1].copy()
+    tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
+                                   rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
+    k0 = np.empty(n, dtype=np.int64)
+    frac = ws[W_FRAC]
+    brakes.delay_split(coach[DELAY], k0, frac)
     gh = GAMMA * h
     _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws)
     for step in range(n_steps):
         # --- brake system to t + h
         if mode == brakes.PIPE_HEAD:
             iv[I_RING_POS] = brakes.delay_line_push(ring, iv[I_RING_POS], sc[S_HEAD_IN])
-            brakes.delay_line_read(ring, iv[I_RING_POS], coach[DELAY], p_pipe)
+            brakes.delay_line_read(ring, iv[I_RING_POS], k0, frac, p_pipe)
         elif mode == brakes.PIPE_PER_COACH:
             p_pipe[:] = coach[PIPE_IN]
         if mode == brakes.CYLINDER_PER_COACH:
             p_cyl[:] = coach[CYL_IN]
         else:
-            target = brakes.distributor_target(p_pipe, applied, sc[S_PNOM], sc[S_PFS],
-                                               sc[S_SENS], p_max)
-            brakes.cylinder_advance(p_cyl, target, h, p_max, fill_t, fill_f, rel_t, rel_f)
-        fb_next = brakes.braking_force(p_cyl, p_max, sc[S_MU], masses, sc[S_G])
+            brakes.distributor_target(p_pipe, applied, sc[S_PNOM], sc[S_PFS], sc[S_SENS],
+                                      p_max, target)
+            brakes.cylinder_advance(p_cyl, target, h, p_max, tables)
+        brakes.braking_force(p_cyl, p_max, sc[S_MU], masses, sc[S_G], fb_next)
         for i in range(n):
             fb[i] = 0.5 * (fb_avail[i] + fb_next[i])
             fb_avail[i] = fb_next[i]
@@ -339,17 +347,20 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
             if not changed:
                 break
         # --- health, then accept
+        bad = False
         for i in range(n):
             if not (np.isfinite(x_new[i]) and np.isfinite(v_new[i])):
-                _store_flags(coach, applied)
-                return step, NON_FINITE
+                bad = True
+        if bad:
+            _store_flags(coach, applied)
+            return step, NON_FINITE
         for j in range(m):
             if abs(x_new[j] - x_new[j + 1]) > sc[S_YLIM]:
                 _store_flags(coach, applied)
                 return step, OUT_OF_RANGE
         wb = extra_work
         wc = 0.0
-        F0 = ws[0]
+        F0 = ws[W_F]
         for j in range(m):
             F_old[j] = F0[j]
         for i in range(n):
