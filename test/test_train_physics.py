@@ -17,14 +17,16 @@ def test_momentum_balance_eq8_to_round_off():
     sim = paper_sim(masses=[45000.0, 60000.0, 30000.0, 52000.0, 45000.0])
     impulse_scale = sim.h * MU * G * 60000.0
     worst = 0.0
-    for _ in range(3000):                       # 6 s: the brake wave and the buffer shocks
+    peak = 0.0
+    while sim.t < 8.0:                          # the brake wave and the buffer shocks
         p0 = sim.momentum
         sim.advance(1)
         assert not sim.held.any()
         balance = (sim.momentum - p0) + sim.h * np.sum(sim.brake_force)
         worst = max(worst, abs(balance))
+        peak = max(peak, np.max(np.abs(sim.coupler_force)))
     assert worst < 1e-9 * impulse_scale * 1e3   # round-off of ~1e6 kg m/s sums
-    assert np.ptp(sim.coupler_force) > 100.0    # the couplers did work in that time
+    assert peak > 1000.0                        # the couplers were loaded meanwhile
 
 
 def test_energy_balance_paper_scenario():
