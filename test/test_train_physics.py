@@ -129,3 +129,20 @@ def test_fault_stops_integration_and_keeps_state():
     assert np.all(np.abs(sim.y) <= 0.001)
     sim.reset()
     assert sim.fault is None and sim.t == 0.0
+
+
+def test_mixed_vehicles_per_coupler_constants():
+    """A train can mix vehicles: each coupler uses its own constants (eqs. 2-3)."""
+    ke = [2.8e6, 8.0e6, 2.8e6]
+    sim = TrainSimulator(SimConfig.from_dict({'num_coaches': 4, 'initial_speed': 10.0}),
+                         coupler_constants={'buffer_stiffness': ke})
+    sim.coach[I.V, 3] = 10.5          # the last coach runs into the train
+    sim.advance_to(0.3)
+    y, yd = sim.y, sim.ydot
+    s = np.tanh(1000.0 * yd)
+    expected = np.where(y < 0, (np.array(ke) - 1.4e6 * s) * y, (5.46e6 + 2.43e6 * s) * y)
+    np.testing.assert_allclose(sim.coupler_force, expected, rtol=1e-12)
+    assert y[2] < 0.0                  # the impact compressed the last coupler
+    with pytest.raises(ValueError):
+        TrainSimulator(SimConfig.from_dict({'num_coaches': 4}),
+                       coupler_constants={'buffer_friction': [3e6, 1e6, 1e6]})

@@ -55,16 +55,30 @@ class TrainSimulator:
     takes effect at the next integration step. Outputs are numpy arrays (copies).
     """
 
-    def __init__(self, cfg: SimConfig):
+    #: per-coupler constants that ``coupler_constants`` may override (arrays of N-1)
+    COUPLER_CONSTANTS = ('buffer_stiffness', 'buffer_friction', 'draw_gear_stiffness',
+                         'draw_gear_friction')
+
+    def __init__(self, cfg: SimConfig, coupler_constants: dict | None = None):
+        """``coupler_constants``: optional arrays of N-1 values per name of
+        :attr:`COUPLER_CONSTANTS` [N/m], for a train that mixes vehicles (coupler i joins
+        coaches i and i+1); the scalar parameters of ``cfg`` fill the rest."""
         self.cfg = cfg
         self.n = n = cfg.n_coaches
         self.h = float(cfg.integration_step)
         self.masses = np.asarray(cfg.mass_array, dtype=float)
         self.cpl = np.empty((4, n - 1))
-        self.cpl[I.KE] = cfg.buffer_stiffness
-        self.cpl[I.KF] = cfg.buffer_friction
-        self.cpl[I.KEC] = cfg.draw_gear_stiffness
-        self.cpl[I.KFC] = cfg.draw_gear_friction
+        extra = dict(coupler_constants or {})
+        for row, name in enumerate(self.COUPLER_CONSTANTS):
+            value = extra.pop(name, cfg.values[name])
+            arr = np.broadcast_to(np.asarray(value, dtype=float), (n - 1,))
+            if not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
+                raise ValueError(f'{name}: need {n - 1} finite values >= 0')
+            self.cpl[row] = arr
+        if extra:
+            raise ValueError(f'unknown coupler constants: {", ".join(sorted(extra))}')
+        if np.any(self.cpl[I.KF] >= self.cpl[I.KE]) or np.any(self.cpl[I.KFC] >= self.cpl[I.KEC]):
+            raise ValueError('every coupler needs k_f < k_e and k_fc < k_ec')
         self.ke, self.kf, self.kec, self.kfc = self.cpl
         self.mode = brakes.MODE_CODES[cfg.brake_input]
         self.fill = np.asarray(cfg.fill_table(), dtype=float)
