@@ -306,6 +306,27 @@ class SimConfig:
                     raise ConfigError(f'{f_name}: must fall strictly from 1 to 0')
 
 
+def _ros_yaml_loader():
+    """A safe YAML loader that reads 2.8e6 and 1e-3 as floats, as ROS 2's parser does
+    (PyYAML's YAML 1.1 rules would read them as strings)."""
+    import re
+
+    import yaml
+
+    class RosParamLoader(yaml.SafeLoader):
+        pass
+
+    RosParamLoader.add_implicit_resolver(
+        'tag:yaml.org,2002:float',
+        re.compile(r'^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$'),
+        list('-+0123456789'))
+    return RosParamLoader
+
+
+#: parameters every ROS 2 node has; a parameter file may set them, the model ignores them
+ROS_BUILTIN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
+
+
 def read_param_file(path: str, node_name: str = 'train_dynamics') -> dict[str, Any]:
     """Read the ``ros__parameters`` of ``node_name`` from a ROS 2 parameter file.
 
@@ -317,10 +338,10 @@ def read_param_file(path: str, node_name: str = 'train_dynamics') -> dict[str, A
 
     try:
         with open(path, encoding='utf-8') as fh:
-            doc = yaml.safe_load(fh)
+            doc = yaml.load(fh, Loader=_ros_yaml_loader())
     except FileNotFoundError:
         raise ConfigError(f'parameter file not found: {path}') from None
-    except (OSError, yaml.YAMLError) as exc:
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise ConfigError(f'cannot read parameter file {path}: {exc}'.splitlines()[0]) from None
     if doc is None:
         return {}
@@ -343,7 +364,8 @@ def read_param_file(path: str, node_name: str = 'train_dynamics') -> dict[str, A
 
 def load_param_file(path: str) -> SimConfig:
     """The simulator configuration from a ROS 2 parameter file (``train_dynamics`` node)."""
-    params = read_param_file(path, 'train_dynamics')
+    params = {k: v for k, v in read_param_file(path, 'train_dynamics').items()
+              if k not in ROS_BUILTIN_PARAMETERS}
     try:
         return SimConfig.from_dict(params)
     except ConfigError as exc:
