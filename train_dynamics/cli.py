@@ -470,13 +470,22 @@ def cmd_simulate(args) -> int:
     out = Path(args.output)
     if out.exists() or out.is_symlink():
         raise CliError(f'output {out} exists already; choose a new path (nothing was written)')
-    if not out.resolve().parent.is_dir():
-        raise CliError(f'output directory {out.resolve().parent} does not exist')
+    parent = out.resolve().parent
+    if parent.exists() and not parent.is_dir():
+        raise CliError(f'{parent} is not a directory')
     cfg = _load_config(args.params)
     inputs = _inputs_for(args, cfg)
+    missing = []            # parent folders to create (and to remove again on failure)
+    p = parent
+    while not p.exists():
+        missing.append(p)
+        p = p.parent
     try:
+        for d in reversed(missing):
+            d.mkdir()
         rec = BagRecorder(out, atomic=True, file_stem=out.name)
-    except (BagError, FileExistsError) as exc:
+    except (BagError, FileExistsError, OSError) as exc:
+        _remove_empty(missing)
         raise CliError(str(exc)) from None
     try:
         for key, value in _model_info(cfg, inputs, duration).items():
@@ -492,6 +501,7 @@ def cmd_simulate(args) -> int:
         rec.close()
     except BaseException:
         rec.abort()
+        _remove_empty(missing)
         raise
     if sim.fault is not None:
         print(f'{PROG}: error: simulation fault: {sim.fault}; {out} holds the run up to '
@@ -501,6 +511,15 @@ def cmd_simulate(args) -> int:
         print(f'wrote {out} ({cfg.n_coaches} coaches, {cfg.model_type}, {duration:g} s, '
               f'input: {inputs.source})')
     return EXIT_OK
+
+
+def _remove_empty(folders) -> None:
+    """Remove the folders this run created (innermost first), if they are still empty."""
+    for d in folders:
+        try:
+            d.rmdir()
+        except OSError:
+            pass
 
 
 def cmd_plot(args) -> int:
