@@ -1,0 +1,402 @@
+"""The driver's brake valve, without ROS: handle positions, schedule and pressure rates.
+
+The valve sets the brake-pipe pressure at the head of the train. Its handle selects a target
+GAUGE pressure [Pa]; the output moves toward that target at a limited rate (a real valve
+vents or charges the pipe through restricted ports):
+
+==================  =========================================================================
+handle position     target (gauge)
+==================  =========================================================================
+``release``         ``pipe_nominal_pressure`` (running position; ``running`` is an alias)
+``service_k``       graduated steps, k = 1..``service_steps``: ``service_1`` drops the pipe by
+                    ``first_service_drop`` (the distributors' first stage), the last step is
+                    full service; the steps in between are evenly spaced
+``full_service``    ``full_service_pressure``
+``emergency``       0 (pipe vented to atmosphere)
+==================  =========================================================================
+
+Rates [Pa/s]: a falling output moves at ``service_rate`` (``emergency_rate`` when the handle
+is in ``emergency``), a rising one at ``release_rate``. Between handle changes the output is
+piecewise linear, so :meth:`BrakeValveModel.advance` gives the same result for any step size.
+
+The output starts at ``pipe_nominal_pressure`` (a charged pipe, train running) at t = 0.
+A schedule is a list of ``"TIME:POSITION"`` strings, times [s] strictly increasing from the
+moment the schedule was set (t = 0 for the schedule given at construction).
+
+Used by the ``brake_valve`` node and by the offline command (the ``brake_valve`` section of a
+parameter file builds the head-pipe pressure when there is no input bag). Never imports rclpy.
+"""
+from __future__ import annotations
+
+import copy
+import math
+from dataclasses import dataclass
+from typing import Any, Iterable, Mapping
+
+#: Defaults of the model parameters (gauge pressures [Pa], rates [Pa/s]).
+DEFAULTS: dict[str, Any] = {
+    'position': 'release',
+    'schedule': [],
+    'pipe_nominal_pressure': 500000.0,   # 5 bar running pressure (UIC)
+    'full_service_pressure': 350000.0,   # 3.5 bar full service (UIC)
+    'first_service_drop': 50000.0,       # 0.5 bar: first stage of a service application
+    'service_steps': 7,                  # graduated steps service_1 .. service_7 (= full service)
+    'service_rate': 27000.0,             # 5 -> 3.5 bar in 5.6 s
+    'emergency_rate': 400000.0,          # 5 -> 0 bar in 1.25 s
+    'release_rate': 50000.0,             # charging 0.5 bar/s: 3.5 -> 5 bar in 3 s
+}
+
+#: One-line descriptions (with units) of the model parameters, for the node's descriptors.
+DESCRIPTIONS: dict[str, str] = {
+    'position': 'Handle position: release (alias running), service_1..service_N, full_service '
+                'or emergency. Setting it moves the handle now and cancels the rest of the schedule.',
+    'schedule': 'Handle schedule, "TIME:POSITION" strings, TIME [s] strictly increasing, counted '
+                'from node start (or from the moment the schedule is set live).',
+    'pipe_nominal_pressure': 'Brake-pipe running pressure (release position), gauge [Pa].',
+    'full_service_pressure': 'Brake-pipe pressure at full service, gauge [Pa].',
+    'first_service_drop': 'Pipe-pressure drop of the first service step service_1 [Pa].',
+    'service_steps': 'Number N of graduated service positions service_1..service_N; the last '
+                     'one equals full service.',
+    'service_rate': 'Rate at which a service application lowers the pipe pressure [Pa/s].',
+    'emergency_rate': 'Rate at which the emergency position vents the pipe [Pa/s].',
+    'release_rate': 'Rate at which the pipe is recharged toward a higher target [Pa/s].',
+}
+
+#: Inclusive ranges of the numeric model parameters (lower bound exclusive for rates).
+RANGES: dict[str, tuple[float, float]] = {
+    'pipe_nominal_pressure': (1.0e5, 1.0e6),
+    'full_service_pressure': (0.0, 1.0e6),
+    'first_service_drop': (1.0e3, 1.0e6),
+    'service_steps': (1, 50),
+    'service_rate': (1.0, 1.0e8),
+    'emergency_rate': (1.0, 1.0e8),
+    'release_rate': (1.0, 1.0e8),
+}
+
+SETTING_NAMES = ('pipe_nominal_pressure', 'full_service_pressure', 'first_service_drop',
+                 'service_steps', 'service_rate', 'emergency_rate', 'release_rate')
+
+
+@dataclass(frozen=True)
+class ScheduleEntry:
+    """Move the handle to ``position`` at ``time`` [s] after the schedule was set."""
+
+    time: float
+    position: str
+
+
+def _number(name: str, value: Any) -> float:
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ValueError(f'{name}: expected a number, got {type(value).__name__} {value!r}')
+    value = float(value)
+    if not math.isfinite(value):
+        raise ValueError(f'{name}: must be finite, got {value}')
+    lo, hi = RANGES[name]
+    if not lo <= value <= hi:
+        raise ValueError(f'{name}: must be in [{lo:g}, {hi:g}], got {value:g}')
+    return value
+
+
+def validate_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
+    """Check the numeric settings (all of :data:`SETTING_NAMES`) together; return them normalised.
+
+    Raises ``ValueError`` with a one-line reason.
+    """
+    out: dict[str, Any] = {}
+    for name in SETTING_NAMES:
+        value = settings.get(name, DEFAULTS[name])
+        if name == 'service_steps':
+            if isinstance(value, bool) or not isinstance(value, int):
+                raise ValueError(f'service_steps: expected an integer, got {value!r}')
+            lo, hi = RANGES[name]
+            if not lo <= value <= hi:
+                raise ValueError(f'service_steps: must be in [{lo}, {hi}], got {value}')
+            out[name] = int(value)
+        else:
+            out[name] = _number(name, value)
+    full_drop = out['pipe_nominal_pressure'] - out['full_service_pressure']
+    if not full_drop > 0.0:
+        raise ValueError('full_service_pressure must be below pipe_nominal_pressure '
+                         f'({out["full_service_pressure"]:g} >= {out["pipe_nominal_pressure"]:g})')
+    if not out['first_service_drop'] <= full_drop:
+        raise ValueError(f'first_service_drop ({out["first_service_drop"]:g} Pa) must not exceed '
+                         f'pipe_nominal_pressure - full_service_pressure ({full_drop:g} Pa)')
+    return out
+
+
+def position_names(service_steps: int) -> list[str]:
+    """All valid handle positions for ``service_steps`` graduated service steps."""
+    return (['release', 'running'] + [f'service_{k}' for k in range(1, service_steps + 1)]
+            + ['full_service', 'emergency'])
+
+
+def target_pressure(position: str, settings: Mapping[str, Any]) -> float:
+    """Target gauge pressure [Pa] of a handle position (``settings`` as validated)."""
+    nominal = float(settings['pipe_nominal_pressure'])
+    full = float(settings['full_service_pressure'])
+    if position in ('release', 'running'):
+        return nominal
+    if position == 'full_service':
+        return full
+    if position == 'emergency':
+        return 0.0
+    n = int(settings['service_steps'])
+    if position.startswith('service_'):
+        k_text = position[len('service_'):]
+        if k_text.isdigit() and str(int(k_text)) == k_text and 1 <= int(k_text) <= n:
+            k = int(k_text)
+            first = float(settings['first_service_drop'])
+            frac = 0.0 if n == 1 else (k - 1) / (n - 1)
+            return nominal - (first + frac * ((nominal - full) - first))
+    raise ValueError(f'unknown handle position {position!r}; valid: release, running, '
+                     f'service_1..service_{n}, full_service, emergency')
+
+
+def validate_position(position: Any, settings: Mapping[str, Any]) -> str:
+    """Return ``position`` if it is a valid handle position, else raise ``ValueError``."""
+    if not isinstance(position, str):
+        raise ValueError(f'position: expected a string, got {type(position).__name__} {position!r}')
+    target_pressure(position, settings)
+    return position
+
+
+def parse_schedule(entries: Any, settings: Mapping[str, Any] | None = None) -> list[ScheduleEntry]:
+    """Parse ``["0.0:release", "1.0:emergency", ...]`` into :class:`ScheduleEntry` items.
+
+    Times [s] must be finite, >= 0 and strictly increasing; positions valid for ``settings``
+    (defaults if None). Raises ``ValueError`` naming the bad entry.
+    """
+    settings = validate_settings(settings or {})
+    if isinstance(entries, (str, bytes)) or not isinstance(entries, Iterable):
+        raise ValueError(f'schedule: expected a list of "TIME:POSITION" strings, got {entries!r}')
+    out: list[ScheduleEntry] = []
+    for k, item in enumerate(entries):
+        if not isinstance(item, str) or ':' not in item:
+            raise ValueError(f'schedule[{k}]: expected "TIME:POSITION" (e.g. "1.0:emergency"), '
+                             f'got {item!r}')
+        time_text, position = (part.strip() for part in item.split(':', 1))
+        try:
+            t = float(time_text)
+        except ValueError:
+            raise ValueError(f'schedule[{k}] {item!r}: time {time_text!r} is not a number') from None
+        if not math.isfinite(t) or t < 0.0:
+            raise ValueError(f'schedule[{k}] {item!r}: time must be finite and >= 0')
+        if out and not t > out[-1].time:
+            raise ValueError(f'schedule[{k}] {item!r}: times must strictly increase '
+                             f'({t:g} after {out[-1].time:g})')
+        try:
+            target_pressure(position, settings)
+        except ValueError as exc:
+            raise ValueError(f'schedule[{k}] {item!r}: {exc}') from None
+        out.append(ScheduleEntry(t, position))
+    return out
+
+
+class BrakeValveModel:
+    """Driver's brake valve: handle position and schedule -> head brake-pipe pressure (gauge Pa).
+
+    >>> m = BrakeValveModel(schedule=['1.0:emergency'])
+    >>> m.advance_to(1.0), m.position          # vented from t = 1 s
+    (500000.0, 'emergency')
+    >>> m.advance(0.5)                         # 0.5 s at 400 kPa/s
+    300000.0
+    """
+
+    def __init__(self, position: str = DEFAULTS['position'],
+                 schedule: Iterable[str] | Iterable[ScheduleEntry] = (),
+                 **settings: Any) -> None:
+        unknown = set(settings) - set(SETTING_NAMES)
+        if unknown:
+            raise ValueError(f'unknown brake valve parameter(s): {", ".join(sorted(unknown))}')
+        self.settings = validate_settings(settings)
+        self._initial_position = validate_position(position, self.settings)
+        self._entries = self._as_entries(schedule)
+        self.reset()
+
+    # -- construction ------------------------------------------------------------------
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], *, strict: bool = False) -> 'BrakeValveModel':
+        """Build from a ``ros__parameters`` mapping (e.g. the ``brake_valve`` section of a file).
+
+        Keys of the node that do not concern the model (``publish_rate``,
+        ``atmospheric_pressure``, ``use_sim_time``, ...) are ignored; other unknown keys too
+        unless ``strict``. Raises ``ValueError`` with a one-line reason.
+        """
+        known = set(SETTING_NAMES) | {'position', 'schedule'}
+        if strict:
+            unknown = set(params) - known - NODE_ONLY_PARAMETERS
+            if unknown:
+                raise ValueError(f'unknown brake_valve parameter(s): {", ".join(sorted(unknown))}')
+        kwargs = {k: v for k, v in params.items() if k in known}
+        schedule = kwargs.pop('schedule', None)
+        if schedule is None:
+            schedule = []
+        return cls(schedule=schedule, **kwargs)
+
+    @classmethod
+    def from_param_file(cls, path: str, node_name: str = 'brake_valve') -> 'BrakeValveModel':
+        """Build from the ``node_name`` section of a ROS 2 parameter file ({} -> defaults)."""
+        from train_dynamics.config import read_param_file
+
+        try:
+            return cls.from_params(read_param_file(path, node_name))
+        except ValueError as exc:
+            raise ValueError(f'{path}: {node_name}: {exc}') from None
+
+    def _as_entries(self, schedule: Iterable[Any]) -> list[ScheduleEntry]:
+        if isinstance(schedule, (str, bytes)) or not isinstance(schedule, Iterable):
+            return parse_schedule(schedule, self.settings)    # raises with the reason
+        schedule = list(schedule)
+        if schedule and all(isinstance(e, ScheduleEntry) for e in schedule):
+            schedule = [f'{e.time!r}:{e.position}' for e in schedule]
+        return parse_schedule(schedule, self.settings)
+
+    # -- state -------------------------------------------------------------------------
+    def reset(self) -> None:
+        """Back to t = 0: charged pipe, initial handle position, the whole schedule pending."""
+        self.t = 0.0
+        self.pressure = float(self.settings['pipe_nominal_pressure'])
+        self.position = self._initial_position
+        self._origin = 0.0
+        self._next = 0
+        self._apply_due_events()
+
+    @property
+    def schedule(self) -> list[ScheduleEntry]:
+        """The schedule as set (times relative to when it was set)."""
+        return list(self._entries)
+
+    @property
+    def pending(self) -> list[ScheduleEntry]:
+        """Schedule entries not yet applied, with ABSOLUTE model times [s]."""
+        return [ScheduleEntry(self._origin + e.time, e.position) for e in self._entries[self._next:]]
+
+    @property
+    def target(self) -> float:
+        """Target gauge pressure [Pa] of the current handle position."""
+        return target_pressure(self.position, self.settings)
+
+    def positions(self) -> list[str]:
+        """Valid handle positions with the current ``service_steps``."""
+        return position_names(self.settings['service_steps'])
+
+    def target_of(self, position: str) -> float:
+        """Target gauge pressure [Pa] of ``position`` (``ValueError`` if unknown)."""
+        return target_pressure(position, self.settings)
+
+    # -- live changes -------------------------------------------------------------------
+    def set_position(self, position: str) -> None:
+        """Move the handle now; cancels the rest of the schedule (a driver's override)."""
+        position = validate_position(position, self.settings)
+        self.position = position
+        self._initial_position = position    # what reset() returns to
+        self._entries = []
+        self._origin = 0.0
+        self._next = 0
+
+    def set_schedule(self, schedule: Iterable[Any]) -> None:
+        """Replace the schedule; its times count from now (``self.t``). Due entries apply now."""
+        entries = self._as_entries(schedule)
+        self._entries = entries
+        self._origin = self.t
+        self._next = 0
+        self._initial_position = self.position
+        self._apply_due_events()
+
+    def update_settings(self, **changes: Any) -> None:
+        """Change numeric settings (validated together; the handle and schedule must stay valid)."""
+        merged = dict(self.settings)
+        merged.update(changes)
+        check_live_change(self, changes)
+        self.settings = validate_settings(merged)
+
+    # -- time ----------------------------------------------------------------------------
+    def _apply_due_events(self) -> None:
+        while self._next < len(self._entries) and \
+                self._origin + self._entries[self._next].time <= self.t:
+            self.position = self._entries[self._next].position
+            self._next += 1
+
+    def _ramp(self, dt: float) -> None:
+        """Move the output toward the current target for ``dt`` seconds (constant handle)."""
+        if dt <= 0.0:
+            return
+        target = self.target
+        p = self.pressure
+        if p > target:
+            rate = self.settings['emergency_rate' if self.position == 'emergency' else 'service_rate']
+            self.pressure = max(target, p - rate * dt)
+        elif p < target:
+            self.pressure = min(target, p + self.settings['release_rate'] * dt)
+
+    def advance_to(self, t: float) -> float:
+        """Run the valve to time ``t`` [s] (>= ``self.t``); return the gauge pressure [Pa].
+
+        A ``t`` earlier than ``self.t`` changes nothing (time never runs backwards here; call
+        :meth:`reset` to start over).
+        """
+        t = float(t)
+        if not math.isfinite(t):
+            raise ValueError(f'time must be finite, got {t}')
+        while self._next < len(self._entries):
+            t_event = self._origin + self._entries[self._next].time
+            if t_event > t:
+                break
+            self._ramp(t_event - self.t)
+            self.t = max(self.t, t_event)
+            self.position = self._entries[self._next].position
+            self._next += 1
+        if t > self.t:
+            self._ramp(t - self.t)
+            self.t = t
+        return self.pressure
+
+    def advance(self, dt: float) -> float:
+        """Run the valve for ``dt`` [s] (>= 0); return the gauge pressure [Pa]."""
+        if not dt >= 0.0:
+            raise ValueError(f'dt must be >= 0, got {dt}')
+        return self.advance_to(self.t + dt)
+
+    def pressure_at(self, t: float) -> float:
+        """Gauge pressure [Pa] at time ``t`` following the schedule from t = 0.
+
+        Stateless: replays a copy of the valve from :meth:`reset` (live changes made so far are
+        part of its initial position/schedule); ``self`` is not modified.
+        """
+        clone = copy.deepcopy(self)
+        clone.reset()
+        return clone.advance_to(t)
+
+    def pressures(self, times: Iterable[float]) -> list[float]:
+        """Gauge pressures [Pa] at increasing ``times`` [s], replayed from t = 0 (stateless)."""
+        clone = copy.deepcopy(self)
+        clone.reset()
+        return [clone.advance_to(t) for t in times]
+
+
+#: Parameters of the ``brake_valve`` node that are not model settings.
+NODE_ONLY_PARAMETERS = frozenset({'publish_rate', 'atmospheric_pressure', 'frame_id',
+                                  'use_sim_time', 'start_type_description_service'})
+
+
+def check_live_change(model: BrakeValveModel, changes: Mapping[str, Any], *,
+                      check_pending: bool = True) -> None:
+    """Raise ``ValueError`` if ``changes`` to the settings would make the valve inconsistent.
+
+    The current handle position and every pending schedule entry must stay valid (e.g.
+    lowering ``service_steps`` below a position in use is refused).
+    """
+    merged = dict(model.settings)
+    merged.update(changes)
+    settings = validate_settings(merged)
+    try:
+        target_pressure(model.position, settings)
+    except ValueError as exc:
+        raise ValueError(f'the handle is at {model.position!r}, which would become invalid: '
+                         f'{exc}') from None
+    for entry in (model.pending if check_pending else []):
+        try:
+            target_pressure(entry.position, settings)
+        except ValueError as exc:
+            raise ValueError(f'pending schedule entry {entry.position!r} would become invalid: '
+                             f'{exc}') from None
