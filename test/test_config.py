@@ -79,3 +79,11 @@ def test_cylinder_tables_checked():
                              'cylinder_fill_fraction': [0.0, 0.5]})
     cfg = SimConfig.from_dict({'brake_regime': 'G'})
     assert cfg.fill_table()[0][-1] == pytest.approx(36.0)
+
+
+def test_readme_parameter_table_is_current():
+    """The README's table is generated from PARAMETERS (python -m train_dynamics.config)."""
+    from train_dynamics.config import markdown_table
+
+    readme = (Path(__file__).resolve().parents[1] / 'README.md').read_text(encoding='utf-8')
+    assert markdown_table() in readme, 'regenerate: python -m train_dynamics.config'

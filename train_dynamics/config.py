@@ -370,3 +370,42 @@ def load_param_file(path: str) -> SimConfig:
         return SimConfig.from_dict(params)
     except ConfigError as exc:
         raise ConfigError(f'{path}: {exc}') from None
+
+
+def _fmt_default(v: Any) -> str:
+    if isinstance(v, bool):
+        return 'true' if v else 'false'
+    if isinstance(v, str):
+        return '`""`' if v == '' else f'`{v}`'
+    if isinstance(v, list):
+        return '`[]`' if not v else f'`{v!r}`'
+    if isinstance(v, float):
+        return f'{v:g}'
+    return str(v)
+
+
+def _fmt_range(s: ParamSpec) -> str:
+    if s.choices:
+        return ', '.join(f'`{c}`' for c in s.choices)
+    parts = []
+    if s.min is not None:
+        parts.append(('> ' if s.min_exclusive else '>= ') + f'{s.min:g}')
+    if s.max is not None:
+        parts.append(f'<= {s.max:g}')
+    return ', '.join(parts)
+
+
+def markdown_table() -> str:
+    """The README's parameter table, generated from :data:`PARAMETERS`."""
+    lines = ['| name | type | default | range | when | meaning |',
+             '| --- | --- | --- | --- | --- | --- |']
+    for s in PARAMETERS.values():
+        when = 'live' if s.dynamic else ('reset' if s.structural else 'start')
+        meaning = s.description.replace('|', '/')
+        lines.append(f'| `{s.name}` | {s.kind} | {_fmt_default(s.default)} | {_fmt_range(s)} '
+                     f'| {when} | {meaning} |')
+    return '\n'.join(lines)
+
+
+if __name__ == '__main__':   # python -m train_dynamics.config: print the README table
+    print(markdown_table())
