@@ -1,0 +1,170 @@
+"""Benchmark of sim_node (issue 5): 300 coaches, 100 Hz output, real_time_factor 1, 60 s.
+
+``sim_node`` runs as a child process (``python -m train_dynamics.sim_node --ros-args -p
+num_coaches:=300 -p publish_rate:=100.0 -p real_time_factor:=1.0``) with loopback-only DDS
+in this process's ROS domain. This process subscribes to ``couplers`` (raw CDR, no Python
+deserialisation) and timestamps every arrival with ``time.monotonic()``. As soon as the
+first output arrives it vents the head brake pipe (``brake_pipe/pressure`` = atmospheric
+absolute = 0 gauge, re-sent every second): the emergency braking of the core benchmark.
+
+Reported:
+- start-up: from just before ``Popen`` to the first ``couplers`` arrival [s];
+- achieved real-time factor over the 60 s after the first output: simulated time advanced
+  (stamps) / wall time elapsed (arrivals), plus the node's own figure from /diagnostics;
+- CPU share of the node process over the same window: (utime + stime) from
+  ``/proc/<pid>/stat`` / wall time (1.0 = one core busy);
+- output period jitter |period - 10 ms| of the arrivals: p50, p99, max; late/missing
+  stamps (gaps in the 10 ms stamp sequence);
+- node RSS at the end.
+Targets: factor >= 0.99, p99 jitter <= 2 ms, first output within 3 s.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+sys.path.insert(1, os.path.dirname(HERE))
+
+import nodeutil as U  # noqa: E402
+
+TARGET_RTF = 0.99
+TARGET_P99_MS = 2.0
+TARGET_STARTUP_S = 3.0
+
+
+def run(n: int = 300, rate: float = 100.0, duration: float = 60.0, log=print,
+        extra_params: dict | None = None, keep_arrays: bool = False) -> dict:
+    import numpy as np
+    U.ros_env()
+    period = 1.0 / rate
+    params = {'num_coaches': n, 'publish_rate': float(rate), 'real_time_factor': 1.0}
+    params.update(extra_params or {})
+    lst = U.Listener('bench_node_listener')
+    lst.start()
+    tmpdir = tempfile.mkdtemp(prefix='td_bench_node_')
+    log_path = os.path.join(tmpdir, 'sim_node.log')
+    proc, t_popen = U.start_node(params, log_path)
+    res = {'n': n, 'rate': rate, 'duration': duration, 'params': params,
+           'domain': os.environ.get('ROS_DOMAIN_ID'), 'log': log_path}
+    try:
+        deadline = time.monotonic() + 60.0
+        while lst.first_arrival is None:
+            if proc.poll() is not None:
+                raise RuntimeError(f'sim_node exited with {proc.returncode}; see {log_path}:\n'
+                                   + open(log_path).read()[-3000:])
+            if time.monotonic() > deadline:
+                raise RuntimeError(f'no output within 60 s; see {log_path}')
+            time.sleep(0.001)
+        res['startup_s'] = lst.first_arrival - t_popen
+        lst.publish_head_pressure(0.0)
+        cpu0 = U.proc_cpu_seconds(proc.pid)
+        w0 = time.monotonic()
+        next_pub = w0 + 1.0
+        rss_max = 0
+        while time.monotonic() - w0 < duration:
+            time.sleep(0.05)
+            if time.monotonic() >= next_pub:
+                lst.publish_head_pressure(0.0)
+                next_pub += 1.0
+            rss_max = max(rss_max, U.proc_rss_kib(proc.pid) or 0)
+            if proc.poll() is not None:
+                raise RuntimeError(f'sim_node died with {proc.returncode}; see {log_path}')
+        cpu1 = U.proc_cpu_seconds(proc.pid)
+        w1 = time.monotonic()
+        res['cpu_share'] = (cpu1 - cpu0) / (w1 - w0)
+        res['rss_mib'] = (U.proc_rss_kib(proc.pid) or 0) / 1024.0
+        res['rss_max_mib'] = rss_max / 1024.0
+        time.sleep(1.5)   # a last /diagnostics
+        res['diagnostics'] = dict(lst.diag)
+    finally:
+        res['exit_code'] = U.stop_node(proc)
+        lst.close()
+    arr = np.asarray(lst.arrivals)
+    st = np.asarray(lst.stamps, dtype=np.int64)
+    sel = arr <= arr[0] + duration
+    arr, st = arr[sel], st[sel]
+    res['messages'] = int(arr.size)
+    res['rtf'] = float((st[-1] - st[0]) * 1e-9 / (arr[-1] - arr[0]))
+    dt = np.diff(arr)
+    jit = np.abs(dt - period) * 1e3
+    res['period_mean_ms'] = float(dt.mean() * 1e3)
+    res['jitter_p50_ms'] = U.percentile(jit, 50)
+    res['jitter_p99_ms'] = U.percentile(jit, 99)
+    res['jitter_max_ms'] = float(jit.max())
+    # lag of arrival behind the ideal wall time of its stamp (drift-free real time)
+    lag = (arr - arr[0]) - (st - st[0]) * 1e-9
+    res['lag_final_ms'] = float(lag[-1] * 1e3)
+    res['lag_p99_ms'] = U.percentile(np.abs(lag - np.median(lag)) * 1e3, 99)
+    dst = np.diff(st)
+    step_ns = int(round(period * 1e9))
+    res['stamp_gaps'] = int(np.sum(dst > step_ns * 1.5))
+    res['stamp_non_monotonic'] = int(np.sum(dst <= 0))
+    if keep_arrays:
+        res['_arrivals'] = arr
+        res['_stamps'] = st
+    res['targets'] = {
+        'rtf': res['rtf'] >= TARGET_RTF,
+        'jitter_p99': res['jitter_p99_ms'] <= TARGET_P99_MS,
+        'startup': res['startup_s'] <= TARGET_STARTUP_S,
+    }
+    return res
+
+
+def diag_rtf(diag: dict) -> str:
+    for k, v in diag.items():
+        if 'real' in k.lower() and 'factor' in k.lower() and 'achiev' in k.lower():
+            return v
+    for k, v in diag.items():
+        if 'real' in k.lower() and 'factor' in k.lower():
+            return f'{v} ({k})'
+    return 'n/a'
+
+
+def table(res: dict) -> str:
+    ok = lambda b: 'PASS' if b else 'FAIL'  # noqa: E731
+    t = res['targets']
+    rows = [
+        '| quantity | value | target |',
+        '| --- | ---: | --- |',
+        f"| achieved real-time factor (stamps / arrivals, {res['duration']:.0f} s) | "
+        f"{res['rtf']:.4f} | >= {TARGET_RTF} {ok(t['rtf'])} |",
+        f"| node's own achieved factor (/diagnostics) | {diag_rtf(res['diagnostics'])} | |",
+        f"| CPU share of the node process (1.0 = one core) | {res['cpu_share']:.2f} | |",
+        f"| output period mean | {res['period_mean_ms']:.3f} ms | 10 ms |",
+        f"| jitter abs(period - 10 ms) p50 | {res['jitter_p50_ms']:.3f} ms | |",
+        f"| jitter abs(period - 10 ms) p99 | {res['jitter_p99_ms']:.3f} ms | <= {TARGET_P99_MS} ms "
+        f"{ok(t['jitter_p99'])} |",
+        f"| jitter max | {res['jitter_max_ms']:.3f} ms | |",
+        f"| arrival lag vs. ideal real time at the end | {res['lag_final_ms']:.1f} ms | |",
+        f"| messages received / stamp gaps / non-monotonic | {res['messages']} / "
+        f"{res['stamp_gaps']} / {res['stamp_non_monotonic']} | |",
+        f"| start-up: process start to first output | {res['startup_s']:.2f} s | <= "
+        f"{TARGET_STARTUP_S} s {ok(t['startup'])} |",
+        f"| node RSS at the end (max) | {res['rss_mib']:.0f} MiB ({res['rss_max_mib']:.0f}) | |",
+    ]
+    return '\n'.join(rows)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--coaches', type=int, default=300)
+    ap.add_argument('--rate', type=float, default=100.0)
+    ap.add_argument('--duration', type=float, default=60.0)
+    ap.add_argument('--json', help='write the raw results here')
+    args = ap.parse_args(argv)
+    res = run(args.coaches, args.rate, args.duration)
+    print(table(res))
+    if args.json:
+        with open(args.json, 'w') as fh:
+            json.dump(res, fh, indent=1, default=str)
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())

@@ -1,0 +1,279 @@
+"""`make bench`: the physics-core benchmark, the solve_ivp baseline and the node benchmark.
+
+Prints the tables (markdown) and writes ``bench/RESULTS.md`` (machine, load, tables, targets,
+and the soak figures of the last ``make soak`` from ``bench/soak_results.md``), plus the raw
+figures to ``bench/last_run.json``. See bench/core.py and bench/node.py for what is measured.
+
+Options: ``--no-node``, ``--no-core``, ``--ref-max-n N`` (compute missing reference solutions
+only up to N coaches; cached ones are always used), ``--no-write`` (print only).
+"""
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+sys.path.insert(1, os.path.dirname(HERE))
+
+import core  # noqa: E402
+
+RESULTS = os.path.join(HERE, 'RESULTS.md')
+SOAK = os.path.join(HERE, 'soak_results.md')
+RAW = os.path.join(HERE, 'last_run.json')
+SOAK_BEGIN = '<!-- soak:begin (written by bench/soak.py) -->'
+SOAK_END = '<!-- soak:end -->'
+
+
+def log(msg: str) -> None:
+    print(msg, file=sys.stderr, flush=True)
+
+
+def machine() -> dict:
+    import numpy
+    import scipy
+    try:
+        import numba
+        nb = numba.__version__
+    except ImportError:
+        nb = 'not installed'
+    cpu = 'unknown'
+    try:
+        with open('/proc/cpuinfo') as fh:
+            for line in fh:
+                if line.startswith('model name'):
+                    cpu = line.split(':', 1)[1].strip()
+                    break
+    except OSError:
+        pass
+    mem = ''
+    try:
+        with open('/proc/meminfo') as fh:
+            mem = f"{int(fh.readline().split()[1]) / 1048576:.1f} GiB"
+    except OSError:
+        pass
+    return {'cpu': cpu, 'cores': os.cpu_count(), 'memory': mem,
+            'python': platform.python_version(), 'numpy': numpy.__version__,
+            'scipy': scipy.__version__, 'numba': nb, 'platform': platform.platform(),
+            'date': datetime.datetime.now(datetime.timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}
+
+
+def _fmt_err(x) -> str:
+    return f'{100 * x:+.3f} %' if x is not None else ''
+
+
+def core_table(rows: list[dict]) -> str:
+    out = ['| N | model | u [s/m] | h [ms] | wall [s] | real-time factor | steps | '
+           'peak abs(F) 0-60 s [kN] | W [s] | peak 0-W [kN] (t [s]) | reference peak 0-W [kN] '
+           '(t [s]) | peak error | envelope error | tracemalloc peak [KiB] | process VmHWM '
+           '[MiB] | note |',
+           '| ---: | --- | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | ---: | '
+           '---: | ---: | ---: | --- |']
+    for r in rows:
+        u = f"{r['u']:g}" if r['model'] == 'tanh' else '-'
+        note = r.get('ref_note', '')
+        if r.get('fault'):
+            note = (note + '; ' if note else '') + f"FAULT: {r['fault']}"
+        ref = (f"{r['ref_peak_N'] / 1e3:.2f} ({r['ref_t_peak']:.2f})" if 'ref_peak_N' in r
+               else 'n/a')
+        out.append(
+            f"| {r['n']} | {r['model']} | {u} | {r['h'] * 1e3:g} | {r['wall_s']:.3f} | "
+            f"{r['rtf']:.0f}x | {r['steps']} | {r['peak_N'] / 1e3:.2f} | {r['window']:.1f} | "
+            f"{r['peak_window_N'] / 1e3:.2f} ({r['t_peak_window']:.2f}) | {ref} | "
+            f"{_fmt_err(r.get('peak_err'))} | "
+            f"{_fmt_err(r.get('env_err')).lstrip('+')} | {r['tracemalloc_peak_kib']:.0f} | "
+            f"{r['vmhwm_mib']:.0f} | {note} |")
+    return '\n'.join(out)
+
+
+def baseline_table(rows: list[dict]) -> str:
+    out = ['| N | solve_ivp RK45 wall for 60 s [s] | its real-time factor | f-evaluations | '
+           'its peak error (0-W) | its envelope error (0-W) | our speed / its speed '
+           f'(h = {core.DEFAULT_H * 1e3:g} ms) |',
+           '| ---: | ---: | ---: | ---: | ---: | ---: | ---: |']
+    for r in rows:
+        ex = ' (extrapolated)' if r['extrapolated'] else ''
+        sp = f"{r['speedup']:.0f}x" if 'speedup' in r else ''
+        out.append(f"| {r['n']} | {r['wall_s']:.2f}{ex} | {r['rtf']:.1f}x | "
+                   f"{r.get('nfev', '')} | {_fmt_err(r.get('peak_err'))} | "
+                   f"{_fmt_err(r.get('env_err')).lstrip('+')} | {sp}{ex} |")
+    return '\n'.join(out)
+
+
+def startup_table(st: dict) -> str:
+    out = ['| numba cache | import train_dynamics.train [s] | first TrainSimulator + first '
+           'output (10 ms) [s] | total [s] |', '| --- | ---: | ---: | ---: |']
+    for k, label in (('cold', 'cold (empty NUMBA_CACHE_DIR: compiles)'),
+                     ('warm', 'warm (cache loaded)'), ('warm2', 'warm, again')):
+        s = st[k]
+        out.append(f"| {label} | {s['import_s']:.2f} | {s['first_output_s']:.2f} | "
+                   f"{s['total_s']:.2f} |")
+    return '\n'.join(out)
+
+
+def core_targets(rows: list[dict]) -> list[tuple[str, bool, str]]:
+    def find(n):
+        return next((r for r in rows if r['n'] == n and r['model'] == 'tanh'
+                     and r['u'] == 1000.0 and r['h'] == core.DEFAULT_H), None)
+    out = []
+    r = find(100)
+    if r:
+        ok_rtf = r['rtf'] >= 200.0
+        out.append(('100 coaches, tanh u = 1000: >= 200x real time', ok_rtf,
+                    f"{r['rtf']:.0f}x"))
+        if 'peak_err' in r:
+            out.append(('100 coaches, tanh u = 1000: peak coupler force within 1 % of the '
+                        'reference', abs(r['peak_err']) <= 0.01,
+                        f"{100 * r['peak_err']:+.3f} % (over 0-{r['window']:g} s; envelope "
+                        f"error {100 * r['env_err']:.2f} %)"))
+    r = find(1000)
+    if r:
+        out.append(('1000 coaches, tanh u = 1000: >= 20x real time', r['rtf'] >= 20.0,
+                    f"{r['rtf']:.0f}x"))
+    return out
+
+
+def node_targets(res: dict) -> list[tuple[str, bool, str]]:
+    return [
+        ('node 300 coaches, 100 Hz: achieved real-time factor >= 0.99 over 60 s',
+         res['targets']['rtf'], f"{res['rtf']:.4f}"),
+        ('node: p99 output period jitter <= 2 ms', res['targets']['jitter_p99'],
+         f"{res['jitter_p99_ms']:.3f} ms"),
+        ('node: first output within 3 s of start', res['targets']['startup'],
+         f"{res['startup_s']:.2f} s"),
+    ]
+
+
+def targets_table(items) -> str:
+    out = ['| target | measured | result |', '| --- | ---: | --- |']
+    for name, ok, val in items:
+        out.append(f"| {name} | {val} | {'PASS' if ok else 'FAIL'} |")
+    return '\n'.join(out)
+
+
+def soak_section() -> str:
+    try:
+        with open(SOAK) as fh:
+            body = fh.read().strip()
+    except OSError:
+        body = '## Soak (make soak)\n\nNot run yet on this machine.'
+    return f'{SOAK_BEGIN}\n{body}\n{SOAK_END}'
+
+
+def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None) -> str:
+    import node as nodebench
+    parts = ['# Benchmark results (`make bench`)', '',
+             'Written by `bench/run_all.py`; the soak section by `bench/soak.py` (`make soak`). '
+             'Numbers are from one run on the machine below; timings are wall-clock, single '
+             'process, one core for the model.', '',
+             '## Machine', '',
+             f"- CPU: {mach['cpu']}, {mach['cores']} cores, {mach['memory']} RAM",
+             f"- {mach['platform']}; Python {mach['python']}, numpy {mach['numpy']}, "
+             f"scipy {mach['scipy']}, numba {mach['numba']}",
+             f"- date: {mach['date']}",
+             f"- load average (1 min) before / after: {load['before']:.2f} / "
+             f"{load['after']:.2f}" + (' -- the machine was LOADED by other work during the '
+                                        'run: timings are pessimistic'
+                                        if max(load['before'], load['after']) > 0.7 else
+                                        ' (quiet)'), '']
+    items = []
+    if core_res:
+        items += core_targets(core_res['cases'])
+    if node_res:
+        items += node_targets(node_res)
+    if items:
+        parts += ['## Targets (issue 5)', '', targets_table(items), '']
+    if core_res:
+        parts += [
+            '## Physics core (fixed-step ROS2 integrator, numba kernel)', '',
+            f'Scenario: paper defaults (45 t coaches, 44.444 m/s, `pipe_head`, P brake), head '
+            f'brake pipe vented to 0 gauge at t = {core.T_EMERGENCY:g} s, {core.T_END:g} s '
+            'simulated. Timed: `sim.advance_to` in 10 ms chunks and `sim.coupler_force` after '
+            'each (the node\'s 100 Hz read-out); numba warm-up excluded (see start-up). '
+            '"peak abs(F)" = max over couplers and 10 ms samples. Reference: '
+            '`integrators.reference_solution` (Radau, rtol 1e-9, atol 1e-11) with the brake '
+            'forces Fb_i(t) = mu_a m_i g fill(t - t_e - d_i) (checked against '
+            '`sim.brake_force`: largest mismatch '
+            f"{max(r['brake_mismatch'] for r in core_res['cases'] + core_res['steps']):.1e} "
+            'of mu_a m g), over 0-W with W = 0.5 s before the first coach stops in our run '
+            'or in the reference (the reference does not model the brake holding a stopped '
+            'coach), at most 60 s. "
+            'peak error = (our peak - reference peak) / reference peak over 0-W s; envelope '
+            'error = max over the 10 ms samples of abs(our max_j abs(F_j) - the reference\'s), / '
+            'reference peak. Memory: tracemalloc peak of Python/numpy allocations while '
+            'building the simulator and running the 60 s (numba-internal scratch arrays are '
+            'not traced), and the peak RSS of the whole benchmark process (interpreter, numpy, '
+            'scipy, numba, LLVM) for context.', '',
+            core_table(core_res['cases']), '',
+            '### Integration step: accuracy against speed (tanh u = 1000)', '',
+            core_table([r for r in core_res['cases'] if r['model'] == 'tanh'
+                        and r['u'] == 1000.0 and r['n'] in {s[0] for s in core.STEP_VARIANTS}]
+                       + core_res['steps']), '',
+            '### Baseline: what a user would write', '',
+            '`scipy.integrate.solve_ivp(method="RK45", rtol=1e-6)` on the paper\'s relative '
+            'equations (17)-(18) generalised to N coaches (tanh u = 1000, plain vectorised '
+            'numpy right-hand side, no Jacobian), same brake forces, 60 s, dense output at '
+            '10 ms. Larger trains are extrapolated with the power law in N fitted to the two '
+            'largest measured.', '',
+            baseline_table(core_res['baseline']), '',
+            '### Start-up of the core (numba)', '',
+            'Fresh process each: `import train_dynamics.train`, then a 30-coach simulator and '
+            'its first 10 ms. Cold = empty numba cache (first run after install or after a '
+            'source change: every kernel compiles); warm = cache loaded from `__pycache__`.',
+            '', startup_table(core_res['startup']), '']
+    if node_res:
+        p = node_res['params']
+        parts += [
+            '## Node (`sim_node`, separate process, DDS on loopback)', '',
+            f"`python -m train_dynamics.sim_node --ros-args "
+            + ' '.join(f'-p {k}:={v}' for k, v in p.items()) + '`; '
+            'the benchmark process subscribes to `couplers` (reliable, depth 10, raw CDR) '
+            'and timestamps arrivals with `time.monotonic()`; it vents the head brake pipe '
+            '(emergency) as soon as the first output arrives. Jitter = abs(arrival period - '
+            '10 ms). CPU share from `/proc/<pid>/stat` (utime + stime) over the 60 s window.',
+            '', nodebench.table(node_res), '']
+    parts += [soak_section(), '']
+    return '\n'.join(parts)
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--no-core', action='store_true')
+    ap.add_argument('--no-node', action='store_true')
+    ap.add_argument('--ref-max-n', type=int, default=100)
+    ap.add_argument('--no-write', action='store_true')
+    args = ap.parse_args(argv)
+    load = {'before': os.getloadavg()[0]}
+    mach = machine()
+    t0 = time.monotonic()
+    core_res = node_res = None
+    if not args.no_core:
+        core_res = core.run(ref_max_n=args.ref_max_n, log=log)
+    if not args.no_node:
+        import node as nodebench
+        log('node: 300 coaches, 100 Hz, real time, 60 s')
+        try:
+            node_res = nodebench.run(log=log)
+        except Exception as exc:  # noqa: BLE001 - report and keep the core results
+            log(f'node benchmark failed: {exc}')
+    load['after'] = os.getloadavg()[0]
+    text = render(mach, load, core_res, node_res)
+    print(text)
+    log(f'bench: {time.monotonic() - t0:.0f} s')
+    if not args.no_write:
+        with open(RESULTS, 'w') as fh:
+            fh.write(text)
+        raw = {'machine': mach, 'load': load, 'core': core_res, 'node': node_res}
+        with open(RAW, 'w') as fh:
+            json.dump(raw, fh, indent=1, default=str)
+        log(f'wrote {RESULTS} and {RAW}')
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
