@@ -29,7 +29,8 @@ def generate_launch_description():
                               description='sim_node records a rosbag2 (MCAP) here when set'),
         Node(package='train_dynamics', executable='sim_node', name='train_dynamics',
              output='screen', parameters=[params_file,
-                                         {'record_bag': ParameterValue(record_bag, value_type=str)}]),
+                                         {'record_bag': ParameterValue(record_bag, value_type=str),
+                                          'publish_clock': True, 'wait_for_input': 30.0}]),
         Node(package='train_dynamics', executable='brake_valve', name='brake_valve',
-             output='screen', parameters=[params_file]),
+             output='screen', parameters=[params_file, {'use_sim_time': True}]),
     ])

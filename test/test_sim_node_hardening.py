@@ -307,11 +307,11 @@ def _rss_mb() -> float:
 
 
 def test_long_free_run_memory_flat_stamps_monotonic_exact_counts(harness, tmp_path):
-    """Shortened soak (the hour is in bench/soak): 30 coaches as fast as possible for 300 s of
+    """Shortened soak (the hour is in bench/soak): 30 coaches as fast as possible for 120 s of
     simulated time, recorded."""
     from train_dynamics.bagio import bag_info, read_topics
 
-    duration = 300.0
+    duration = 120.0
     bag = tmp_path / 'soak'
     node = harness.start(num_coaches=30, real_time_factor=0.0, duration=duration,
                          record_bag=str(bag), publish_clock=True)

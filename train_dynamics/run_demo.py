@@ -8,11 +8,11 @@ in 70..100), both with ``config/paper_3coach.yaml``: three 45 t coaches at 160 k
 valve in release and in emergency at t = 1 s. The valve runs on the simulator's clock
 (``publish_clock`` / ``use_sim_time``) and the simulator holds t = 0 until the valve is
 connected (``wait_for_input``), so the emergency comes at t = 1 s of simulation time whatever
-the real-time factor and however long DDS discovery takes. ``sim_node`` records its inputs and outputs to
-``<out>/run_<timestamp>/bag`` and stops by itself after ``--duration`` simulated seconds (60 s:
-the train stops after about 50 s); the demo then draws the paper's figures into
-``<out>/run_<timestamp>/plots`` and prints where everything is. Ctrl-C stops both nodes
-cleanly (the bag is closed and still plotted).
+the real-time factor and however long DDS discovery takes. ``sim_node`` records its inputs and
+outputs to ``<out>/run_<timestamp>/bag`` and stops by itself after ``--duration`` simulated
+seconds (60 s: the train stops after about 50 s); the demo then draws the paper's figures into
+``<out>/run_<timestamp>/plots`` and prints where everything is. Ctrl-C stops both nodes cleanly
+(the bag is closed and still plotted).
 """
 from __future__ import annotations
 

@@ -46,13 +46,14 @@ parameters and services stay responsive.
 Parameters: every parameter of :data:`train_dynamics.config.PARAMETERS` plus the node's own
 (:data:`NODE_PARAMETERS`): ``duration`` (simulation seconds after which the node stops by
 itself, 0 = forever), ``wait_for_input`` (hold t = 0 until the brake-input topics have
-publishers, at most that many wall seconds) and ``record_flush_period``. Invalid values are rejected with a reason and change nothing.
-``model_type``, ``scale_factor``, ``real_time_factor``, ``publish_clock``, ``input_timeout``,
-``on_input_timeout`` and ``duration`` act at once (the state is untouched). Every other
-(structural) parameter is accepted as PENDING: it is stored, logged as pending and applied by
-the ``reset`` service (``~/reset``, i.e. ``/train_dynamics/reset``, ``std_srvs/srv/Trigger``),
-which restarts the scenario from t = 0 with the current parameter values and says in its
-response (and the log) what changed.
+publishers, at most that many wall seconds) and ``record_flush_period``. Invalid values are
+rejected with a reason and change nothing. ``model_type``, ``scale_factor``,
+``real_time_factor``, ``publish_clock``, ``input_timeout``, ``on_input_timeout`` and
+``duration`` act at once (the state is untouched). Every other (structural) parameter is
+accepted as PENDING: it is stored, logged as pending and applied by the ``reset`` service
+(``~/reset``, i.e. ``/train_dynamics/reset``, ``std_srvs/srv/Trigger``), which restarts the
+scenario from t = 0 with the current parameter values and says in its response (and the log)
+what changed.
 
 Stale inputs: ``input_timeout`` > 0 s (wall) without a brake input (any coach of a per-coach
 mode) is reported in ``/diagnostics``; ``on_input_timeout`` ``hold`` keeps the last values,
@@ -453,9 +454,7 @@ class SimNode(Node):
         node_changes: dict[str, float] = {}
         try:
             for p in params:
-                if p.name in PARAMETERS:
-                    changes[p.name] = validate_value(p.name, p.value)
-                elif p.name in NODE_PARAMETERS:
+                if p.name in NODE_PARAMETERS:     # (also if the core ever lists them)
                     value = p.value
                     _, _, lo, hi = NODE_PARAMETERS[p.name]
                     if isinstance(value, bool) or not isinstance(value, (int, float)) \
@@ -463,6 +462,10 @@ class SimNode(Node):
                         raise ConfigError(f'{p.name}: must be a number in [{lo:g}, {hi:g}], '
                                           f'got {value!r}')
                     node_changes[p.name] = float(value)
+                    if p.name in PARAMETERS:
+                        changes[p.name] = validate_value(p.name, value)
+                elif p.name in PARAMETERS:
+                    changes[p.name] = validate_value(p.name, p.value)
             candidate = SimConfig.from_dict({**self._parameter_values(), **changes})
             if 'record_bag' in changes and changes['record_bag'] \
                     and changes['record_bag'] != self._cfg.record_bag:
@@ -499,7 +502,7 @@ class SimNode(Node):
                 self._flush_period = node_changes['record_flush_period']
         pending = self._pending_changes(candidate)
         reason = ''
-        structural = [n for n in changes if n not in _LIVE]
+        structural = [n for n in changes if n not in _LIVE and n not in NODE_PARAMETERS]
         if structural:
             reason = ('pending until the reset service is called: '
                       + ', '.join(f'{n} = {_fmt(changes[n])}' for n in structural))
@@ -516,7 +519,7 @@ class SimNode(Node):
                 return '?'
         running = self._cfg.values
         diffs = [f'{n}: {_fmt(running[n])} -> {_fmt(v)}' for n, v in cfg.values.items()
-                 if n not in _LIVE and running.get(n) != v]
+                 if n not in _LIVE and n not in NODE_PARAMETERS and running.get(n) != v]
         return ', '.join(diffs)
 
     @staticmethod
@@ -935,7 +938,6 @@ class SimNode(Node):
             self._anchor(now)
             self._rtf_window = (now, sim.t)
         rtf = float(self._cfg.real_time_factor)
-        end = self._end_step
         if rtf > 0.0:
             target = int(math.floor(((now - self._anchor_wall) * rtf + self._anchor_sim)
                                     / self._h + 0.5))
@@ -953,8 +955,8 @@ class SimNode(Node):
             elif behind > BEHIND_WARN:
                 self.get_logger().warning(
                     f'falling behind real time: {behind * 1000:.0f} ms behind schedule at '
-                    f't = {sim.t:.3f} s (real_time_factor {rtf:g}, achieved {self._achieved_rtf:.3g}); '
-                    'catching up', throttle_duration_sec=WARN_PERIOD)
+                    f't = {sim.t:.3f} s (real_time_factor {rtf:g}, achieved '
+                    f'{self._achieved_rtf:.3g}); catching up', throttle_duration_sec=WARN_PERIOD)
             self._behind = max(behind, 0.0)
         else:
             target = None
@@ -1116,7 +1118,8 @@ class SimNode(Node):
             in_status.message = f'stale (> {timeout:g} s): holding the last values ({stale_names})'
         elif rejected:
             in_status.level = DiagnosticStatus.WARN
-            in_status.message = f'{rejected} input message(s) rejected (last: {self._last_rejected})'
+            in_status.message = (f'{rejected} input message(s) rejected '
+                                 f'(last: {self._last_rejected})')
         else:
             in_status.level = DiagnosticStatus.OK
             in_status.message = 'ok'
@@ -1177,7 +1180,7 @@ class SimNode(Node):
                 writer.close()
                 # After SIGINT/SIGTERM the context is gone: log without /rosout.
                 log = self.get_logger() if self.context.ok() else rclpy.logging.get_logger(
-                    self.get_name())
+                    f'{self.get_name()}.shutdown')
                 log.info(f'bag closed: {writer.path} ({writer.written} messages)')
         super().destroy_node()
 
