@@ -93,3 +93,15 @@ def _spin_until(spinner, predicate, timeout: float = 5.0, step: float = 0.02) ->
 def spin_until():
     """``spin_until(executor_or_node, predicate, timeout=5.0) -> bool``."""
     return _spin_until
+
+
+@pytest.fixture
+def harness(rclpy_context):
+    """A sim_node test harness (test_sim_node_support.Harness), closed after the test."""
+    from test_sim_node_support import Harness
+
+    h = Harness()
+    try:
+        yield h
+    finally:
+        h.close()

@@ -11,30 +11,13 @@ import math
 import numpy as np
 import pytest
 
-from test_sim_node_support import (Harness, diag_values, first_time, fluid, joint_arrays,
+from test_sim_node_support import (diag_values, first_time, fluid, joint_arrays,
                                    stamp_s)
 
 ATM = 101325.0
 
-#: Defaults of the product contract (shared/interface.md), "yours" entries excluded.
-CONTRACT_DEFAULTS = {
-    'model_type': 'tanh', 'num_coaches': 3, 'coach_mass': 45000.0, 'masses': [],
-    'coach_length': 25.0, 'buffer_stiffness': 2.8e6, 'buffer_friction': 1.4e6,
-    'draw_gear_stiffness': 5.46e6, 'draw_gear_friction': 2.43e6, 'gravity': 9.81,
-    'max_cylinder_pressure': 380000.0, 'initial_speed': 44.444, 'brake_input': 'pipe_head',
-    'brake_propagation_speed': 250.0, 'publish_rate': 100.0, 'real_time_factor': 1.0,
-    'publish_clock': False, 'record_bag': '',
-}
+from test_config import CONTRACT_DEFAULTS  # noqa: E402  the contract's defaults, once
 CONTRACT_ONLY_NAMED = ('scale_factor', 'adhesion_coefficient', 'integration_step')
-
-
-@pytest.fixture
-def harness(rclpy_context):
-    h = Harness()
-    try:
-        yield h
-    finally:
-        h.close()
 
 
 def _invalid_values(spec):

@@ -14,22 +14,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_sim_node_support import (Harness, all_finite, diag_values, fluid, joint_arrays,
+from test_sim_node_support import (all_finite, diag_values, fluid, joint_arrays,
                                    stamp_s)
 
 ATM = 101325.0
 SIM = 'train_dynamics: simulation'
 INPUT = 'train_dynamics: brake input'
 REPO = Path(__file__).resolve().parents[1]
-
-
-@pytest.fixture
-def harness(rclpy_context):
-    h = Harness()
-    try:
-        yield h
-    finally:
-        h.close()
 
 
 FLOODER = r'''
