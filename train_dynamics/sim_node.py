@@ -1215,10 +1215,17 @@ def main(args: list[str] | None = None) -> int:
         if rclpy.ok():       # not a signal shutting the context down mid-callback
             raise
     finally:
+        # the executor lets go of the node's callbacks first: the EventsExecutor aborts the
+        # process ("Destroying callback manager with callbacks remaining") otherwise
+        if executor is not None:
+            if node is not None:
+                try:
+                    executor.remove_node(node)
+                except Exception:   # noqa: BLE001 - shutting down anyway
+                    pass
+            executor.shutdown()
         if node is not None:
             node.destroy_node()
-        if executor is not None:
-            executor.shutdown()
         rclpy.try_shutdown()
     return code
 
