@@ -10,7 +10,10 @@ warm-up, memory and timing of one case do not leak into the next:
 - warm-up (excluded from the timing, reported separately): one ``TrainSimulator`` and one
   ``advance(1)``, i.e. numba's cache load (or compilation when the cache is cold);
 - timed run: ``sim.advance_to`` in 10 ms chunks (the node's 100 Hz output) and after each
-  chunk ``sim.coupler_force`` and its max |F|, like the node reads its outputs;
+  chunk ``sim.coupler_force`` and its max |F|, like the node reads its outputs. The virtual
+  machine's speed drifts by up to 2x within seconds, so the run is repeated (5 times, 3 for
+  the slowest cases) and the wall time is the sum over its six 10 s parts of each part's
+  fastest time (the runs are deterministic: every run computes the same steps);
 - memory: a second, untimed run of the same scenario (new simulator, same loop) under
   ``tracemalloc``: the peak of Python/numpy heap allocations [KiB] made by constructing the
   simulator and running it (numba's internal scratch arrays are not traced; they are a
@@ -72,6 +75,10 @@ def _default_h() -> float:
 
 
 DEFAULT_H = _default_h()    # the package's default integration_step [s]
+TIMED_REPEATS = 5           # timed runs per case (3 for the slowest cases)
+SEGMENTS = 6                # parts of a run timed separately (best of the runs per part)
+SLOW_HOST = 0.8             # a case timed below this host speed is timed again ...
+RETRIES = 2                 # ... at most this many times
 STEP_VARIANTS = tuple((n, h) for n in (100, 1000) for h in STEP_CHOICES if h != DEFAULT_H)
 
 
@@ -107,13 +114,26 @@ def brake_formula(cfg):
     return fb, delays
 
 
-def _grid(t_end: float) -> 'np.ndarray':
+def _grid(t_end: float):
     import numpy as np
     k = int(round(t_end / OUTPUT_DT))
     return np.arange(k + 1) * OUTPUT_DT
 
 
 # --------------------------------------------------------------------------- one case
+def calibration_s(reps: int = 5) -> float:
+    """Wall time [s] of a fixed pure-Python workload (best of ``reps``): a yardstick of how
+    fast the (shared, virtual) machine runs right now."""
+    best = float('inf')
+    for _ in range(reps):
+        t0 = time.perf_counter()
+        acc = 0
+        for i in range(200000):
+            acc += i * i % 7
+        best = min(best, time.perf_counter() - t0)
+    return best
+
+
 def measure_case(n: int, model: str, u: float, h: float) -> dict:
     """Run in a fresh process: warm-up, timed run, untimed memory/accuracy run."""
     import numpy as np
@@ -130,24 +150,42 @@ def measure_case(n: int, model: str, u: float, h: float) -> dict:
     _ = sim.coupler_force
     out['warmup_s'] = time.perf_counter() - t0
 
-    # timed run
-    sim = TrainSimulator(cfg)
+    cal_before = calibration_s()
+    # timed runs. The machine is shared and virtual: its speed drifts by up to 2x within
+    # seconds. Each run is split into SEGMENTS equal parts of simulated time; the figure is
+    # the sum over the parts of their fastest time in TIMED_REPEATS runs (the runs are
+    # deterministic, so every run computes the same steps). The fastest and the median
+    # whole run are kept in the raw data.
     chunks = int(round(T_END / OUTPUT_DT))
-    if T_EMERGENCY <= 0.0:
-        sim.set_head_pipe_pressure(0.0)
-    peak = 0.0
-    t0 = time.perf_counter()
-    for k in range(1, chunks + 1):
-        if T_EMERGENCY > 0.0 and abs((k - 1) * OUTPUT_DT - T_EMERGENCY) < 1e-9:
+    seg_len = chunks // SEGMENTS
+    repeats = TIMED_REPEATS if n * (0.005 / h) < 2000 else 3
+    walls = []
+    seg_best = [float('inf')] * SEGMENTS
+    for _ in range(repeats):
+        sim = TrainSimulator(cfg)
+        if T_EMERGENCY <= 0.0:
             sim.set_head_pipe_pressure(0.0)
-        sim.advance_to(k * OUTPUT_DT)
-        f = sim.coupler_force
-        m = float(np.abs(f).max())
-        if m > peak:
-            peak = m
-    wall = time.perf_counter() - t0
-    out.update(wall_s=wall, rtf=T_END / wall, steps=int(sim.steps), peak_N=peak,
-               fault=sim.fault)
+        peak = 0.0
+        t0 = t_seg = time.perf_counter()
+        for k in range(1, chunks + 1):
+            if T_EMERGENCY > 0.0 and abs((k - 1) * OUTPUT_DT - T_EMERGENCY) < 1e-9:
+                sim.set_head_pipe_pressure(0.0)
+            sim.advance_to(k * OUTPUT_DT)
+            f = sim.coupler_force
+            m = float(np.abs(f).max())
+            if m > peak:
+                peak = m
+            if k % seg_len == 0:
+                now = time.perf_counter()
+                j = k // seg_len - 1
+                seg_best[j] = min(seg_best[j], now - t_seg)
+                t_seg = now
+        walls.append(time.perf_counter() - t0)
+    wall = sum(seg_best)
+    out.update(wall_s=wall, wall_min_run_s=min(walls),
+               wall_median_s=sorted(walls)[len(walls) // 2], walls_s=walls, repeats=repeats,
+               rtf=T_END / wall, steps=int(sim.steps), peak_N=peak, fault=sim.fault)
+    out['calibration_s'] = min(cal_before, calibration_s())
 
     # untimed: memory (tracemalloc) and accuracy data
     import tracemalloc
@@ -378,7 +416,10 @@ def _summarise_case(res: dict, ref: dict | None, note: str) -> dict:
     window = comparison_window(res['t_first_stop'], ref)
     k = int(round(window / OUTPUT_DT))
     env = np.asarray(res['envelope'][:k + 1])
-    row = {key: res[key] for key in ('n', 'model', 'u', 'h', 'wall_s', 'rtf', 'steps', 'peak_N',
+    row = {key: res[key] for key in ('n', 'model', 'u', 'h', 'wall_s', 'wall_median_s',
+                                     'wall_min_run_s', 'repeats', 'walls_s',
+                                     'calibration_s',
+                                     'rtf', 'steps', 'peak_N',
                                      'fault', 'tracemalloc_peak_kib', 'vmhwm_mib',
                                      'warmup_s', 't_first_stop', 'brake_mismatch')}
     row['window'] = window
@@ -391,7 +432,10 @@ def _summarise_case(res: dict, ref: dict | None, note: str) -> dict:
         row['ref_peak_N'] = rpk
         row['ref_t_peak'] = float(np.argmax(renv) * OUTPUT_DT)
         row['peak_err'] = (float(env.max()) - rpk) / rpk
-        row['env_err'] = float(np.max(np.abs(env - renv))) / rpk
+        dev = np.abs(env - renv) / rpk
+        row['env_err'] = float(dev.max())
+        above = np.nonzero(dev > 0.01)[0]
+        row['t_env_err_1pct'] = float(above[0] * OUTPUT_DT) if above.size else None
         row['ref_wall_s'] = ref['wall_s']
         row['ref_first_stop'] = ref.get('first_stop_s')
     return row
@@ -438,6 +482,26 @@ def run(ref_max_n: int = 100, sizes=SIZES, models=MODELS, steps=STEP_VARIANTS,
     for n, h in steps:
         results['steps'].append(one(n, 'tanh', 1000.0, h))
 
+    # The host's speed drifts (see calibration_s): cases timed while it ran below
+    # SLOW_HOST of its best speed seen in this run are run again (up to RETRIES times);
+    # the run timed at the higher host speed is kept.
+    for attempt in range(RETRIES + 1):
+        rows = results['cases'] + results['steps']
+        cal_best = min(r['calibration_s'] for r in rows)
+        for r in rows:
+            r['host_speed'] = cal_best / r['calibration_s']
+        slow = [(key, k, r) for key in ('cases', 'steps') for k, r in enumerate(results[key])
+                if r['host_speed'] < SLOW_HOST]
+        if not slow or attempt == RETRIES:
+            break
+        log(f'core: {len(slow)} case(s) ran while the host was slow: timing them again')
+        for key, k, r in slow:
+            new = one(r['n'], r['model'], r['u'], r['h'])
+            new['retries'] = r.get('retries', 0) + 1
+            if new['calibration_s'] < r['calibration_s']:
+                results[key][k] = new
+            else:
+                r['retries'] = new['retries']
     log('baseline: solve_ivp RK45 rtol 1e-6, tanh u=1000')
     for n in baseline_sizes:
         b = _run_sub(['--baseline', str(n)])

@@ -62,6 +62,8 @@ def run(n: int = 300, rate: float = 100.0, duration: float = 60.0, log=print,
                 raise RuntimeError(f'no output within 60 s; see {log_path}')
             time.sleep(0.001)
         res['startup_s'] = lst.first_arrival - t_popen
+        t_log = U.first_log_time(log_path)
+        res['node_started_s'] = (t_log - proc.wall_start) if t_log else None
         lst.publish_head_pressure(0.0)
         cpu0 = U.proc_cpu_seconds(proc.pid)
         w0 = time.monotonic()
@@ -116,6 +118,45 @@ def run(n: int = 300, rate: float = 100.0, duration: float = 60.0, log=print,
     return res
 
 
+def startup_trials(n: int = 300, trials: int = 4, log=print) -> list[dict]:
+    """Start the node ``trials`` times: time to its 'started' log line and to the first
+    output in this process (DDS discovery included); stop it with SIGINT each time."""
+    out = []
+    lst = U.Listener('bench_startup_listener', record=False)
+    lst.start()
+    try:
+        for k in range(trials):
+            tmpdir = tempfile.mkdtemp(prefix='td_bench_start_')
+            log_path = os.path.join(tmpdir, 'sim_node.log')
+            lst.first_arrival = None
+            proc, t0 = U.start_node({'num_coaches': n, 'publish_rate': 100.0}, log_path)
+            deadline = t0 + 30.0
+            while lst.first_arrival is None and time.monotonic() < deadline \
+                    and proc.poll() is None:
+                time.sleep(0.001)
+            first = lst.first_arrival - t0 if lst.first_arrival is not None else None
+            U.stop_node(proc)
+            t_log = U.first_log_time(log_path)
+            out.append({'first_output_s': first,
+                        'node_started_s': (t_log - proc.wall_start) if t_log else None})
+            time.sleep(1.0)
+    finally:
+        lst.close()
+    return out
+
+
+def apply_startup_target(res: dict) -> None:
+    """Start-up target on the median over the main run and the extra starts."""
+    import statistics
+    vals = [res['startup_s']] + [x['first_output_s'] for x in res.get('startup_trials', [])
+                                 if x['first_output_s'] is not None]
+    med = statistics.median(vals)
+    res['startup_median_s'] = med
+    res['startup_summary'] = (f'median {med:.2f} s of {len(vals)} starts (min {min(vals):.2f}, '
+                              f'max {max(vals):.2f})')
+    res['targets']['startup'] = med <= TARGET_STARTUP_S
+
+
 def diag_rtf(diag: dict) -> str:
     for k, v in diag.items():
         if 'real' in k.lower() and 'factor' in k.lower() and 'achiev' in k.lower():
@@ -127,7 +168,8 @@ def diag_rtf(diag: dict) -> str:
 
 
 def table(res: dict) -> str:
-    ok = lambda b: 'PASS' if b else 'FAIL'  # noqa: E731
+    def ok(b):
+        return 'PASS' if b else 'FAIL'
     t = res['targets']
     rows = [
         '| quantity | value | target |',
@@ -144,11 +186,27 @@ def table(res: dict) -> str:
         f"| arrival lag vs. ideal real time at the end | {res['lag_final_ms']:.1f} ms | |",
         f"| messages received / stamp gaps / non-monotonic | {res['messages']} / "
         f"{res['stamp_gaps']} / {res['stamp_non_monotonic']} | |",
-        f"| start-up: process start to first output | {res['startup_s']:.2f} s | <= "
-        f"{TARGET_STARTUP_S} s {ok(t['startup'])} |",
+        f"| start-up: process start to first output (this run) | {res['startup_s']:.2f} s | "
+        f"<= {TARGET_STARTUP_S} s (median of all starts: {ok(t['startup'])}) |",
+        f"| start-up: process start to the node's 'started' log line | "
+        f"{_s(res.get('node_started_s'))} | |",
         f"| node RSS at the end (max) | {res['rss_mib']:.0f} MiB ({res['rss_max_mib']:.0f}) | |",
     ]
+    st = res.get('startup_trials')
+    if st:
+        firsts = [x['first_output_s'] for x in st if x['first_output_s'] is not None]
+        logs = [x['node_started_s'] for x in st if x['node_started_s'] is not None]
+        rows.append(f"| start-up, {len(st)} more starts: first output min / median / max | "
+                    + (f"{min(firsts):.2f} / {sorted(firsts)[len(firsts) // 2]:.2f} / "
+                       f"{max(firsts):.2f} s" if firsts else 'n/a')
+                    + ' | |')
+        rows.append("| start-up, same starts: 'started' log line min / max | "
+                    + (f"{min(logs):.2f} / {max(logs):.2f} s" if logs else 'n/a') + ' | |')
     return '\n'.join(rows)
+
+
+def _s(x) -> str:
+    return f'{x:.2f} s' if x is not None else 'n/a'
 
 
 def main(argv=None) -> int:
@@ -156,9 +214,14 @@ def main(argv=None) -> int:
     ap.add_argument('--coaches', type=int, default=300)
     ap.add_argument('--rate', type=float, default=100.0)
     ap.add_argument('--duration', type=float, default=60.0)
+    ap.add_argument('--startup-trials', type=int, default=4,
+                    help='extra starts to measure the start-up spread (0: none)')
     ap.add_argument('--json', help='write the raw results here')
     args = ap.parse_args(argv)
     res = run(args.coaches, args.rate, args.duration)
+    if args.startup_trials:
+        res['startup_trials'] = startup_trials(args.coaches, args.startup_trials)
+        apply_startup_target(res)
     print(table(res))
     if args.json:
         with open(args.json, 'w') as fh:

@@ -47,7 +47,23 @@ def start_node(params: dict, log_path: str) -> tuple[subprocess.Popen, float]:
     t0 = time.monotonic()
     proc = subprocess.Popen(args, cwd=REPO, env=ros_env(), stdout=log,
                             stderr=subprocess.STDOUT, start_new_session=True)
+    proc.wall_start = time.time() - (time.monotonic() - t0)   # epoch of t0
     return proc, t0
+
+
+def first_log_time(log_path: str, needle: str = 'started') -> float | None:
+    """Epoch time [s] of the first rclpy log line containing ``needle`` (``[INFO] [epoch]``)."""
+    try:
+        with open(log_path) as fh:
+            for line in fh:
+                if needle in line and line.startswith('['):
+                    try:
+                        return float(line.split('] [', 1)[1].split(']', 1)[0])
+                    except (IndexError, ValueError):
+                        return None
+    except OSError:
+        return None
+    return None
 
 
 def stop_node(proc: subprocess.Popen, sig=signal.SIGINT, timeout: float = 30.0) -> int:

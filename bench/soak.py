@@ -122,8 +122,10 @@ def run(hours: float = 1.0, coaches: int = 30, rate: float = 100.0, keep_bag: bo
             rss = U.proc_rss_kib(proc.pid)
             cpu = U.proc_cpu_seconds(proc.pid)
             if rss is not None:
-                samples.append((time.monotonic() - w0, sim_t, rss, cpu))
-                res['hwm_kib'] = U.proc_rss_kib(proc.pid, 'VmHWM') or res.get('hwm_kib')
+                backlog = lst.diag.get('train_dynamics: simulation/record_backlog')
+                samples.append((time.monotonic() - w0, sim_t, rss, cpu, backlog))
+                res['hwm_kib'] = max(U.proc_rss_kib(proc.pid, 'VmHWM') or 0,
+                                     res.get('hwm_kib') or 0, rss)
                 cpu_last = cpu if cpu is not None else cpu_last
             if sim_t >= next_log:
                 log(f'sim t = {sim_t:7.0f} s, RSS {(rss or 0) / 1024:.1f} MiB, '
@@ -145,6 +147,11 @@ def run(hours: float = 1.0, coaches: int = 30, rate: float = 100.0, keep_bag: bo
     finally:
         res['exit_code'] = U.stop_node(proc)
         lst.close()
+    try:
+        from train_dynamics import sim_node
+        res['max_backlog'] = getattr(sim_node, 'MAX_RECORD_BACKLOG', None)
+    except Exception:  # noqa: BLE001 - informative only
+        res['max_backlog'] = None
     res['received'] = lst.count
     res['received_non_monotonic'] = lst.non_monotonic
     res['last_received_stamp_s'] = lst.last_stamp_ns * 1e-9
@@ -153,13 +160,13 @@ def run(hours: float = 1.0, coaches: int = 30, rate: float = 100.0, keep_bag: bo
     # the last sample (the node has finished: closing the bag, shutting down)
     marks = []
     k = 0
-    for wall, sim_t, rss, cpu in samples:
+    for wall, sim_t, rss, cpu, backlog in samples:
         if sim_t >= k * 600.0 and sim_t <= sim_end:
-            marks.append({'sim_s': sim_t, 'wall_s': wall, 'rss_kib': rss})
+            marks.append({'sim_s': sim_t, 'wall_s': wall, 'rss_kib': rss, 'backlog': backlog})
             k = int(sim_t // 600.0) + 1
     if samples and samples[-1][0] > marks[-1]['wall_s']:
         marks.append({'sim_s': samples[-1][1], 'wall_s': samples[-1][0],
-                      'rss_kib': samples[-1][2], 'end': True})
+                      'rss_kib': samples[-1][2], 'backlog': samples[-1][4], 'end': True})
     res['rss_max_running_kib'] = max(s[2] for s in samples) if samples else None
     res['rss_marks'] = marks
     log('reading the bag')
@@ -211,15 +218,20 @@ def render(res: dict) -> str:
              f"10 min, {rss_end:.1f} MiB at t = duration: {rss_end - rss10:+.1f} MiB from 10 min "
              f"to the end, {rss_end - half:+.2f} MiB over the second half of the run; peak "
              f"{res['hwm_kib'] / 1024:.1f} MiB", '',
-             '| simulated time [s] | wall [s] | node RSS [MiB] |', '| ---: | ---: | ---: |']
+             '| simulated time [s] | wall [s] | node RSS [MiB] | recorder backlog (last '
+             '/diagnostics) |', '| ---: | ---: | ---: | ---: |']
     for m in marks:
-        lines.append(f"| {m['sim_s']:.0f}{' (node finished, closing the bag)' if m.get('end') else ''} | "
-                     f"{m['wall_s']:.0f} | {m['rss_kib'] / 1024:.1f} |")
+        label = ' (node finished, closing the bag)' if m.get('end') else ''
+        lines.append(f"| {m['sim_s']:.0f}{label} | {m['wall_s']:.0f} | "
+                     f"{m['rss_kib'] / 1024:.1f} | {m.get('backlog') or '-'} |")
     dg = res.get('diagnostics', {})
     lines += ['', f"- node's last /diagnostics: achieved real-time factor "
               f"{dg.get('train_dynamics: simulation/achieved_real_time_factor', '?')}, "
               f"recorded messages {dg.get('train_dynamics: simulation/recorded_messages', '?')}, "
-              f"recorder backlog {dg.get('train_dynamics: simulation/record_backlog', '?')}"]
+              f"recorder backlog {dg.get('train_dynamics: simulation/record_backlog', '?')}"
+              + (f" (the node's recorder queue holds at most {res['max_backlog']} messages; "
+                 'free-running, the simulation outruns the bag writer and then waits for it)'
+                 if res.get('max_backlog') else '')]
     lines += [f"- subscriber (depth 100, reliable): {res['received']} `couplers` received, "
               f"{res['received_non_monotonic']} non-monotonic stamps (a free-running publisher "
               'may outrun a Python subscriber; the bag is the complete record)']
