@@ -182,7 +182,7 @@ def measure_case(n: int, model: str, u: float, h: float) -> dict:
                 t_seg = now
         walls.append(time.perf_counter() - t0)
     wall = sum(seg_best)
-    out.update(wall_s=wall, wall_min_run_s=min(walls),
+    out.update(wall_s=wall, wall_min_run_s=min(walls), segments_s=seg_best,
                wall_median_s=sorted(walls)[len(walls) // 2], walls_s=walls, repeats=repeats,
                rtf=T_END / wall, steps=int(sim.steps), peak_N=peak, fault=sim.fault)
     out['calibration_s'] = min(cal_before, calibration_s())
@@ -417,7 +417,7 @@ def _summarise_case(res: dict, ref: dict | None, note: str) -> dict:
     k = int(round(window / OUTPUT_DT))
     env = np.asarray(res['envelope'][:k + 1])
     row = {key: res[key] for key in ('n', 'model', 'u', 'h', 'wall_s', 'wall_median_s',
-                                     'wall_min_run_s', 'repeats', 'walls_s',
+                                     'wall_min_run_s', 'repeats', 'walls_s', 'segments_s',
                                      'calibration_s',
                                      'rtf', 'steps', 'peak_N',
                                      'fault', 'tracemalloc_peak_kib', 'vmhwm_mib',

@@ -221,7 +221,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
              f"- load average (1 min) before the run: {load['before']:.2f}; CPU used by OTHER "
              f"processes during the run: {load['others_cores']:.2f} cores on average"
              + (' -- the machine was LOADED by other work: timings are pessimistic'
-                if load['others_cores'] > 0.15 or load['before'] > 0.7 else ' (quiet)'), '']
+                if load['others_cores'] > 0.15 else ' (no other work on this VM)'), '']
     items = []
     if core_res:
         items += core_targets(core_res['cases'])
@@ -289,7 +289,9 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
             best = min(r['calibration_s'] for r in core_res['cases'] + core_res['steps'])
             a, b = node_res['calibration_s']
             parts[-1:-1] = ['', f'Host speed (see the core section) just before / after the '
-                            f'60 s run: {best / a:.2f} / {best / b:.2f}.']
+                            f'60 s run: {best / a:.2f} / {best / b:.2f} (run '
+                            f"{node_res.get('attempt', 1)}; a run below {core.SLOW_HOST:g} is "
+                            'done once more, keeping the run at the higher host speed).']
     parts += [soak_section(), '']
     return '\n'.join(parts)
 
@@ -300,7 +302,19 @@ def main(argv=None) -> int:
     ap.add_argument('--no-node', action='store_true')
     ap.add_argument('--ref-max-n', type=int, default=100)
     ap.add_argument('--no-write', action='store_true')
+    ap.add_argument('--from-json', metavar='RAW',
+                    help='only re-render RESULTS.md from a raw file (bench/last_run.json)')
     args = ap.parse_args(argv)
+    if args.from_json:
+        with open(args.from_json) as fh:
+            raw = json.load(fh)
+        raw['load'].setdefault('others_cores', 0.0)
+        text = render(raw['machine'], raw['load'], raw['core'], raw['node'])
+        print(text)
+        if not args.no_write:
+            with open(RESULTS, 'w') as fh:
+                fh.write(text)
+        return 0
     load = {'before': os.getloadavg()[0]}
     meter = CpuMeter()
     mach = machine()
@@ -312,9 +326,20 @@ def main(argv=None) -> int:
         import node as nodebench
         log('node: 300 coaches, 100 Hz, real time, 60 s')
         try:
-            cal0 = core.calibration_s()
-            node_res = nodebench.run(log=log)
-            node_res['calibration_s'] = (cal0, core.calibration_s())
+            best = min((r['calibration_s'] for r in core_res['cases'] + core_res['steps']),
+                       default=None) if core_res else None
+            for attempt in range(2):
+                cal0 = core.calibration_s()
+                res = nodebench.run(log=log)
+                res['calibration_s'] = (cal0, core.calibration_s())
+                res['attempt'] = attempt + 1
+                speed = best / max(res['calibration_s']) if best else 1.0
+                res['host_speed'] = speed
+                if node_res is None or speed > node_res['host_speed']:
+                    node_res = res
+                if speed >= core.SLOW_HOST:
+                    break
+                log(f'node: the host ran at {speed:.2f} of its best speed: timing it again')
             log('node: start-up spread (4 more starts)')
             node_res['startup_trials'] = nodebench.startup_trials(log=log)
             nodebench.apply_startup_target(node_res)
