@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import sys
 import tempfile
 import time
@@ -87,6 +88,8 @@ def run(n: int = 300, rate: float = 100.0, duration: float = 60.0, log=print,
     finally:
         res['exit_code'] = U.stop_node(proc)
         lst.close()
+    shutil.rmtree(tmpdir, ignore_errors=True)      # kept (with the node's log) on errors
+    res['log'] = None
     arr = np.asarray(lst.arrivals)
     st = np.asarray(lst.stamps, dtype=np.int64)
     sel = arr <= arr[0] + duration
@@ -137,6 +140,7 @@ def startup_trials(n: int = 300, trials: int = 4, log=print) -> list[dict]:
             first = lst.first_arrival - t0 if lst.first_arrival is not None else None
             U.stop_node(proc)
             t_log = U.first_log_time(log_path)
+            shutil.rmtree(tmpdir, ignore_errors=True)
             out.append({'first_output_s': first,
                         'node_started_s': (t_log - proc.wall_start) if t_log else None})
             time.sleep(1.0)
