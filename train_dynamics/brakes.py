@@ -85,7 +85,7 @@ def delay_line_read(ring: np.ndarray, pos: int, k0: np.ndarray, frac: np.ndarray
     """Head pressure k0 + frac steps ago at each coach (linear interpolation) [Pa]."""
     size = ring.shape[0]
     for i in range(k0.shape[0]):
-        i0 = pos - k0[i]
+        i0 = pos - int(k0[i])
         if i0 < 0:
             i0 += size
         i1 = i0 - 1

@@ -36,16 +36,11 @@ MODEL_CODES = {'sign': SIGN, 'tanh': TANH}
 def fast_tanh(z: float) -> float:
     """tanh(z) to full double precision through expm1 (cheaper than libm's tanh here).
 
-    tanh|z| = -expm1(-2|z|) / (2 + expm1(-2|z|)), no cancellation near 0; |z| > 19.1
-    rounds to +-1 in double precision.
+    tanh|z| = -expm1(-2|z|) / (2 + expm1(-2|z|)): no cancellation near 0, exactly 1 once
+    expm1 rounds to -1; no branch (the kernels' loops run it for every coupler).
     """
-    a = abs(z)
-    if a > 19.1:
-        t = 1.0
-    else:
-        e = math.expm1(-2.0 * a)
-        t = -e / (2.0 + e)
-    return t if z >= 0.0 else -t
+    e = math.expm1(-2.0 * abs(z))
+    return math.copysign(-e / (2.0 + e), z)
 
 
 @jit
@@ -55,7 +50,7 @@ def coupler_force_scalar(y: float, ydot: float, ke: float, kf: float, kec: float
 
     The law itself, branch by branch: s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14);
     y < 0: F = (k_e - k_f s) y (eq. 2 / 15); y > 0: F = (k_ec + k_fc s) y (eq. 3 / 16);
-    y = 0: F = 0 (sgn 0 = 0 in eq. 4).
+    y = 0: F = 0 (sgn 0 = 0 in eq. 4), dF/dy the mean of both branches.
     """
     if model == TANH:
         s = fast_tanh(u * ydot)
@@ -63,12 +58,14 @@ def coupler_force_scalar(y: float, ydot: float, ke: float, kf: float, kec: float
     else:
         s = np.sign(ydot)
         dsdv = 0.0
-    if y < 0.0:      # compression: buffers, eq. (2) / (15)
-        return (ke - kf * s) * y, ke - kf * s, -kf * y * dsdv
-    if y > 0.0:      # extension: draw gear, eq. (3) / (16)
-        return (kec + kfc * s) * y, kec + kfc * s, kfc * y * dsdv
-    return 0.0, 0.5 * (ke - kf * s) + 0.5 * (kec + kfc * s), 0.0
-
+    # the branch as selects, not jumps: y changes sign often in a long train
+    comp = y < 0.0
+    k = ke if comp else kec                 # buffers (eq. 2 / 15) or draw gear (eq. 3 / 16)
+    kfr = -kf if comp else kfc
+    stiff = k + kfr * s
+    if y == 0.0:
+        stiff = 0.5 * (ke - kf * s) + 0.5 * (kec + kfc * s)
+    return stiff * y, stiff, kfr * y * dsdv
 
 
 @jit

@@ -34,6 +34,8 @@ analytical sparse Jacobian and tight tolerances, for tests and benchmarks.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from . import brakes, couplers
@@ -46,6 +48,7 @@ GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 V_REST = 1e-6
 
 OK = 0
+NONE_BAD = 0
 NON_FINITE = 1
 OUT_OF_RANGE = 2
 STATUS_TEXT = {
@@ -106,6 +109,37 @@ def make_workspace(n: int) -> np.ndarray:
 
 
 @jit
+def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
+    """One coupler's force F [N], dF/dy [N/m] and the dF/dydot [N s/m] of the stage matrix.
+
+    The stage matrix takes, for the tanh model, the secant slope of the friction force
+    through ydot = 0, k_fr |y| tanh(u ydot) / ydot, not the tangent u k_fr |y| sech^2(u ydot):
+    a step that carries ydot across the 1/u-wide tanh band then still sees the friction's
+    damping (the tangent is ~0 outside the band, which made the friction explicit exactly
+    there and overshot the peak force of long trains by 10 % at 5 ms). ROS2 is a W-method:
+    order 2 holds for any matrix. Both slopes agree as ydot -> 0. The sign model keeps 0.
+    """
+    comp = y < 0.0
+    k = ke if comp else kec
+    kfr = -kf if comp else kfc
+    if model == couplers.TANH:
+        z = u * ydot
+        e = math.expm1(-2.0 * abs(z))
+        t = -e / (2.0 + e)                     # tanh|z|
+        s = math.copysign(t, z)
+        a = abs(z)
+        ratio = t / a if a > 1e-3 else 1.0     # tanh(z) / z, within 4e-7 of 1 below 1e-3
+        dv = kfr * y * u * ratio
+    else:
+        s = np.sign(ydot)
+        dv = 0.0
+    stiff = k + kfr * s
+    if y == 0.0:
+        stiff = 0.5 * (ke - kf * s) + 0.5 * (kec + kfc * s)
+    return stiff * y, stiff, dv
+
+
+@jit
 def _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws):
     """F, dF/dy and the stage-matrix weights g h dF/dydot + (g h)^2 dF/dy of every coupler
     at (x, v), into ws."""
@@ -113,11 +147,29 @@ def _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws):
     dfdy = ws[W_DFDY]
     kk = ws[W_KK]
     for j in range(x.shape[0] - 1):
-        f, dy, dv = couplers.coupler_force_scalar(x[j] - x[j + 1], v[j] - v[j + 1], ke[j],
-                                                  kf[j], kec[j], kfc[j], model, u)
+        f, dy, dv = _coupler_w(x[j] - x[j + 1], v[j] - v[j + 1], ke[j], kf[j], kec[j], kfc[j],
+                               model, u)
         F0[j] = f
         dfdy[j] = dy
         kk[j] = gh * dv + gh * gh * dy
+
+
+@jit
+def _eval_couplers_work(x, v, x_old, ke, kf, kec, kfc, model, u, gh, ws):
+    """:func:`_eval_couplers` at the new state (x, v) that also returns the couplers' work
+    over the step from x_old [J] (trapezoidal in the force, as before)."""
+    F0 = ws[W_F]
+    dfdy = ws[W_DFDY]
+    kk = ws[W_KK]
+    wc = 0.0
+    for j in range(x.shape[0] - 1):
+        y = x[j] - x[j + 1]
+        f, dy, dv = _coupler_w(y, v[j] - v[j + 1], ke[j], kf[j], kec[j], kfc[j], model, u)
+        wc += 0.5 * (F0[j] + f) * (y - (x_old[j] - x_old[j + 1]))
+        F0[j] = f
+        dfdy[j] = dy
+        kk[j] = gh * dv + gh * gh * dy
+    return wc
 
 
 @jit
@@ -231,6 +283,17 @@ def _ros2_step(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, ws,
         hold[i] = 0.5 * ((rhs1[i] - ab1) + (rhs2[i] - ab2))
 
 
+@jit
+def _stops(v0, v1, fb):
+    """A moving coach stops within the step: its velocity v0 -> v1 [m/s] changes sign, or a
+    braked coach (fb [N] > 0) ends the step slower than V_REST."""
+    if v0 == 0.0:
+        return False
+    if v0 * v1 <= 0.0:
+        return True
+    return fb > 0.0 and abs(v1) < V_REST
+
+
 # Rows of the coach array and slots of the scalar arrays passed to :func:`advance_chain`
 # (few arguments keep numba's call overhead at a few microseconds).
 X, V, MASS, PCYL, PPIPE, PIPE_IN, CYL_IN, FB_AVAIL, FB_APPLIED, DELAY, APPLIED, HELD = range(12)
@@ -238,7 +301,8 @@ N_COACH_ROWS = 12
 KE, KF, KEC, KFC = range(4)
 S_H, S_U, S_PMAX, S_MU, S_G, S_PNOM, S_PFS, S_SENS, S_HEAD_IN, S_YLIM, S_WB, S_WC = range(12)
 N_SCALARS = 12
-I_MODEL, I_MODE, I_RING_POS = range(3)
+I_MODEL, I_MODE, I_RING_POS, I_WS_VALID = range(4)
+N_INT_SCALARS = 4
 
 
 @jit
@@ -272,7 +336,7 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
     p_max = sc[S_PMAX]
     model = iv[I_MODEL]
     mode = iv[I_MODE]
-    applied = coach[APPLIED] > 0.5
+    applied = coach[APPLIED]      # float flags, updated in place by distributor_target
     fb = ws[W_FB]
     signed = ws[W_SIGNED]
     v_start = ws[W_VSTART]
@@ -284,14 +348,17 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
     v_new = ws[W_VNEW]
     x_old = ws[W_XOLD]
     hold_set = np.empty(n, dtype=np.bool_)
-    F_old = np.empty(max(m, 1))
     tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
                                    rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
-    k0 = np.empty(n, dtype=np.int64)
+    k0 = ws[W_K0]
     frac = ws[W_FRAC]
-    brakes.delay_split(coach[DELAY], k0, frac)
     gh = GAMMA * h
-    _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws)
+    if iv[I_WS_VALID] == 0:
+        # first call after reset()/set_model(): pipe delays and the couplers at (x, v); later
+        # calls find them in ws, left there by the last step of the previous call
+        brakes.delay_split(coach[DELAY], k0, frac)
+        _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws)
+        iv[I_WS_VALID] = 1
     for step in range(n_steps):
         # --- brake system to t + h
         if mode == brakes.PIPE_HEAD:
@@ -327,18 +394,21 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
             _ros2_step(h, x, v_start, hold_set, signed, masses, ke, kf, kec, kfc, model, u,
                        ws, x_new, v_new, hold)
             changed = False
+            stops = False
             for i in range(n):
-                if hold_set[i] and abs(hold[i]) > fb[i] * (1.0 + 1e-12):
-                    # the brake cannot hold it: it slides, braked against its motion
-                    hold_set[i] = False
-                    rel_dir[i] = 1.0 if hold[i] > 0.0 else -1.0
-                    v_start[i] = 0.0
-                    changed = True
-            if not changed:
+                if hold_set[i]:
+                    if abs(hold[i]) > fb[i] * (1.0 + 1e-12):
+                        # the brake cannot hold it: it slides, braked against its motion
+                        hold_set[i] = False
+                        rel_dir[i] = 1.0 if hold[i] > 0.0 else -1.0
+                        v_start[i] = 0.0
+                        changed = True
+                elif rel_dir[i] == 0.0 and _stops(v_start[i], v_new[i], fb[i]):
+                    stops = True
+            if stops and not changed:
                 for i in range(n):
-                    if (not hold_set[i]) and rel_dir[i] == 0.0 and v_start[i] != 0.0 and (
-                            v_new[i] * v_start[i] <= 0.0
-                            or (abs(v_new[i]) < V_REST and fb[i] > 0.0)):
+                    if (not hold_set[i]) and rel_dir[i] == 0.0 and _stops(v_start[i], v_new[i],
+                                                                          fb[i]):
                         # stops within the step: the brake holds it from the step's start
                         hold_set[i] = True
                         extra_work += 0.5 * masses[i] * v_start[i] * v_start[i]
@@ -347,22 +417,16 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
             if not changed:
                 break
         # --- health, then accept
-        bad = False
+        bad = NONE_BAD
         for i in range(n):
             if not (np.isfinite(x_new[i]) and np.isfinite(v_new[i])):
-                bad = True
-        if bad:
-            _store_flags(coach, applied)
-            return step, NON_FINITE
-        for j in range(m):
-            if abs(x_new[j] - x_new[j + 1]) > sc[S_YLIM]:
-                _store_flags(coach, applied)
-                return step, OUT_OF_RANGE
+                bad = NON_FINITE
+                break
+            if i < m and abs(x_new[i] - x_new[i + 1]) > sc[S_YLIM]:
+                bad = OUT_OF_RANGE
+        if bad != NONE_BAD:
+            return step, bad
         wb = extra_work
-        wc = 0.0
-        F0 = ws[W_F]
-        for j in range(m):
-            F_old[j] = F0[j]
         for i in range(n):
             b = hold[i] if hold_set[i] else signed[i]
             wb += b * (x_new[i] - x[i])
@@ -372,12 +436,9 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
             v[i] = v_new[i]
             coach[HELD, i] = 1.0 if hold_set[i] else 0.0
         # couplers at the new state: the work over the step, and the next step's start
-        _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws)
-        for j in range(m):
-            wc += 0.5 * (F_old[j] + F0[j]) * ((x[j] - x[j + 1]) - (x_old[j] - x_old[j + 1]))
+        wc = _eval_couplers_work(x, v, x_old, ke, kf, kec, kfc, model, u, gh, ws)
         sc[S_WB] += wb
         sc[S_WC] += wc
-    _store_flags(coach, applied)
     return n_steps, OK
 
 

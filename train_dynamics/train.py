@@ -111,7 +111,7 @@ class TrainSimulator:
             self.h, cfg.max_cylinder_pressure, cfg.adhesion_coefficient, cfg.gravity, p_nom,
             cfg.full_service_pressure, cfg.distributor_sensitivity, p_nom,
             cfg.max_coupler_displacement]
-        self.iv = np.zeros(3, dtype=np.int64)
+        self.iv = np.zeros(I.N_INT_SCALARS, dtype=np.int64)     # I_WS_VALID = 0
         self.iv[I.I_MODE] = self.mode
         self.set_model(self.model_type, self.u)
         self.fault: str | None = None
@@ -128,6 +128,7 @@ class TrainSimulator:
         self.u = u
         self.sc[I.S_U] = u
         self.iv[I.I_MODEL] = self.model
+        self.iv[I.I_WS_VALID] = 0      # the couplers' Jacobian in ws depends on the model
 
     # -- inputs (gauge Pa) ------------------------------------------------------------------
     @staticmethod
