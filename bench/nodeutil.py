@@ -115,7 +115,6 @@ class Listener:
     def __init__(self, name: str = 'bench_listener', qos_depth: int = 10,
                  record: bool = True):
         import rclpy
-        from rclpy.executors import SingleThreadedExecutor
         from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
         from sensor_msgs.msg import FluidPressure, JointState
         from diagnostic_msgs.msg import DiagnosticArray
@@ -134,13 +133,18 @@ class Listener:
         self.last_stamp_ns = -1
         self.first_arrival: float | None = None
         self.non_monotonic = 0
-        self.diag: dict[str, str] = {}
+        self._diag_raw: bytes | None = None
         self.diag_count = 0
         self.node.create_subscription(JointState, 'couplers', self._on_couplers, qos, raw=True)
-        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10)
+        self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10,
+                                      raw=True)
+        self._DiagnosticArray = DiagnosticArray
         self.pub = self.node.create_publisher(FluidPressure, 'brake_pipe/pressure', 10)
         self._FluidPressure = FluidPressure
-        self.executor = SingleThreadedExecutor(context=self.context)
+        # a lean subscriber: the C++ EventsExecutor, raw messages, no Python deserialisation
+        # on the hot path (a Python executor adds its own millisecond jitter to what it sees)
+        from train_dynamics.sim_node import make_executor
+        self.executor = make_executor(self.context)
         self.executor.add_node(self.node)
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
@@ -158,15 +162,27 @@ class Listener:
             self.arrivals.append(now)
             self.stamps.append(stamp)
 
-    def _on_diag(self, msg) -> None:
+    def _on_diag(self, raw: bytes) -> None:
         self.diag_count += 1
+        self._diag_raw = raw          # decoded only when read (:attr:`diag`)
+
+    @property
+    def diag(self) -> dict[str, str]:
+        """The last /diagnostics as {'<status name>/<key>': value}."""
+        from rclpy.serialization import deserialize_message
+        out: dict[str, str] = {}
+        raw = self._diag_raw
+        if raw is None:
+            return out
+        msg = deserialize_message(raw, self._DiagnosticArray)
         for status in msg.status:
             for kv in status.values:
-                self.diag[f'{status.name}/{kv.key}'] = kv.value
-            self.diag[f'{status.name}/_message'] = status.message
-            self.diag[f'{status.name}/_level'] = str(int.from_bytes(status.level, 'little')
-                                                     if isinstance(status.level, bytes)
-                                                     else status.level)
+                out[f'{status.name}/{kv.key}'] = kv.value
+            out[f'{status.name}/_message'] = status.message
+            out[f'{status.name}/_level'] = str(int.from_bytes(status.level, 'little')
+                                               if isinstance(status.level, bytes)
+                                               else status.level)
+        return out
 
     def publish_head_pressure(self, gauge_pa: float) -> None:
         msg = self._FluidPressure()

@@ -247,3 +247,27 @@ def test_direct_cdr_encoders_match_rosbags():
         p = float(rng.normal() * 1e5)
         fp = types['sensor_msgs/msg/FluidPressure'](header=hdr, fluid_pressure=p, variance=0.25)
         assert bagio.encode_fluid_pressure(t_ns, p, 0.25, frame_id=frame) == bagio.serialize(fp)
+
+
+def test_encoder_bytes_read_by_rclpy_typesupport():
+    """sim_node publishes JointStateEncoder bytes straight to DDS: rclpy's (Fast-CDR)
+    typesupport must read them back exactly, empty sequences included (brake_cylinders has
+    no velocity; Fast-CDR pads empty float64 sequences differently from rosbags)."""
+    from rclpy.serialization import deserialize_message
+    from sensor_msgs.msg import JointState
+
+    rng = np.random.default_rng(11)
+    for n in (0, 1, 2, 3, 7, 300):
+        names = [f'coach_{i}' for i in range(1, n + 1)]
+        enc = bagio.JointStateEncoder(names)
+        for empty in (None, 0, 1, 2):
+            arrays = [rng.normal(size=n) * 1e5 for _ in range(3)]
+            if empty is not None:
+                arrays[empty] = None
+            t_ns = int(rng.integers(0, 10 ** 12))
+            msg = deserialize_message(enc(t_ns, *arrays), JointState)
+            assert list(msg.name) == names
+            assert msg.header.stamp.sec * 10 ** 9 + msg.header.stamp.nanosec == t_ns
+            for got, want in zip((msg.position, msg.velocity, msg.effort), arrays):
+                np.testing.assert_array_equal(np.asarray(got), np.zeros(0) if want is None
+                                              else want)
