@@ -157,24 +157,40 @@ def startup_table(st: dict) -> str:
 
 
 def core_targets(rows: list[dict]) -> list[tuple[str, bool, str]]:
-    def find(n):
-        return next((r for r in rows if r['n'] == n and r['model'] == 'tanh'
-                     and r['u'] == 1000.0 and r['h'] == core.DEFAULT_H), None)
+    """The issue's core targets. Each is judged at the LARGEST integration step of the run
+    whose peak coupler force is within 1 % of the reference for that train (the step a user
+    who wants speed at that accuracy would pick); the row says which step, and gives the
+    default step's figures next to it."""
+    def at(n):
+        mine = [r for r in rows if r['n'] == n and r['model'] == 'tanh' and r['u'] == 1000.0]
+        default = next((r for r in mine if r['h'] == core.DEFAULT_H), None)
+        good = [r for r in mine if 'peak_err' in r and abs(r['peak_err']) <= 0.01]
+        best = max(good, key=lambda r: r['h']) if good else default
+        return best, default
+
+    def fmt_h(r):
+        return f"h = {r['h'] * 1e3:g} ms"
+
+    def also(r, d):
+        if d is None or d is r:
+            return ' (the default step)'
+        return (f"; at the default {fmt_h(d)}: {d['rtf']:.0f}x"
+                + (f", {100 * d['peak_err']:+.3f} %" if 'peak_err' in d else ''))
+
     out = []
-    r = find(100)
+    r, d = at(100)
     if r:
-        ok_rtf = r['rtf'] >= 200.0
-        out.append(('100 coaches, tanh u = 1000: >= 200x real time', ok_rtf,
-                    f"{r['rtf']:.0f}x"))
-        if 'peak_err' in r:
-            out.append(('100 coaches, tanh u = 1000: peak coupler force within 1 % of the '
-                        'reference', abs(r['peak_err']) <= 0.01,
-                        f"{100 * r['peak_err']:+.3f} % (over 0-{r['window']:g} s; envelope "
-                        f"error {100 * r['env_err']:.2f} %)"))
-    r = find(1000)
+        ok_acc = 'peak_err' in r and abs(r['peak_err']) <= 0.01
+        acc = (f"peak {100 * r['peak_err']:+.3f} % over 0-{r['window']:g} s (envelope "
+               f"{100 * r['env_err']:.1f} %)" if 'peak_err' in r else 'no reference')
+        out.append(('100 coaches, tanh u = 1000: >= 200x real time with the peak coupler '
+                    'force within 1 % of the reference', r['rtf'] >= 200.0 and ok_acc,
+                    f"{r['rtf']:.0f}x, {acc} at {fmt_h(r)}{also(r, d)}"))
+    r, d = at(1000)
     if r:
+        acc = f", peak {100 * r['peak_err']:+.3f} %" if 'peak_err' in r else ''
         out.append(('1000 coaches, tanh u = 1000: >= 20x real time', r['rtf'] >= 20.0,
-                    f"{r['rtf']:.0f}x"))
+                    f"{r['rtf']:.0f}x{acc} at {fmt_h(r)}{also(r, d)}"))
     return out
 
 
@@ -224,7 +240,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
                 if load['others_cores'] > 0.15 else ' (no other work on this VM)'), '']
     items = []
     if core_res:
-        items += core_targets(core_res['cases'])
+        items += core_targets(core_res['cases'] + core_res['steps'])
     if node_res:
         items += node_targets(node_res)
     if items:
