@@ -48,7 +48,6 @@ GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 V_REST = 1e-6
 
 OK = 0
-NONE_BAD = 0
 NON_FINITE = 1
 OUT_OF_RANGE = 2
 STATUS_TEXT = {
@@ -417,14 +416,14 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
             if not changed:
                 break
         # --- health, then accept
-        bad = NONE_BAD
+        bad = OK
         for i in range(n):
             if not (np.isfinite(x_new[i]) and np.isfinite(v_new[i])):
                 bad = NON_FINITE
                 break
             if i < m and abs(x_new[i] - x_new[i + 1]) > sc[S_YLIM]:
                 bad = OUT_OF_RANGE
-        if bad != NONE_BAD:
+        if bad != OK:
             return step, bad
         wb = extra_work
         for i in range(n):
@@ -440,12 +439,6 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
         sc[S_WB] += wb
         sc[S_WC] += wc
     return n_steps, OK
-
-
-@jit
-def _store_flags(coach, applied):
-    for i in range(applied.shape[0]):
-        coach[APPLIED, i] = 1.0 if applied[i] else 0.0
 
 
 # ----------------------------------------------------------------------------- reference
