@@ -13,8 +13,9 @@ k_fc |y| s(ydot) in extension: it always opposes the relative velocity, so the l
 is (k + k_friction)|y| and the unloading branch (k - k_friction)|y| (the hysteresis loop of
 the paper's Fig. 2).
 
-The law is written once, per coupler (:func:`coupler_force_scalar`), compiled with numba
-and called by the integrator kernel; :func:`coupler_force` and
+The law is written once, per coupler (:func:`coupler_branch` for the branches,
+:func:`coupler_force_scalar` for F and its derivatives), compiled with numba and called by
+the integrator kernel; :func:`coupler_force` and
 :func:`coupler_force_jacobian` apply it to arrays of couplers (per-coupler constants let a
 train mix vehicles).
 """
@@ -44,13 +45,31 @@ def fast_tanh(z: float) -> float:
 
 
 @jit
+def coupler_branch(y: float, s: float, ke: float, kf: float, kec: float, kfc: float):
+    """The branch of the law at y [m] for a friction sign s (sgn or tanh of ydot):
+    (F [N], dF/dy [N/m], k_fr), k_fr = -k_f (buffers) or +k_fc (draw gear), so that the
+    friction part of F is k_fr s y.
+
+    y < 0: F = (k_e - k_f s) y (eq. 2 / 15); y > 0: F = (k_ec + k_fc s) y (eq. 3 / 16);
+    y = 0: F = 0 (sgn 0 = 0 in eq. 4), dF/dy the mean of both branches. Selects, not
+    jumps: y changes sign often in a long train.
+    """
+    comp = y < 0.0
+    k = ke if comp else kec
+    kfr = -kf if comp else kfc
+    stiff = k + kfr * s
+    if y == 0.0:
+        stiff = 0.5 * (ke - kf * s) + 0.5 * (kec + kfc * s)
+    return stiff * y, stiff, kfr
+
+
+@jit
 def coupler_force_scalar(y: float, ydot: float, ke: float, kf: float, kec: float, kfc: float,
                          model: int, u: float):
     """One coupler: (F [N], dF/dy [N/m], dF/dydot [N s/m]) at y [m], ydot [m/s].
 
-    The law itself, branch by branch: s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14);
-    y < 0: F = (k_e - k_f s) y (eq. 2 / 15); y > 0: F = (k_ec + k_fc s) y (eq. 3 / 16);
-    y = 0: F = 0 (sgn 0 = 0 in eq. 4), dF/dy the mean of both branches.
+    s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14) in the branch law of
+    :func:`coupler_branch` (eqs. 2-4 / 15-16).
     """
     if model == TANH:
         s = fast_tanh(u * ydot)
@@ -58,14 +77,8 @@ def coupler_force_scalar(y: float, ydot: float, ke: float, kf: float, kec: float
     else:
         s = np.sign(ydot)
         dsdv = 0.0
-    # the branch as selects, not jumps: y changes sign often in a long train
-    comp = y < 0.0
-    k = ke if comp else kec                 # buffers (eq. 2 / 15) or draw gear (eq. 3 / 16)
-    kfr = -kf if comp else kfc
-    stiff = k + kfr * s
-    if y == 0.0:
-        stiff = 0.5 * (ke - kf * s) + 0.5 * (kec + kfc * s)
-    return stiff * y, stiff, kfr * y * dsdv
+    f, stiff, kfr = coupler_branch(y, s, ke, kf, kec, kfc)
+    return f, stiff, kfr * y * dsdv
 
 
 @jit

@@ -118,24 +118,17 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
     there and overshot the peak force of long trains by 10 % at 5 ms). ROS2 is a W-method:
     order 2 holds for any matrix. Both slopes agree as ydot -> 0. The sign model keeps 0.
     """
-    comp = y < 0.0
-    k = ke if comp else kec
-    kfr = -kf if comp else kfc
     if model == couplers.TANH:
         z = u * ydot
-        e = math.expm1(-2.0 * abs(z))
-        t = -e / (2.0 + e)                     # tanh|z|
-        s = math.copysign(t, z)
         a = abs(z)
+        t = couplers.fast_tanh(a)               # tanh|z|
+        s = math.copysign(t, z)
         ratio = t / a if a > 1e-3 else 1.0     # tanh(z) / z, within 4e-7 of 1 below 1e-3
-        dv = kfr * y * u * ratio
     else:
         s = np.sign(ydot)
-        dv = 0.0
-    stiff = k + kfr * s
-    if y == 0.0:
-        stiff = 0.5 * (ke - kf * s) + 0.5 * (kec + kfc * s)
-    return stiff * y, stiff, dv
+        ratio = 0.0
+    f, stiff, kfr = couplers.coupler_branch(y, s, ke, kf, kec, kfc)
+    return f, stiff, kfr * y * u * ratio
 
 
 @jit
