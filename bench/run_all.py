@@ -22,12 +22,10 @@ sys.path.insert(0, HERE)
 sys.path.insert(1, os.path.dirname(HERE))
 
 import core  # noqa: E402
+from soak import SOAK_BEGIN, SOAK_END, SOAK_MD as SOAK  # noqa: E402  (soak.py owns its section)
 
 RESULTS = os.path.join(HERE, 'RESULTS.md')
-SOAK = os.path.join(HERE, 'soak_results.md')
 RAW = os.path.join(HERE, 'last_run.json')
-SOAK_BEGIN = '<!-- soak:begin (written by bench/soak.py) -->'
-SOAK_END = '<!-- soak:end -->'
 
 
 def log(msg: str) -> None:
