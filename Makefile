@@ -50,7 +50,7 @@ test: venv
 	$(VPY) -m pytest test/ $(PYTEST_ARGS)
 
 run: venv
-	$(VPY) -m train_dynamics.run_demo
+	$(VPY) -m train_dynamics.cli.demo
 
 bench: venv
 	$(VPY) bench/run_all.py

@@ -1,14 +1,14 @@
 """ament_python build of train_dynamics (colcon build) and pip editable install (make venv)."""
 from glob import glob
 
-from setuptools import setup
+from setuptools import find_packages, setup
 
 package_name = 'train_dynamics'
 
 setup(
     name=package_name,
     version='0.1.0',
-    packages=[package_name],
+    packages=find_packages(exclude=['test', 'test.*', 'bench']),
     data_files=[
         ('share/ament_index/resource_index/packages', ['resource/' + package_name]),
         ('share/' + package_name, ['package.xml']),
@@ -24,9 +24,9 @@ setup(
     license='Apache-2.0',
     entry_points={
         'console_scripts': [
-            'sim_node = train_dynamics.sim_node:main',
-            'brake_valve = train_dynamics.brake_valve:main',
-            'train-dynamics = train_dynamics.cli:main',
+            'sim_node = train_dynamics.ros.sim_node:main',
+            'brake_valve = train_dynamics.ros.brake_valve_node:main',
+            'train-dynamics = train_dynamics.cli.offline:main',
         ],
     },
 )

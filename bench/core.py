@@ -20,7 +20,7 @@ warm-up, memory and timing of one case do not leak into the next:
   handful of N-element arrays per ``advance`` call). The process's peak RSS (VmHWM) is
   reported too, for context;
 - accuracy (same untimed run): the envelope max_j |F_j(t)| on the 10 ms grid, compared with
-  the tight-tolerance reference :func:`train_dynamics.integrators.reference_solution`
+  the tight-tolerance reference :func:`train_dynamics.physics.integrators.reference_solution`
   (Radau, rtol 1e-9, atol 1e-11, analytical Jacobian) driven by the brake forces as a
   function of time, Fb_i(t) = mu_a m_i g fill(t - t_e - d_i) (d_i the pipe delay of coach
   i). The run checks that this formula is what the simulator applies (it applies the mean
@@ -70,7 +70,7 @@ BASELINE_EXTRAPOLATE = (300, 1000)
 
 
 def _default_h() -> float:
-    from train_dynamics.config import PARAMETERS
+    from train_dynamics.physics.parameters import PARAMETERS
     return float(PARAMETERS['integration_step'].default)
 
 
@@ -96,7 +96,7 @@ def _rss_kib(field: str = 'VmRSS') -> int:
 
 
 def make_config(n: int, model: str, u: float, h: float = DEFAULT_H):
-    from train_dynamics.config import SimConfig
+    from train_dynamics.physics.parameters import SimConfig
     return SimConfig.from_dict({'num_coaches': int(n), 'model_type': model,
                                 'scale_factor': float(u), 'integration_step': float(h)})
 
@@ -104,7 +104,7 @@ def make_config(n: int, model: str, u: float, h: float = DEFAULT_H):
 def brake_formula(cfg):
     """(Fb(t) -> (N,) [N], delays (N,) [s]) for the pipe_head emergency at T_EMERGENCY."""
     import numpy as np
-    from train_dynamics.brakes import pipe_delays
+    from train_dynamics.physics.brakes import pipe_delays
     ft, ff = (np.asarray(a, float) for a in cfg.fill_table())
     delays = pipe_delays(cfg.n_coaches, cfg.coach_length, cfg.brake_propagation_speed)
     full = cfg.adhesion_coefficient * np.asarray(cfg.mass_array) * cfg.gravity
@@ -138,7 +138,7 @@ def measure_case(n: int, model: str, u: float, h: float) -> dict:
     """Run in a fresh process: warm-up, timed run, untimed memory/accuracy run."""
     import numpy as np
     t0 = time.perf_counter()
-    from train_dynamics.train import TrainSimulator
+    from train_dynamics.physics.train import TrainSimulator
     t_import = time.perf_counter() - t0
     cfg = make_config(n, model, u, h)
     out = {'n': n, 'model': model, 'u': u, 'h': h, 'import_s': t_import}
@@ -226,7 +226,7 @@ def _physics_fingerprint(u: float) -> str:
     on a grid of states, so cosmetic source edits keep the cache) and the reference
     solver's default tolerances and method."""
     import numpy as np
-    from train_dynamics import couplers, integrators
+    from train_dynamics.physics import couplers, integrators
     y, yd = np.meshgrid(np.linspace(-0.3, 0.3, 13), np.linspace(-0.02, 0.02, 17))
     y, yd = y.ravel(), yd.ravel()
     one = np.ones(y.size)
@@ -286,8 +286,8 @@ def compute_reference(n: int, u: float) -> dict:
     """Reference over [0, T_END] on the 10 ms grid: the envelope max_j |F_j| (float32) up
     to the first sample at which a coach has stopped (v <= 0), where it stops being valid."""
     import numpy as np
-    from train_dynamics import couplers
-    from train_dynamics.integrators import reference_solution
+    from train_dynamics.physics import couplers
+    from train_dynamics.physics.integrators import reference_solution
     cfg = make_config(n, 'tanh', u)
     fb_of_t, _ = brake_formula(cfg)
     grid = _grid(T_END)
@@ -382,7 +382,7 @@ def baseline_case(n: int, t_end: float = T_END, u: float = 1000.0) -> dict:
 def startup_probe() -> dict:
     """In a fresh process: import, construct, first advance (cold or warm numba cache)."""
     t0 = time.perf_counter()
-    from train_dynamics.train import TrainSimulator
+    from train_dynamics.physics.train import TrainSimulator
     t1 = time.perf_counter()
     sim = TrainSimulator(make_config(30, 'tanh', 1000.0))
     sim.set_head_pipe_pressure(0.0)

@@ -1,6 +1,6 @@
 """Benchmark of sim_node (issue 5): 300 coaches, 100 Hz output, real_time_factor 1, 60 s.
 
-``sim_node`` runs as a child process (``python -m train_dynamics.sim_node --ros-args -p
+``sim_node`` runs as a child process (``python -m train_dynamics.ros.sim_node --ros-args -p
 num_coaches:=300 -p publish_rate:=100.0 -p real_time_factor:=1.0``) with loopback-only DDS
 in this process's ROS domain. This process subscribes to ``couplers`` (raw CDR, no Python
 deserialisation) and timestamps every arrival with ``time.monotonic()``. As soon as the

@@ -1,6 +1,6 @@
 """Shared helpers of the node benchmarks (bench/node.py, bench/soak.py).
 
-- start ``sim_node`` as a child process (``python -m train_dynamics.sim_node --ros-args ...``)
+- start ``sim_node`` as a child process (``python -m train_dynamics.ros.sim_node --ros-args ...``)
   on loopback-only DDS in this process's ROS domain;
 - a subscriber in THIS process that timestamps every ``couplers`` message with
   ``time.monotonic()`` on arrival. It subscribes raw (no deserialisation in Python: the
@@ -36,7 +36,7 @@ def ros_env() -> dict:
 
 def start_node(params: dict, log_path: str) -> tuple[subprocess.Popen, float]:
     """Start sim_node with ``params``; returns (process, time.monotonic() just before)."""
-    args = [sys.executable, '-m', 'train_dynamics.sim_node', '--ros-args']
+    args = [sys.executable, '-m', 'train_dynamics.ros.sim_node', '--ros-args']
     for k, v in params.items():
         if isinstance(v, bool):
             v = 'true' if v else 'false'
@@ -143,7 +143,7 @@ class Listener:
         self._FluidPressure = FluidPressure
         # a lean subscriber: the C++ EventsExecutor, raw messages, no Python deserialisation
         # on the hot path (a Python executor adds its own millisecond jitter to what it sees)
-        from train_dynamics.sim_node import make_executor
+        from train_dynamics.ros.sim_node import make_executor
         self.executor = make_executor(self.context)
         self.executor.add_node(self.node)
         self._stop = threading.Event()

@@ -144,7 +144,7 @@ def baseline_table(rows: list[dict]) -> str:
 
 
 def startup_table(st: dict) -> str:
-    out = ['| numba cache | import train_dynamics.train [s] | first TrainSimulator + first '
+    out = ['| numba cache | import train_dynamics.physics.train [s] | first TrainSimulator + first '
            'output (10 ms) [s] | total [s] |', '| --- | ---: | ---: | ---: |']
     for k, label in (('cold', 'cold (empty NUMBA_CACHE_DIR: compiles)'),
                      ('warm', 'warm (cache loaded)'), ('warm2', 'warm, again')):
@@ -284,7 +284,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
             'largest measured.', '',
             baseline_table(core_res['baseline']), '',
             '### Start-up of the core (numba)', '',
-            'Fresh process each: `import train_dynamics.train`, then a 30-coach simulator and '
+            'Fresh process each: `import train_dynamics.physics.train`, then a 30-coach simulator and '
             'its first 10 ms. Cold = empty numba cache (first run after install or after a '
             'source change: every kernel compiles); warm = cache loaded from `__pycache__`.',
             '', startup_table(core_res['startup']), '']
@@ -292,7 +292,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
         p = node_res['params']
         parts += [
             '## Node (`sim_node`, separate process, DDS on loopback)', '',
-            '`python -m train_dynamics.sim_node --ros-args '
+            '`python -m train_dynamics.ros.sim_node --ros-args '
             + ' '.join(f'-p {k}:={v}' for k, v in p.items()) + '`; '
             'the benchmark process subscribes to `couplers` (reliable, depth 10, raw CDR) '
             'and timestamps arrivals with `time.monotonic()`; it vents the head brake pipe '

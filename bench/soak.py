@@ -148,7 +148,7 @@ def run(hours: float = 1.0, coaches: int = 30, rate: float = 100.0, keep_bag: bo
         res['exit_code'] = U.stop_node(proc)
         lst.close()
     try:
-        from train_dynamics import sim_node
+        from train_dynamics.ros import sim_node
         res['max_backlog'] = getattr(sim_node, 'MAX_RECORD_BACKLOG', None)
     except Exception:  # noqa: BLE001 - informative only
         res['max_backlog'] = None

@@ -12,8 +12,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from train_dynamics import bagio
-from train_dynamics.bagio import BagError, BagRecorder, bag_info, read_topics
+from train_dynamics.recording import bags as bagio
+from train_dynamics.recording.bags import BagError, BagRecorder, bag_info, read_topics
 
 JS = 'sensor_msgs/msg/JointState'
 FP = 'sensor_msgs/msg/FluidPressure'
@@ -152,7 +152,7 @@ def test_split_files_readable_while_recording(tmp_path):
 def test_sigkill_loses_at_most_the_current_file(tmp_path):
     script = textwrap.dedent('''
         import sys, time
-        from train_dynamics import bagio
+        from train_dynamics.recording import bags as bagio
         rec = bagio.BagRecorder(sys.argv[1], split_seconds=0.5)
         k = 0
         while True:

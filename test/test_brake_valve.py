@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from train_dynamics.brake_valve_model import (DEFAULTS, BrakeValveModel, parse_schedule,
+from train_dynamics.physics.brake_valve import (DEFAULTS, BrakeValveModel, parse_schedule,
                                               target_pressure, validate_settings)
 
 ATM = 101325.0
@@ -199,7 +199,7 @@ def _make_nodes(overrides):
     from rclpy.node import Node
     from sensor_msgs.msg import FluidPressure
 
-    from train_dynamics.brake_valve import OUTPUT_QOS, BrakeValveNode
+    from train_dynamics.ros.brake_valve_node import OUTPUT_QOS, BrakeValveNode
 
     valve = BrakeValveNode(parameter_overrides=overrides)
     listener = Node('brake_valve_listener')
@@ -347,7 +347,7 @@ def test_node_schedule_runs_on_sim_time(rclpy_context, spin_until):
 def test_executable_stops_cleanly_on_sigterm_and_rejects_bad_startup_parameters():
     env = dict(os.environ)
     env['PYTHONPATH'] = str(REPO) + os.pathsep + env.get('PYTHONPATH', '')
-    proc = subprocess.Popen([sys.executable, '-m', 'train_dynamics.brake_valve', '--ros-args',
+    proc = subprocess.Popen([sys.executable, '-m', 'train_dynamics.ros.brake_valve_node', '--ros-args',
                              '-p', 'publish_rate:=20.0'], env=env, cwd=str(REPO),
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
@@ -369,7 +369,7 @@ def test_executable_stops_cleanly_on_sigterm_and_rejects_bad_startup_parameters(
             proc.wait()
         proc.stdout.close()
 
-    bad = subprocess.run([sys.executable, '-m', 'train_dynamics.brake_valve', '--ros-args',
+    bad = subprocess.run([sys.executable, '-m', 'train_dynamics.ros.brake_valve_node', '--ros-args',
                           '-p', 'position:=bogus'], env=env, cwd=str(REPO),
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from train_dynamics import brakes
-from train_dynamics.config import SimConfig
-from train_dynamics.train import TrainSimulator
+from train_dynamics.physics import brakes
+from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.train import TrainSimulator
 
 P_MAX = 380000.0
 BAR = 1e5

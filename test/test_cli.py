@@ -10,10 +10,11 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from train_dynamics import bagio, cli
-from train_dynamics.bagio import BagRecorder, read_topics
-from train_dynamics.config import load_param_file
-from train_dynamics.train import TrainSimulator
+from train_dynamics.cli import offline as cli
+from train_dynamics.recording import bags as bagio
+from train_dynamics.recording.bags import BagRecorder, read_topics
+from train_dynamics.physics.parameters import load_param_file
+from train_dynamics.physics.train import TrainSimulator
 
 ATM = 101325.0
 REPO = Path(__file__).resolve().parents[1]
@@ -297,7 +298,7 @@ def test_interrupt_removes_the_partial_output(tmp_path, monkeypatch):
 def test_python_dash_m_and_help(tmp_path):
     env = dict(os.environ,
                PYTHONPATH=os.pathsep.join([str(REPO), os.environ.get('PYTHONPATH', '')]))
-    proc = subprocess.run([sys.executable, '-m', 'train_dynamics.cli', 'simulate', '--params',
+    proc = subprocess.run([sys.executable, '-m', 'train_dynamics.cli.offline', 'simulate', '--params',
                            str(tmp_path / 'nope.yaml'), '--duration', '1', '--output',
                            str(tmp_path / 'o')], capture_output=True, text=True, env=env,
                           timeout=120)
@@ -319,7 +320,7 @@ def test_output_steps_and_input_steps():
 
 
 def test_compare_prints_table_and_writes_figures(tmp_path, capsys):
-    from train_dynamics.plotting import SIZE_PX, png_size
+    from train_dynamics.recording.plots import SIZE_PX, png_size
 
     params = write_params(tmp_path / 'p.yaml', n=3, mode='pipe_head', extra=(
         'brake_valve:\n  ros__parameters:\n    schedule: ["0.2:emergency"]\n'))
@@ -351,7 +352,7 @@ def test_sigterm_cleans_up_and_stale_partials_are_removed(tmp_path):
     stale.mkdir()
     env = dict(os.environ,
                PYTHONPATH=os.pathsep.join([str(REPO), os.environ.get('PYTHONPATH', '')]))
-    proc = subprocess.Popen([sys.executable, '-m', 'train_dynamics.cli', 'simulate', '--params',
+    proc = subprocess.Popen([sys.executable, '-m', 'train_dynamics.cli.offline', 'simulate', '--params',
                              str(params), '--duration', '100000', '--output',
                              str(tmp_path / 'out'), '-q'], env=env, stderr=subprocess.PIPE,
                             text=True)
@@ -373,7 +374,7 @@ def test_sigterm_cleans_up_and_stale_partials_are_removed(tmp_path):
 
 
 def test_simulation_fault_keeps_the_valid_bag_and_exits_3(tmp_path, monkeypatch, capsys):
-    from train_dynamics import train
+    from train_dynamics.physics import train
 
     original = train.TrainSimulator.advance
 

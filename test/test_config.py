@@ -4,7 +4,7 @@ from pathlib import Path
 
 import pytest
 
-from train_dynamics.config import (PARAMETERS, ConfigError, SimConfig, load_param_file,
+from train_dynamics.physics.parameters import (PARAMETERS, ConfigError, SimConfig, load_param_file,
                                    validate_value)
 
 CONTRACT_DEFAULTS = {
@@ -82,8 +82,8 @@ def test_cylinder_tables_checked():
 
 
 def test_readme_parameter_table_is_current():
-    """The README's table is generated from PARAMETERS (python -m train_dynamics.config)."""
-    from train_dynamics.config import markdown_table
+    """The README's table is generated from PARAMETERS (python -m train_dynamics.physics.parameters)."""
+    from train_dynamics.physics.parameters import markdown_table
 
     readme = (Path(__file__).resolve().parents[1] / 'README.md').read_text(encoding='utf-8')
-    assert markdown_table() in readme, 'regenerate: python -m train_dynamics.config'
+    assert markdown_table() in readme, 'regenerate: python -m train_dynamics.physics.parameters'

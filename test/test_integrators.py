@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from train_dynamics import integrators as I
+from train_dynamics.physics import integrators as I
 
 from physics_helpers import paper_reference, paper_sim, record
 

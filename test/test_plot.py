@@ -7,9 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from train_dynamics import bagio, cli, plotting
-from train_dynamics.bagio import BagRecorder
-from train_dynamics.plotting import SIZE_PX, png_size
+from train_dynamics.cli import offline as cli
+from train_dynamics.recording import bags as bagio, plots as plotting
+from train_dynamics.recording.bags import BagRecorder
+from train_dynamics.recording.plots import SIZE_PX, png_size
 
 COUPLER_FIGURES = {'coupler_displacement.png': 'single', 'coupler_velocity.png': 'single',
                    'coupler_force.png': 'single', 'couplers.png': 'stack'}

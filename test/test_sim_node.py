@@ -22,7 +22,7 @@ CONTRACT_ONLY_NAMED = ('scale_factor', 'adhesion_coefficient', 'integration_step
 
 def _invalid_values(spec):
     """Values of every wrong kind for one parameter spec."""
-    from train_dynamics.config import BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, STRING
+    from train_dynamics.physics.parameters import BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, STRING
 
     nan, inf = float('nan'), float('inf')
     k = spec.kind
@@ -59,7 +59,7 @@ def _invalid_values(spec):
 def test_parameters_declared_with_contract_defaults_and_descriptors(harness):
     from rcl_interfaces.msg import ParameterType
 
-    from train_dynamics.config import DOUBLE, DOUBLE_ARRAY, INTEGER, PARAMETERS
+    from train_dynamics.physics.parameters import DOUBLE, DOUBLE_ARRAY, INTEGER, PARAMETERS
 
     node = harness.start()
     assert node.get_name() == 'train_dynamics'
@@ -95,7 +95,7 @@ def test_parameters_declared_with_contract_defaults_and_descriptors(harness):
 def test_every_kind_of_invalid_parameter_is_rejected_and_changes_nothing(harness):
     from rclpy.parameter import Parameter
 
-    from train_dynamics.config import PARAMETERS
+    from train_dynamics.physics.parameters import PARAMETERS
 
     node = harness.start(real_time_factor=5.0)
     assert harness.wait(lambda: node.sim_time > 0.2, 10.0)
@@ -158,7 +158,7 @@ def test_every_kind_of_invalid_parameter_is_rejected_and_changes_nothing(harness
 
 def _offline_replay(cfg, inputs, outputs):
     """Run the core on the recorded inputs; return (y, ydot, F) at the output times."""
-    from train_dynamics.train import TrainSimulator
+    from train_dynamics.physics.train import TrainSimulator
 
     sim = TrainSimulator(cfg)
     events = [(t, 0, x) for t, x in inputs] + [(t, 1, None) for t in outputs]
@@ -180,8 +180,8 @@ def test_cylinder_inputs_over_topics_match_the_core_run_offline(harness, tmp_pat
     on the inputs as recorded (bag time = the step at which each one took effect)."""
     from sensor_msgs.msg import JointState
 
-    from train_dynamics.bagio import read_topics
-    from train_dynamics.config import SimConfig
+    from train_dynamics.recording.bags import read_topics
+    from train_dynamics.physics.parameters import SimConfig
 
     bag = tmp_path / 'run'
     params = dict(brake_input='cylinder_per_coach', real_time_factor=2.0, duration=4.0,
@@ -240,7 +240,7 @@ def test_brake_valve_emergency_over_topics(harness):
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import JointState
 
-    from train_dynamics.brake_valve import BrakeValveNode
+    from train_dynamics.ros.brake_valve_node import BrakeValveNode
 
     valve = BrakeValveNode(parameter_overrides=[
         Parameter('use_sim_time', value=True),
@@ -269,8 +269,8 @@ def test_live_model_switches_take_effect_with_continuous_state(harness):
     the new law from the switch on, and x, v, y do not jump."""
     from sensor_msgs.msg import JointState
 
-    from train_dynamics import couplers as C
-    from train_dynamics.config import PARAMETERS
+    from train_dynamics.physics import couplers as C
+    from train_dynamics.physics.parameters import PARAMETERS
 
     node = harness.start(brake_input='cylinder_per_coach', real_time_factor=2.0, duration=4.0)
     couplers = harness.collect(JointState, 'couplers')

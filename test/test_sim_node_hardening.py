@@ -123,7 +123,7 @@ def test_stale_input_emergency_then_fresh_then_hold(harness, tmp_path):
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import JointState
 
-    from train_dynamics.bagio import read_topics
+    from train_dynamics.recording.bags import read_topics
 
     diags = harness.collect(DiagnosticArray, '/diagnostics')
     coaches = harness.collect(JointState, 'coaches')
@@ -188,7 +188,7 @@ def test_numerical_fault_stops_reports_keeps_the_bag_and_reset_recovers(harness,
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import JointState
 
-    from train_dynamics.bagio import read_topics
+    from train_dynamics.recording.bags import read_topics
 
     bag = tmp_path / 'fault'
     diags = harness.collect(DiagnosticArray, '/diagnostics')
@@ -229,7 +229,7 @@ def test_numerical_fault_stops_reports_keeps_the_bag_and_reset_recovers(harness,
 
 def _start_node(args, tmp_path):
     """sim_node in a subprocess; returns (process, stderr lines list)."""
-    proc = subprocess.Popen([sys.executable, '-m', 'train_dynamics.sim_node', '--ros-args']
+    proc = subprocess.Popen([sys.executable, '-m', 'train_dynamics.ros.sim_node', '--ros-args']
                             + args, cwd=str(tmp_path), stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
     lines: list[str] = []
@@ -248,7 +248,7 @@ def _wait_started(lines, timeout=30.0):
 
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_signal_during_recorded_run_leaves_a_complete_bag(tmp_path, sig):
-    from train_dynamics.bagio import bag_info, read_topics
+    from train_dynamics.recording.bags import bag_info, read_topics
 
     bag = tmp_path / 'bag'
     proc, lines = _start_node(['-p', f'record_bag:={bag}', '-p', 'real_time_factor:=2.0',
@@ -270,7 +270,7 @@ def test_signal_during_recorded_run_leaves_a_complete_bag(tmp_path, sig):
 
 
 def test_sigkill_loses_at_most_the_unflushed_part(tmp_path):
-    from train_dynamics.bagio import read_topics
+    from train_dynamics.recording.bags import read_topics
 
     bag = tmp_path / 'bag'
     proc, lines = _start_node(['-p', f'record_bag:={bag}', '-p', 'real_time_factor:=1.0',
@@ -300,7 +300,7 @@ def _rss_mb() -> float:
 def test_long_free_run_memory_flat_stamps_monotonic_exact_counts(harness, tmp_path):
     """Shortened soak (the hour is in bench/soak): 30 coaches as fast as possible for 120 s of
     simulated time, recorded."""
-    from train_dynamics.bagio import bag_info, read_topics
+    from train_dynamics.recording.bags import bag_info, read_topics
 
     duration = 120.0
     bag = tmp_path / 'soak'

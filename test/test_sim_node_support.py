@@ -20,7 +20,7 @@ class Harness:
     def __init__(self) -> None:
         import rclpy
 
-        from train_dynamics.sim_node import make_executor
+        from train_dynamics.ros.sim_node import make_executor
 
         self.executor = make_executor()
         self.probe = rclpy.create_node(TEST_NODE)
@@ -32,7 +32,7 @@ class Harness:
         """A SimNode with these parameter overrides, added to the executor."""
         from rclpy.parameter import Parameter
 
-        from train_dynamics.sim_node import SimNode
+        from train_dynamics.ros.sim_node import SimNode
 
         node = SimNode(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
         self.add(node)

@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from train_dynamics import integrators as I
-from train_dynamics.config import SimConfig
-from train_dynamics.train import TrainSimulator
+from train_dynamics.physics import integrators as I
+from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.train import TrainSimulator
 
 from physics_helpers import paper_sim
 

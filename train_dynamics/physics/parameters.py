@@ -408,5 +408,5 @@ def markdown_table() -> str:
     return '\n'.join(lines)
 
 
-if __name__ == '__main__':   # python -m train_dynamics.config: print the README table
+if __name__ == '__main__':   # python -m train_dynamics.physics.parameters: print the README table
     print(markdown_table())

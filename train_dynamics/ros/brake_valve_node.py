@@ -24,7 +24,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import HistoryPolicy, QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure
 
-from train_dynamics.brake_valve_model import (DEFAULTS, DESCRIPTIONS, RANGES, SETTING_NAMES,
+from train_dynamics.physics.brake_valve import (DEFAULTS, DESCRIPTIONS, RANGES, SETTING_NAMES,
                                               BrakeValveModel, check_live_change, parse_schedule,
                                               validate_position, validate_settings)
 
@@ -216,7 +216,10 @@ def main(args: list[str] | None = None) -> int:
     finally:
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown()
+        try:
+            rclpy.try_shutdown()
+        except Exception:  # noqa: BLE001 - a signal handler shut the context down first
+            pass
     return 0
 
 

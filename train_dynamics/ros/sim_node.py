@@ -1,7 +1,7 @@
 """``sim_node``: the real-time ROS 2 node (node name ``train_dynamics``) around the physics core.
 
 A thin wrapper: parameters, topics, pacing, recording. The model is
-:class:`train_dynamics.train.TrainSimulator`, the same class the offline command runs.
+:class:`train_dynamics.physics.train.TrainSimulator`, the same class the offline command runs.
 
 Inputs (``sensor_msgs/FluidPressure``, ABSOLUTE Pa; gauge = absolute - ``atmospheric_pressure``),
 relative names, subscribed best-effort keep-last 10 so that reliable and best-effort publishers
@@ -43,7 +43,7 @@ logged, and the simulation then runs that much behind the wall clock. ``real_tim
 as fast as possible, in chunks of at most :data:`CHUNK_BUDGET` s so that subscriptions,
 parameters and services stay responsive.
 
-Parameters: every parameter of :data:`train_dynamics.config.PARAMETERS` plus the node's own
+Parameters: every parameter of :data:`train_dynamics.physics.parameters.PARAMETERS` plus the node's own
 (:data:`NODE_PARAMETERS`): ``duration`` (simulation seconds after which the node stops by
 itself, 0 = forever), ``wait_for_input`` (hold t = 0 until the brake-input topics have
 publishers, at most that many wall seconds) and ``record_flush_period``. Invalid values are
@@ -104,11 +104,11 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
 from std_srvs.srv import Trigger
 
-from train_dynamics import bagio
-from train_dynamics.bagio import BagError
-from train_dynamics.config import (BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, PARAMETERS, STRING,
+from train_dynamics.recording import bags as bagio
+from train_dynamics.recording.bags import BagError
+from train_dynamics.physics.parameters import (BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, PARAMETERS, STRING,
                                    ConfigError, SimConfig, validate_value)
-from train_dynamics.train import TrainSimulator
+from train_dynamics.physics.train import TrainSimulator
 
 __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS', 'MAX_ABSOLUTE_PRESSURE',
            'REJECT_REASONS', 'NODE_PARAMETERS']
@@ -582,7 +582,7 @@ class SimNode(Node):
         base = cfg.record_bag
         if not base:
             return None
-        from train_dynamics.bagio import BagRecorder
+        from train_dynamics.recording.bags import BagRecorder
 
         path = Path(base)
         if not first:
@@ -1204,7 +1204,10 @@ def main(args: list[str] | None = None) -> int:
             executor.shutdown()
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown()
+        try:
+            rclpy.try_shutdown()
+        except Exception:  # noqa: BLE001 - a signal handler shut the context down first
+            pass
     return code
 
 

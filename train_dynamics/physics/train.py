@@ -19,9 +19,9 @@ from __future__ import annotations
 import numpy as np
 
 from . import brakes, couplers
-from . import integrators as I
+from train_dynamics.physics import integrators as I
 from ._jit import jit
-from .config import SimConfig
+from train_dynamics.physics.parameters import SimConfig
 
 
 @jit

@@ -126,9 +126,9 @@ def load_history(bag: str | os.PathLike, *, namespace: str = '',
     """Read ``couplers``, ``coaches``, ``brake_cylinders`` and ``brake_pipe/pressure``.
 
     ``namespace``: the node's namespace if it ran in one (``/train1`` reads
-    ``/train1/couplers``). Raises :class:`train_dynamics.bagio.BagError` for an unreadable bag.
+    ``/train1/couplers``). Raises :class:`train_dynamics.recording.bags.BagError` for an unreadable bag.
     """
-    from .bagio import bag_info, read_topics
+    from train_dynamics.recording.bags import bag_info, read_topics
 
     ns = namespace.strip('/')
     prefix = f'{ns}/' if ns else ''

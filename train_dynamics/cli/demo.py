@@ -1,6 +1,6 @@
 """``make run``: the paper's emergency braking through the real ROS 2 nodes.
 
-    python -m train_dynamics.run_demo [--rtf 1.0] [--duration 60] [--out out] [--no-plot]
+    python -m train_dynamics.cli.demo [--rtf 1.0] [--duration 60] [--out out] [--no-plot]
 
 Starts ``brake_valve`` and then ``sim_node`` as two processes talking over DDS on loopback
 (``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``; ``ROS_DOMAIN_ID`` from the environment, else one
@@ -39,7 +39,7 @@ def param_file() -> Path:
             return path
     except Exception:  # noqa: BLE001 - not installed with colcon / no ament index
         pass
-    return Path(__file__).resolve().parents[1] / 'config' / PARAM_FILE
+    return Path(__file__).resolve().parents[2] / 'config' / PARAM_FILE
 
 
 def _node_cmd(module: str, args: list[str]) -> list[str]:
@@ -95,7 +95,7 @@ def _pump(proc: subprocess.Popen) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog='python -m train_dynamics.run_demo',
+    ap = argparse.ArgumentParser(prog='python -m train_dynamics.cli.demo',
                                  description='The paper\'s emergency braking through sim_node and '
                                              'brake_valve (DDS on loopback), recorded and plotted.')
     ap.add_argument('--rtf', type=float, default=1.0,
@@ -131,9 +131,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f'run_demo: ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, discovery on localhost only; '
           f'parameters {params}', flush=True)
 
-    valve_cmd = _node_cmd('brake_valve', ['--params-file', str(params),
+    valve_cmd = _node_cmd('ros.brake_valve_node', ['--params-file', str(params),
                                           '-p', 'use_sim_time:=true'])
-    sim_cmd = _node_cmd('sim_node', ['--params-file', str(params),
+    sim_cmd = _node_cmd('ros.sim_node', ['--params-file', str(params),
                                      '-p', f'record_bag:={bag}',
                                      '-p', f'real_time_factor:={float(args.rtf)!r}',
                                      '-p', f'duration:={float(args.duration)!r}',
@@ -174,9 +174,9 @@ def main(argv: list[str] | None = None) -> int:
     print(f'\nbag:   {bag.resolve()}')
     if bag.exists() and not args.no_plot:
         try:
-            from train_dynamics.plotting import plot_bag
+            from train_dynamics.recording.plots import plot_bag
         except ImportError:
-            print('plots: train_dynamics.plotting is not available')
+            print('plots: train_dynamics.recording.plots is not available')
         else:
             try:
                 paths = plot_bag(bag, plots, title='Emergency braking (sim_node + brake_valve)')

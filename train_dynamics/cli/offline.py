@@ -5,7 +5,7 @@
     train-dynamics compare --params FILE --duration T --output DIR
                            [--scale-factors 100,1000,10000] [--steps 0.001,0.0001]
 
-``simulate`` runs :class:`train_dynamics.train.TrainSimulator` (the class ``sim_node`` runs)
+``simulate`` runs :class:`train_dynamics.physics.train.TrainSimulator` (the class ``sim_node`` runs)
 as fast as the machine allows. Brake input:
 
 * ``--input BAG`` (MCAP or sqlite3 rosbag2): the contract's input topics
@@ -17,7 +17,7 @@ as fast as the machine allows. Brake input:
   (zero-order hold), exactly as the node applies a message at its next step.
 * no input bag (``pipe_head`` only): the head-pipe pressure follows the ``brake_valve``
   section of the same parameter file (the ``brake_valve`` node's schedule and rates, see
-  :mod:`train_dynamics.brake_valve_model`), sampled at every integration step; without that
+  :mod:`train_dynamics.physics.brake_valve`), sampled at every integration step; without that
   section: emergency braking at t = 1 s.
 
 The output bag (MCAP) holds, stamped with simulation time from t = 0 at ``publish_rate``:
@@ -110,7 +110,7 @@ def step_of(t_ns: int, h: float) -> int:
 
 def read_input_bag(path: str, cfg, *, namespace: str = '') -> BrakeInputs:
     """The events of ``cfg.brake_input`` from a bag; :class:`CliError` if none is usable."""
-    from .bagio import BagError, bag_info, read_topics
+    from train_dynamics.recording.bags import BagError, bag_info, read_topics
 
     mode = cfg.brake_input
     pattern = INPUT_TOPICS[mode]
@@ -204,8 +204,8 @@ def valve_from_param_file(path: str, cfg):
     The valve's running and full-service pressures default to the simulator's, so that a
     released valve leaves the distributors released.
     """
-    from .brake_valve_model import BrakeValveModel
-    from .config import ConfigError, read_param_file
+    from train_dynamics.physics.brake_valve import BrakeValveModel
+    from train_dynamics.physics.parameters import ConfigError, read_param_file
 
     try:
         params = dict(read_param_file(path, 'brake_valve'))
@@ -259,7 +259,7 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
     ``on_sample`` is called at every output step (default: ``publish_rate``), after the
     inputs due at that step were applied; ``on_input`` for every input event applied.
     """
-    from .train import TrainSimulator
+    from train_dynamics.physics.train import TrainSimulator
 
     sim = TrainSimulator(cfg)
     h = sim.h
@@ -323,12 +323,12 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
 class BagSink:
     """Writes the output topics of each sample (and the inputs used) to a BagRecorder.
 
-    Messages are encoded with :mod:`train_dynamics.bagio`'s direct CDR encoders (the same bytes
+    Messages are encoded with :mod:`train_dynamics.recording.bags`'s direct CDR encoders (the same bytes
     rosbags would write, several times faster).
     """
 
     def __init__(self, rec, cfg) -> None:
-        from . import bagio
+        from train_dynamics.recording import bags as bagio
 
         self.bagio = bagio
         self.rec = rec
@@ -373,9 +373,9 @@ class ArraySink:
         self.fb.append(s.sim.brake_force)
 
     def history(self, sim, label: str = ''):
-        """A :class:`train_dynamics.plotting.History` (F from the simulator's force law)."""
-        from . import couplers
-        from .plotting import History, JointSeries
+        """A :class:`train_dynamics.recording.plots.History` (F from the simulator's force law)."""
+        from train_dynamics.physics import couplers
+        from train_dynamics.recording.plots import History, JointSeries
 
         t = np.asarray(self.t)
         x, v = np.asarray(self.x), np.asarray(self.v)
@@ -423,7 +423,7 @@ class Progress:
 # -- commands ----------------------------------------------------------------------------------
 
 def _load_config(path: str):
-    from .config import ConfigError, load_param_file
+    from train_dynamics.physics.parameters import ConfigError, load_param_file
 
     if not Path(path).is_file():
         raise CliError(f'parameter file not found: {path}')
@@ -464,7 +464,7 @@ def _model_info(cfg, inputs: BrakeInputs, duration: float) -> dict[str, str]:
 
 
 def cmd_simulate(args) -> int:
-    from .bagio import BagError, BagRecorder
+    from train_dynamics.recording.bags import BagError, BagRecorder
 
     duration = _check_duration(args.duration)
     out = Path(args.output)
@@ -523,8 +523,8 @@ def _remove_empty(folders) -> None:
 
 
 def cmd_plot(args) -> int:
-    from .bagio import BagError
-    from .plotting import PlotError, plot_bag
+    from train_dynamics.recording.bags import BagError
+    from train_dynamics.recording.plots import PlotError, plot_bag
 
     if not Path(args.bag).exists():
         raise CliError(f'bag not found: {args.bag}')
@@ -556,8 +556,8 @@ def _fmt_step(h: float) -> str:
 
 
 def cmd_compare(args) -> int:
-    from .config import ConfigError
-    from .plotting import plot_comparison, sign_changes_per_second
+    from train_dynamics.physics.parameters import ConfigError
+    from train_dynamics.recording.plots import plot_comparison, sign_changes_per_second
 
     duration = _check_duration(args.duration)
     base = _load_config(args.params)
@@ -714,7 +714,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _version() -> str:
-    from . import __version__
+    from train_dynamics import __version__
     return __version__
 
 

@@ -236,7 +236,7 @@ class BrakeValveModel:
     @classmethod
     def from_param_file(cls, path: str, node_name: str = 'brake_valve') -> 'BrakeValveModel':
         """Build from the ``node_name`` section of a ROS 2 parameter file ({} -> defaults)."""
-        from train_dynamics.config import read_param_file
+        from train_dynamics.physics.parameters import read_param_file
 
         try:
             return cls.from_params(read_param_file(path, node_name))
