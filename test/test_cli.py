@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from train_dynamics.cli import offline as cli
+from train_dynamics.physics import runner
 from train_dynamics.recording import bags as bagio
 from train_dynamics.recording.bags import BagRecorder, read_topics
 from train_dynamics.physics.parameters import load_param_file
@@ -311,12 +312,12 @@ def test_python_dash_m_and_help(tmp_path):
 
 
 def test_output_steps_and_input_steps():
-    assert cli.output_steps(1.0, 100.0, 0.001) == list(range(0, 1001, 10))
-    assert cli.output_steps(0.05, 30.0, 0.001) == [0, 33]           # nearest step
-    assert cli.step_of(0, 0.001) == 0
-    assert cli.step_of(1_000_000, 0.001) == 1                       # exactly on a step
-    assert cli.step_of(1_000_001, 0.001) == 2                       # just after: next step
-    assert cli.step_of(10_500_000, 0.001) == 11
+    assert runner.output_steps(1.0, 100.0, 0.001) == list(range(0, 1001, 10))
+    assert runner.output_steps(0.05, 30.0, 0.001) == [0, 33]           # nearest step
+    assert runner.step_of(0, 0.001) == 0
+    assert runner.step_of(1_000_000, 0.001) == 1                       # exactly on a step
+    assert runner.step_of(1_000_001, 0.001) == 2                       # just after: next step
+    assert runner.step_of(10_500_000, 0.001) == 11
 
 
 def test_compare_prints_table_and_writes_figures(tmp_path, capsys):

@@ -50,6 +50,11 @@ from typing import Any
 
 import numpy as np
 
+from train_dynamics import topics
+from train_dynamics.physics.runner import (BrakeInputs, InputEvent, Sample, run_simulation,
+                                           step_of)
+from train_dynamics.recording.outputs import OutputEncoder, run_metadata, time_ns
+
 PROG = 'train-dynamics'
 EXIT_OK, EXIT_ERROR, EXIT_USAGE, EXIT_FAULT, EXIT_INTERRUPT, EXIT_TERMINATED = 0, 1, 2, 3, 130, 143
 
@@ -77,36 +82,6 @@ def _warn(text: str) -> None:
 
 
 # -- brake inputs ------------------------------------------------------------------------------
-
-@dataclass(frozen=True)
-class InputEvent:
-    """One brake-input message: from integration step ``step`` on, hold ``gauge`` [Pa]."""
-
-    step: int
-    t_ns: int                 # bag time relative to the bag's start [ns]
-    index: int | None         # 0-based coach, None for the head of the pipe
-    gauge: float              # [Pa]
-    topic: str                # relative topic name as written to the output
-    msg: Any                  # the FluidPressure message (rosbags)
-
-
-@dataclass
-class BrakeInputs:
-    """The brake input of a run: bag events (sorted), or a brake-valve model."""
-
-    mode: str
-    events: list[InputEvent] = field(default_factory=list)
-    valve: Any = None                                  # BrakeValveModel (pipe_head, no bag)
-    source: str = ''
-
-
-def step_of(t_ns: int, h: float) -> int:
-    """First integration step k with k*h >= t (t in ns): where an input at t takes effect."""
-    h_ns = h * 1e9
-    if abs(h_ns - round(h_ns)) < 1e-6:              # a whole number of ns: exact arithmetic
-        return max(0, -(-int(t_ns) // int(round(h_ns))))
-    return max(0, math.ceil(t_ns / h_ns - 1e-9))
-
 
 def read_input_bag(path: str, cfg, *, namespace: str = '') -> BrakeInputs:
     """The events of ``cfg.brake_input`` from a bag; :class:`CliError` if none is usable."""
@@ -223,103 +198,6 @@ def valve_from_param_file(path: str, cfg):
 
 # -- the run loop ------------------------------------------------------------------------------
 
-class Sample:
-    """What an output sink receives at each output time (views valid during the call)."""
-
-    __slots__ = ('step', 't', 'sim', 'head_gauge')
-
-    def __init__(self, step: int, t: float, sim, head_gauge: float | None):
-        self.step, self.t, self.sim, self.head_gauge = step, t, sim, head_gauge
-
-
-def iter_output_steps(duration: float, rate: float, h: float):
-    """Integration steps of the output samples t_j = j / rate, 0 <= t_j <= duration (lazy;
-    the nearest step, each step at most once)."""
-    n = int(math.floor(duration * rate + 1e-9))
-    last = None
-    for j in range(n + 1):
-        k = int(math.floor(j / rate / h + 0.5))
-        if k != last:
-            yield k
-            last = k
-
-
-def output_steps(duration: float, rate: float, h: float) -> list[int]:
-    """:func:`iter_output_steps` as a list."""
-    return list(iter_output_steps(duration, rate, h))
-
-
-def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
-                   on_sample: Callable[[Sample], None],
-                   on_input: Callable[[InputEvent], None] | None = None,
-                   sample_steps: Sequence[int] | None = None,
-                   progress: Callable[[float], None] | None = None):
-    """Run a fresh TrainSimulator for ``duration`` [s]; returns it (check ``sim.fault``).
-
-    ``on_sample`` is called at every output step (default: ``publish_rate``), after the
-    inputs due at that step were applied; ``on_input`` for every input event applied.
-    """
-    from train_dynamics.physics.train import TrainSimulator
-
-    sim = TrainSimulator(cfg)
-    h = sim.h
-    k_end = int(math.floor(duration / h + 0.5))
-    samples = iter(sample_steps) if sample_steps is not None else iter_output_steps(
-        duration, float(cfg.publish_rate), h)
-    next_sample = next(samples, None)
-    events = inputs.events
-    valve = inputs.valve
-    if valve is not None:
-        valve.reset()
-    setter = {'pipe_head': lambda e: sim.set_head_pipe_pressure(e.gauge),
-              'pipe_per_coach': lambda e: sim.set_pipe_pressure(e.gauge, e.index),
-              'cylinder_per_coach': lambda e: sim.set_cylinder_pressure(e.gauge, e.index)
-              }[inputs.mode]
-    ie = 0
-    k = 0
-    head: float | None = None
-    last_progress = -1.0
-    while True:
-        while ie < len(events) and events[ie].step <= k:
-            setter(events[ie])
-            if on_input is not None:
-                on_input(events[ie])
-            ie += 1
-        valve_next = k_end
-        if valve is not None:
-            # (+1e-9 step: an event due exactly at this step is applied despite rounding of k*h)
-            p = valve.advance_to(k * h + 1e-9 * h)
-            if p != head:
-                sim.set_head_pipe_pressure(p)
-                head = p
-            if p != valve.target:
-                valve_next = k + 1                          # ramping: follow every step
-            else:
-                pending = valve.pending
-                if pending:
-                    valve_next = step_of(int(round(pending[0].time * 1e9)), h)
-        while next_sample is not None and next_sample <= k:
-            if next_sample <= k_end:
-                on_sample(Sample(k, k * h, sim, head))
-            next_sample = next(samples, None)
-        if k >= k_end:
-            break
-        nxt = min(k_end, valve_next,
-                  events[ie].step if ie < len(events) else k_end,
-                  next_sample if next_sample is not None else k_end)
-        nxt = max(nxt, k + 1)
-        done = sim.advance(nxt - k)
-        if sim.fault is not None or done != nxt - k:
-            break
-        k = nxt
-        if progress is not None and (k - last_progress) * h >= 0.002 * duration:
-            progress(k / k_end if k_end else 1.0)
-            last_progress = k
-    if progress is not None:
-        progress(1.0)
-    return sim
-
-
 class BagSink:
     """Writes the output topics of each sample (and the inputs used) to a BagRecorder.
 
@@ -332,22 +210,18 @@ class BagSink:
 
         self.bagio = bagio
         self.rec = rec
-        n = cfg.n_coaches
         self.atm = float(cfg.atmospheric_pressure)
-        self.enc_couplers = bagio.JointStateEncoder([f'coupler_{i}' for i in range(1, n)])
-        self.enc_coaches = bagio.JointStateEncoder([f'coach_{i}' for i in range(1, n + 1)])
-        for topic in ('couplers', 'coaches', 'brake_cylinders'):
-            rec.add_topic(topic, JOINT_STATE)
+        self.encoder = OutputEncoder(cfg.n_coaches)
+        for topic in topics.OUTPUT_TOPICS:
+            rec.add_topic(topic, topics.JOINT_STATE)
 
     def sample(self, s: Sample) -> None:
-        sim, write = s.sim, self.rec.write
-        t_ns = int(round(s.t * 1e9))
-        write('couplers', t_ns, self.enc_couplers(t_ns, sim.y, sim.ydot, sim.coupler_force))
-        write('coaches', t_ns, self.enc_coaches(t_ns, sim.x, sim.v, sim.brake_force))
-        write('brake_cylinders', t_ns, self.enc_coaches(t_ns, sim.cylinder_pressure, None,
-                                                        sim.pipe_pressure))
+        write = self.rec.write
+        t_ns = time_ns(s.t)
+        for topic, data in zip(topics.OUTPUT_TOPICS, self.encoder.encode(t_ns, s.sim)):
+            write(topic, t_ns, data)
         if s.head_gauge is not None:
-            write('brake_pipe/pressure', t_ns,
+            write(topics.HEAD_PIPE_TOPIC, t_ns,
                   self.bagio.encode_fluid_pressure(t_ns, s.head_gauge + self.atm))
 
     def input(self, e: InputEvent) -> None:
@@ -451,12 +325,8 @@ def _inputs_for(args, cfg) -> BrakeInputs:
 
 
 def _model_info(cfg, inputs: BrakeInputs, duration: float) -> dict[str, str]:
-    info = {'generator': 'train-dynamics simulate', 'model_type': str(cfg.model_type),
-            'scale_factor': repr(float(cfg.scale_factor)),
-            'integration_step': repr(float(cfg.integration_step)),
-            'publish_rate': repr(float(cfg.publish_rate)), 'num_coaches': str(cfg.n_coaches),
-            'brake_input': str(cfg.brake_input), 'input': inputs.source,
-            'duration': repr(float(duration))}
+    info = run_metadata(cfg, 'train-dynamics simulate', input=inputs.source,
+                        duration=repr(float(duration)))
     if inputs.valve is not None:
         info['brake_valve_schedule'] = ', '.join(
             f'{e.time:g}:{e.position}' for e in inputs.valve.schedule)

@@ -76,7 +76,6 @@ from __future__ import annotations
 
 import contextlib
 import functools
-import json
 import math
 import os
 import queue
@@ -108,7 +107,10 @@ from train_dynamics.recording import bags as bagio
 from train_dynamics.recording.bags import BagError
 from train_dynamics.physics.parameters import (BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, PARAMETERS, STRING,
                                    ConfigError, SimConfig, validate_value)
+from train_dynamics import topics
+from train_dynamics.physics.runner import end_step, output_step
 from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.recording.outputs import OutputEncoder, parameters_json, run_metadata, time_ns
 
 __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS', 'MAX_ABSOLUTE_PRESSURE',
            'REJECT_REASONS', 'NODE_PARAMETERS']
@@ -363,10 +365,9 @@ class SimNode(Node):
             self._check_bag_path(cfg.record_bag)
 
         # Publishers (outputs) and the reset service.
-        self._pub_couplers = self.create_publisher(JointState, 'couplers', OUTPUT_QOS)
-        self._pub_coaches = self.create_publisher(JointState, 'coaches', OUTPUT_QOS)
-        self._pub_cylinders = self.create_publisher(JointState, 'brake_cylinders', OUTPUT_QOS)
-        self._pub_clock = self.create_publisher(Clock, '/clock', OUTPUT_QOS)
+        self._pub_outputs = [self.create_publisher(JointState, topic, OUTPUT_QOS)
+                             for topic in topics.OUTPUT_TOPICS]
+        self._pub_clock = self.create_publisher(Clock, topics.CLOCK_TOPIC, OUTPUT_QOS)
         self._pub_diag = self.create_publisher(DiagnosticArray, '/diagnostics', OUTPUT_QOS)
         self._reset_srv = self.create_service(Trigger, '~/reset', self._on_reset)
 
@@ -533,15 +534,11 @@ class SimNode(Node):
         self._behind = 0.0
         self._step_cost = 1e-5            # [s wall per step], running estimate
         self._rtf_window = (time.monotonic(), 0.0)
-        # Output messages, reused.
-        couplers = [f'coupler_{i}' for i in range(1, n)]
-        coaches = [f'coach_{i}' for i in range(1, n + 1)]
-        # Output messages are CDR-encoded here (names and header layout computed once), then
-        # published and recorded as the same bytes: ~10x cheaper than filling JointState
-        # objects whose N names rclpy converts again on every publish (the sim thread holds
-        # the GIL meanwhile: output jitter).
-        self._enc_couplers = bagio.JointStateEncoder(couplers)
-        self._enc_coaches = bagio.JointStateEncoder(coaches)
+        # Output messages are CDR-encoded once per output (names and header layout computed
+        # once), then published and recorded as the same bytes: ~10x cheaper than filling
+        # JointState objects whose N names rclpy converts again on every publish (the sim
+        # thread holds the GIL meanwhile: output jitter).
+        self._encoder = OutputEncoder(n)
         # Inputs: latest accepted gauge values per slot (head: 1 slot; per coach: N slots),
         # starting from the simulator's initial inputs (charged pipe, empty cylinders).
         slots = 1 if self._mode == HEAD else n
@@ -574,7 +571,7 @@ class SimNode(Node):
 
     def _update_end_step(self) -> None:
         d = self._duration
-        self._end_step = int(math.floor(d / self._h + 0.5)) if d > 0 else None
+        self._end_step = end_step(d, self._h) if d > 0 else None
 
     def _make_writer(self, cfg: SimConfig, first: bool) -> '_BagWriter | None':
         """A recorder for ``cfg.record_bag`` (after a reset: the first free
@@ -594,17 +591,12 @@ class SimNode(Node):
                 k += 1
         rec = BagRecorder(path)
         try:
-            info = {'generator': 'sim_node', 'node': self.get_fully_qualified_name(),
-                    'model_type': str(cfg.model_type),
-                    'scale_factor': repr(float(cfg.scale_factor)),
-                    'integration_step': repr(float(cfg.integration_step)),
-                    'publish_rate': repr(float(cfg.publish_rate)),
-                    'num_coaches': str(cfg.n_coaches), 'brake_input': str(cfg.brake_input),
-                    'parameters': json.dumps(cfg.values, sort_keys=True)}
+            info = run_metadata(cfg, 'sim_node', node=self.get_fully_qualified_name(),
+                                parameters=parameters_json(cfg))
             for key, value in info.items():
                 rec.set_custom_data(key, value)
-            for topic in ('couplers', 'coaches', 'brake_cylinders'):
-                rec.add_topic(topic, JOINT_STATE)
+            for topic in topics.OUTPUT_TOPICS:
+                rec.add_topic(topic, topics.JOINT_STATE)
         except Exception:
             rec.abort()
             raise
@@ -830,28 +822,24 @@ class SimNode(Node):
     def _publish(self) -> None:
         """Outputs of the present state (caller holds the lock)."""
         sim = self._sim
-        t_ns = int(round(sim.t * 1e9))
-        c = self._enc_couplers(t_ns, sim.y, sim.ydot, sim.coupler_force)
-        k = self._enc_coaches(t_ns, sim.x, sim.v, sim.brake_force)
-        b = self._enc_coaches(t_ns, sim.cylinder_pressure, None, sim.pipe_pressure)
-        self._pub_couplers.publish(c)
-        self._pub_coaches.publish(k)
-        self._pub_cylinders.publish(b)
+        t_ns = time_ns(sim.t)
+        encoded = self._encoder.encode(t_ns, sim)
+        for pub, data in zip(self._pub_outputs, encoded):
+            pub.publish(data)
         clock = None
         if self._cfg.publish_clock:
             clock = Clock(clock=_stamp(t_ns))
             self._pub_clock.publish(clock)
         w = self._writer
         if w is not None:
-            w.write('couplers', JOINT_STATE, t_ns, c)
-            w.write('coaches', JOINT_STATE, t_ns, k)
-            w.write('brake_cylinders', JOINT_STATE, t_ns, b)
+            for topic, data in zip(topics.OUTPUT_TOPICS, encoded):
+                w.write(topic, topics.JOINT_STATE, t_ns, data)
             if clock is not None:
-                w.write('/clock', 'rosgraph_msgs/msg/Clock', t_ns, serialize_message(clock))
+                w.write(topics.CLOCK_TOPIC, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
 
     def _pub_step(self, j: int) -> int:
         """Integration step of the j-th output, t_j = j / publish_rate."""
-        return int(math.floor(j / self._rate / self._h + 0.5))
+        return output_step(j, self._rate, self._h)
 
     def _publish_due(self) -> None:
         """Publish if the present step is an output step; move to the next output step."""

@@ -1,0 +1,152 @@
+"""The offline run loop: one simulator, its brake inputs, samples at the output instants.
+
+``train-dynamics simulate`` and ``compare`` run the model through :func:`run_simulation`;
+``sim_node`` takes the same output grid (:func:`output_step`) and input timing
+(:func:`step_of`). Simulation time advances in whole integration steps of ``h`` [s]:
+an output t_j = j / publish_rate is taken at the nearest step, an input at bag time t acts
+from the first step k with k h >= t (zero-order hold). No ROS, no bag I/O.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+from train_dynamics.physics.train import TrainSimulator
+
+
+@dataclass(frozen=True)
+class InputEvent:
+    """One brake-input message: from integration step ``step`` on, hold ``gauge`` [Pa]."""
+
+    step: int
+    t_ns: int                 # bag time relative to the bag's start [ns]
+    index: int | None         # 0-based coach, None for the head of the pipe
+    gauge: float              # [Pa]
+    topic: str                # relative topic name as written to the output
+    msg: Any                  # the FluidPressure message (rosbags)
+
+
+@dataclass
+class BrakeInputs:
+    """The brake input of a run: bag events (sorted), or a brake-valve model."""
+
+    mode: str
+    events: list[InputEvent] = field(default_factory=list)
+    valve: Any = None                                  # BrakeValveModel (pipe_head, no bag)
+    source: str = ''
+
+
+def step_of(t_ns: int, h: float) -> int:
+    """First integration step k with k*h >= t (t in ns): where an input at t takes effect."""
+    h_ns = h * 1e9
+    if abs(h_ns - round(h_ns)) < 1e-6:              # a whole number of ns: exact arithmetic
+        return max(0, -(-int(t_ns) // int(round(h_ns))))
+    return max(0, math.ceil(t_ns / h_ns - 1e-9))
+
+
+
+def output_step(j: int, rate: float, h: float) -> int:
+    """Integration step of the j-th output, t_j = j / rate [Hz]: the nearest step."""
+    return int(math.floor(j / rate / h + 0.5))
+
+
+def end_step(duration: float, h: float) -> int:
+    """The last integration step of a run of ``duration`` [s]: the step nearest to it."""
+    return int(math.floor(duration / h + 0.5))
+
+
+class Sample:
+    """What an output sink receives at each output time (views valid during the call)."""
+
+    __slots__ = ('step', 't', 'sim', 'head_gauge')
+
+    def __init__(self, step: int, t: float, sim, head_gauge: float | None):
+        self.step, self.t, self.sim, self.head_gauge = step, t, sim, head_gauge
+
+
+def iter_output_steps(duration: float, rate: float, h: float):
+    """Integration steps of the output samples t_j = j / rate, 0 <= t_j <= duration (lazy;
+    the nearest step, each step at most once)."""
+    n = int(math.floor(duration * rate + 1e-9))
+    last = None
+    for j in range(n + 1):
+        k = output_step(j, rate, h)
+        if k != last:
+            yield k
+            last = k
+
+
+def output_steps(duration: float, rate: float, h: float) -> list[int]:
+    """:func:`iter_output_steps` as a list."""
+    return list(iter_output_steps(duration, rate, h))
+
+
+def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
+                   on_sample: Callable[[Sample], None],
+                   on_input: Callable[[InputEvent], None] | None = None,
+                   sample_steps: Sequence[int] | None = None,
+                   progress: Callable[[float], None] | None = None):
+    """Run a fresh TrainSimulator for ``duration`` [s]; returns it (check ``sim.fault``).
+
+    ``on_sample`` is called at every output step (default: ``publish_rate``), after the
+    inputs due at that step were applied; ``on_input`` for every input event applied.
+    """
+    sim = TrainSimulator(cfg)
+    h = sim.h
+    k_end = end_step(duration, h)
+    samples = iter(sample_steps) if sample_steps is not None else iter_output_steps(
+        duration, float(cfg.publish_rate), h)
+    next_sample = next(samples, None)
+    events = inputs.events
+    valve = inputs.valve
+    if valve is not None:
+        valve.reset()
+    setter = {'pipe_head': lambda e: sim.set_head_pipe_pressure(e.gauge),
+              'pipe_per_coach': lambda e: sim.set_pipe_pressure(e.gauge, e.index),
+              'cylinder_per_coach': lambda e: sim.set_cylinder_pressure(e.gauge, e.index)
+              }[inputs.mode]
+    ie = 0
+    k = 0
+    head: float | None = None
+    last_progress = -1.0
+    while True:
+        while ie < len(events) and events[ie].step <= k:
+            setter(events[ie])
+            if on_input is not None:
+                on_input(events[ie])
+            ie += 1
+        valve_next = k_end
+        if valve is not None:
+            # (+1e-9 step: an event due exactly at this step is applied despite rounding of k*h)
+            p = valve.advance_to(k * h + 1e-9 * h)
+            if p != head:
+                sim.set_head_pipe_pressure(p)
+                head = p
+            if p != valve.target:
+                valve_next = k + 1                          # ramping: follow every step
+            else:
+                pending = valve.pending
+                if pending:
+                    valve_next = step_of(int(round(pending[0].time * 1e9)), h)
+        while next_sample is not None and next_sample <= k:
+            if next_sample <= k_end:
+                on_sample(Sample(k, k * h, sim, head))
+            next_sample = next(samples, None)
+        if k >= k_end:
+            break
+        nxt = min(k_end, valve_next,
+                  events[ie].step if ie < len(events) else k_end,
+                  next_sample if next_sample is not None else k_end)
+        nxt = max(nxt, k + 1)
+        done = sim.advance(nxt - k)
+        if sim.fault is not None or done != nxt - k:
+            break
+        k = nxt
+        if progress is not None and (k - last_progress) * h >= 0.002 * duration:
+            progress(k / k_end if k_end else 1.0)
+            last_progress = k
+    if progress is not None:
+        progress(1.0)
+    return sim

@@ -1,0 +1,58 @@
+"""The output messages of a simulator state, encoded once for publishing and recording.
+
+``sim_node`` publishes these bytes and records the very same bytes; the offline command
+writes them to its bag. One definition of what each output topic carries:
+
+- ``couplers``: JointState ``coupler_1..N-1``: position y [m], velocity ydot [m/s], effort F [N];
+- ``coaches``: JointState ``coach_1..N``: position x [m], velocity v [m/s], effort Fb [N];
+- ``brake_cylinders``: JointState ``coach_1..N``: position = brake-cylinder gauge pressure
+  [Pa], velocity empty, effort = local brake-pipe gauge pressure [Pa].
+"""
+from __future__ import annotations
+
+import json
+from typing import Any
+
+from train_dynamics import topics
+from train_dynamics.recording.bags import JointStateEncoder
+
+
+def time_ns(t: float) -> int:
+    """Simulation time [s] as the integer nanoseconds of stamps and bag times."""
+    return int(round(t * 1e9))
+
+
+class OutputEncoder:
+    """CDR bytes of the output topics for a train of ``n_coaches`` (names encoded once)."""
+
+    def __init__(self, n_coaches: int) -> None:
+        self._couplers = JointStateEncoder(topics.coupler_names(n_coaches))
+        self._coaches = JointStateEncoder(topics.coach_names(n_coaches))
+
+    def encode(self, t_ns: int, sim: Any) -> tuple[bytes, bytes, bytes]:
+        """(couplers, coaches, brake_cylinders) of ``sim``'s present state, stamped ``t_ns``.
+
+        In the order of :data:`train_dynamics.topics.OUTPUT_TOPICS`.
+        """
+        return (self._couplers(t_ns, sim.y, sim.ydot, sim.coupler_force),
+                self._coaches(t_ns, sim.x, sim.v, sim.brake_force),
+                self._coaches(t_ns, sim.cylinder_pressure, None, sim.pipe_pressure))
+
+
+def run_metadata(cfg: Any, generator: str, **extra: str) -> dict[str, str]:
+    """The ``custom_data`` of a recorded run's ``metadata.yaml``: model, step, train, input.
+
+    ``extra`` adds or overrides keys (e.g. the node name, the input source, the duration).
+    """
+    info = {'generator': generator, 'model_type': str(cfg.model_type),
+            'scale_factor': repr(float(cfg.scale_factor)),
+            'integration_step': repr(float(cfg.integration_step)),
+            'publish_rate': repr(float(cfg.publish_rate)), 'num_coaches': str(cfg.n_coaches),
+            'brake_input': str(cfg.brake_input)}
+    info.update(extra)
+    return info
+
+
+def parameters_json(cfg: Any) -> str:
+    """Every simulator parameter of the run, as recorded in ``custom_data['parameters']``."""
+    return json.dumps(cfg.values, sort_keys=True)

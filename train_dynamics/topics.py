@@ -1,0 +1,68 @@
+"""Names and types on the wire: the topics of the product contract, written once.
+
+Every layer takes its topic names, message type strings and joint names from here: the node
+(``ros/``), the bag reader, writer and plots (``recording/``) and the offline command
+(``cli/``). Relative names, so that namespaces and remapping work. No imports beyond the
+standard library: the physics layer may use it too.
+"""
+from __future__ import annotations
+
+import re
+
+NODE_NAME = 'train_dynamics'
+VALVE_NODE_NAME = 'brake_valve'
+
+# -- message types (rosbag2 / rosbags spelling) --------------------------------------------------
+FLUID_PRESSURE = 'sensor_msgs/msg/FluidPressure'
+JOINT_STATE = 'sensor_msgs/msg/JointState'
+CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
+DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+
+# -- brake inputs (sensor_msgs/FluidPressure, ABSOLUTE Pa) ---------------------------------------
+PIPE_HEAD = 'pipe_head'
+PIPE_PER_COACH = 'pipe_per_coach'
+CYLINDER_PER_COACH = 'cylinder_per_coach'
+BRAKE_INPUT_MODES = (PIPE_HEAD, PIPE_PER_COACH, CYLINDER_PER_COACH)
+
+HEAD_PIPE_TOPIC = 'brake_pipe/pressure'
+#: per-coach input topic of each per-coach mode, ``.format(i=<1-based coach>)``
+COACH_INPUT_TOPIC = {PIPE_PER_COACH: 'coach_{i}/brake_pipe/pressure',
+                     CYLINDER_PER_COACH: 'coach_{i}/brake_cylinder/pressure'}
+#: input topic (relative name) of each mode as a regular expression; group 1 = coach number
+INPUT_TOPIC_PATTERNS = {
+    PIPE_HEAD: re.compile(r'brake_pipe/pressure'),
+    PIPE_PER_COACH: re.compile(r'coach_(\d+)/brake_pipe/pressure'),
+    CYLINDER_PER_COACH: re.compile(r'coach_(\d+)/brake_cylinder/pressure'),
+}
+#: how the README and error messages name the input topics of each mode
+INPUT_TOPIC_DISPLAY = {PIPE_HEAD: HEAD_PIPE_TOPIC,
+                       PIPE_PER_COACH: 'coach_<i>/brake_pipe/pressure',
+                       CYLINDER_PER_COACH: 'coach_<i>/brake_cylinder/pressure'}
+#: Inputs above this ABSOLUTE pressure [Pa] (20 bar) are rejected as implausible.
+MAX_ABSOLUTE_PRESSURE = 2.0e6
+
+# -- outputs (sensor_msgs/JointState, header.stamp = simulation time) ----------------------------
+COUPLERS_TOPIC = 'couplers'
+COACHES_TOPIC = 'coaches'
+BRAKE_CYLINDERS_TOPIC = 'brake_cylinders'
+#: the JointState output topics, in the order they are published and recorded
+OUTPUT_TOPICS = (COUPLERS_TOPIC, COACHES_TOPIC, BRAKE_CYLINDERS_TOPIC)
+CLOCK_TOPIC = '/clock'
+DIAGNOSTICS_TOPIC = '/diagnostics'
+
+
+def input_topic(mode: str, coach: int | None = None) -> str:
+    """The input topic of ``mode``; ``coach`` (1-based) for the per-coach modes."""
+    if mode == PIPE_HEAD:
+        return HEAD_PIPE_TOPIC
+    return COACH_INPUT_TOPIC[mode].format(i=coach)
+
+
+def coupler_names(n_coaches: int) -> list[str]:
+    """Joint names of the ``couplers`` topic: ``coupler_1`` .. ``coupler_{N-1}``."""
+    return [f'coupler_{i}' for i in range(1, n_coaches)]
+
+
+def coach_names(n_coaches: int) -> list[str]:
+    """Joint names of the ``coaches`` and ``brake_cylinders`` topics: ``coach_1`` .. ``coach_N``."""
+    return [f'coach_{i}' for i in range(1, n_coaches + 1)]
