@@ -97,6 +97,27 @@ def output_steps(duration: float, rate: float, h: float) -> list[int]:
     return list(iter_output_steps(duration, rate, h))
 
 
+def _drive_head(valve: Any, sim: TrainSimulator, k: int, head: float | None,
+                k_end: int) -> tuple[float | None, int]:
+    """
+    Set the head-pipe pressure of the brake valve at step ``k`` [Pa gauge].
+
+    Return the pressure applied and the next step at which the valve's output may change.
+    """
+    h = sim.h
+    # (+1e-9 step: an event due exactly at this step is applied despite rounding of k*h)
+    p = valve.advance_to(k * h + 1e-9 * h)
+    if p != head:
+        sim.set_head_pipe_pressure(p)
+        head = p
+    if p != valve.target:
+        return head, k + 1                              # ramping: follow every step
+    pending = valve.pending
+    if pending:
+        return head, step_of(int(round(pending[0].time * 1e9)), h)
+    return head, k_end
+
+
 def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
                    on_sample: Callable[[Sample], None],
                    on_input: Callable[[InputEvent], None] | None = None,
@@ -107,7 +128,7 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
 
     ``on_sample`` is called at every output step (default: ``publish_rate``), after the
     inputs due at that step were applied; ``on_input`` for every input event applied;
-    ``progress`` with the fraction done (at least every 0.2 % of the run, and 1.0 at the end).
+    ``progress`` with the fraction done (after each 0.2 % of the run or more; 1.0 at the end).
     """
     sim = TrainSimulator(cfg)
     h = sim.h
@@ -135,17 +156,7 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
             ie += 1
         valve_next = k_end
         if valve is not None:
-            # (+1e-9 step: an event due exactly at this step is applied despite rounding of k*h)
-            p = valve.advance_to(k * h + 1e-9 * h)
-            if p != head:
-                sim.set_head_pipe_pressure(p)
-                head = p
-            if p != valve.target:
-                valve_next = k + 1                          # ramping: follow every step
-            else:
-                pending = valve.pending
-                if pending:
-                    valve_next = step_of(int(round(pending[0].time * 1e9)), h)
+            head, valve_next = _drive_head(valve, sim, k, head, k_end)
         while next_sample is not None and next_sample <= k:
             if next_sample <= k_end:
                 on_sample(Sample(k, k * h, sim, head))
