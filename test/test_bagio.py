@@ -2,18 +2,21 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import textwrap
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from rosbags.rosbag2 import StoragePlugin, Writer
+from sensor_msgs.msg import JointState
 
-from train_dynamics.recording import bags as bagio
-from train_dynamics.recording.bags import BagError, BagRecorder, bag_info, read_topics
+from train_dynamics.recording import cdr, messages
+from train_dynamics.recording.bags import bag_info, BagError, BagRecorder, read_topics
 
 JS = 'sensor_msgs/msg/JointState'
 FP = 'sensor_msgs/msg/FluidPressure'
@@ -21,8 +24,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 def _couplers(t: float, k: int):
-    return bagio.joint_state(t, ['coupler_1', 'coupler_2'], [0.001 * k, -0.002 * k],
-                             [0.1, -0.1], [1.0e5 * k, -2.0e5])
+    return messages.joint_state(t, ['coupler_1', 'coupler_2'], [0.001 * k, -0.002 * k],
+                                [0.1, -0.1], [1.0e5 * k, -2.0e5])
 
 
 def test_write_read_roundtrip(tmp_path):
@@ -32,7 +35,7 @@ def test_write_read_roundtrip(tmp_path):
         rec.add_topic('couplers', JS)                       # idempotent
         for k in range(50):
             rec.write_msg('couplers', k * 10_000_000, _couplers(k * 0.01, k))
-        rec.write_msg('/brake_pipe/pressure', 123, bagio.fluid_pressure(1.25, 101325.0 + 5e5))
+        rec.write_msg('/brake_pipe/pressure', 123, messages.fluid_pressure(1.25, 101325.0 + 5e5))
     got = list(read_topics(bag))
     # time order: couplers at 0 ns, the pressure (written last) at 123 ns, couplers ...
     assert [t for t, _, _ in got] == ['couplers', 'brake_pipe/pressure'] + ['couplers'] * 49
@@ -54,9 +57,6 @@ def test_write_read_roundtrip(tmp_path):
 
 
 def test_raw_cdr_from_rclpy_roundtrips(tmp_path):
-    from rclpy.serialization import serialize_message
-    from sensor_msgs.msg import JointState
-
     m = JointState()
     m.header.stamp.sec, m.header.stamp.nanosec = 7, 25
     m.name = ['coupler_1', 'coupler_2']
@@ -94,14 +94,12 @@ def test_refuses_existing_path_and_bad_use(tmp_path):
 
 
 def test_reads_sqlite3_and_bare_mcap(tmp_path):
-    from rosbags.rosbag2 import StoragePlugin, Writer
-
     db = tmp_path / 'db'
     with Writer(db, version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
         conn = w.add_connection('/coach_1/brake_cylinder/pressure', FP,
-                                typestore=bagio.typestore())
+                                typestore=messages.typestore())
         for k in range(3):
-            w.write(conn, 10 ** 9 + k, bagio.serialize(bagio.fluid_pressure(k, 1e5 * k)))
+            w.write(conn, 10 ** 9 + k, messages.serialize(messages.fluid_pressure(k, 1e5 * k)))
     got = list(read_topics(db, ['coach_1/brake_cylinder/pressure']))
     assert [(t, n, m.fluid_pressure) for t, n, m in got] == [
         ('coach_1/brake_cylinder/pressure', 10 ** 9 + k, 1e5 * k) for k in range(3)]
@@ -150,19 +148,20 @@ def test_split_files_readable_while_recording(tmp_path):
 
 
 def test_sigkill_loses_at_most_the_current_file(tmp_path):
-    script = textwrap.dedent('''
+    script = textwrap.dedent("""
         import sys, time
-        from train_dynamics.recording import bags as bagio
-        rec = bagio.BagRecorder(sys.argv[1], split_seconds=0.5)
+        from train_dynamics.recording.bags import BagRecorder
+        from train_dynamics.recording.messages import joint_state
+        rec = BagRecorder(sys.argv[1], split_seconds=0.5)
         k = 0
         while True:
-            rec.write_msg('couplers', k * 10_000_000, bagio.joint_state(
+            rec.write_msg('couplers', k * 10_000_000, joint_state(
                 k * 0.01, ['coupler_1'], [0.0], [0.0], [float(k)]))
             k += 1
             if k == 200:
                 print('ready', flush=True)
             time.sleep(0.0005)
-    ''')
+    """)
     bag = tmp_path / 'killed'
     env = dict(os.environ,
                PYTHONPATH=os.pathsep.join([str(REPO), os.environ.get('PYTHONPATH', '')]))
@@ -204,32 +203,32 @@ def test_same_messages_give_identical_bytes(tmp_path):
             for k in range(500):
                 rec.write_msg('couplers', k * 10_000_000, _couplers(k * 0.01, k))
                 rec.write_msg('brake_pipe/pressure', k * 10_000_000,
-                              bagio.fluid_pressure(k * 0.01, 101325.0))
+                              messages.fluid_pressure(k * 0.01, 101325.0))
     for f in ('out_0.mcap', 'metadata.yaml'):
         assert (tmp_path / 'a' / f).read_bytes() == (tmp_path / 'b' / f).read_bytes()
 
 
 def test_stamp_helpers():
-    s = bagio.stamp(1.5)
+    s = messages.stamp(1.5)
     assert (s.sec, s.nanosec) == (1, 500_000_000)
-    s = bagio.stamp(2.999999999)
+    s = messages.stamp(2.999999999)
     assert (s.sec, s.nanosec) == (2, 999_999_999)
-    assert bagio.stamp_to_sec(bagio.stamp(12.25)) == 12.25
-    assert bagio.time_to_ns(0.1) == 100_000_000
+    assert messages.stamp_to_sec(messages.stamp(12.25)) == 12.25
+    assert messages.time_to_ns(0.1) == 100_000_000
     with pytest.raises(ValueError):
-        bagio.time_to_ns(float('nan'))
-    c = bagio.clock(3.0)
+        messages.time_to_ns(float('nan'))
+    c = messages.clock(3.0)
     assert (c.clock.sec, c.clock.nanosec) == (3, 0)
-    d = bagio.diagnostic_array(1.0, [bagio.diagnostic_status('train_dynamics: rtf', 1, 'slow',
-                                                              values={'rtf': 0.5})])
-    raw = bagio.serialize(d)
-    back = bagio.deserialize(raw, 'diagnostic_msgs/msg/DiagnosticArray')
+    status = messages.diagnostic_status('train_dynamics: rtf', 1, 'slow', values={'rtf': 0.5})
+    d = messages.diagnostic_array(1.0, [status])
+    raw = messages.serialize(d)
+    back = messages.deserialize(raw, 'diagnostic_msgs/msg/DiagnosticArray')
     assert back.status[0].level == 1 and back.status[0].values[0].value == '0.5'
 
 
 def test_direct_cdr_encoders_match_rosbags():
     rng = np.random.default_rng(7)
-    types = bagio.typestore().types
+    types = messages.typestore().types
     for _ in range(200):
         n = int(rng.integers(0, 6))
         names = ['c' * int(rng.integers(0, 9)) + str(i) for i in range(n)]
@@ -237,29 +236,29 @@ def test_direct_cdr_encoders_match_rosbags():
         arrays = [None if rng.random() < 0.3 else rng.normal(size=int(rng.integers(0, 5)))
                   for _ in range(3)]
         frame = 'f' * int(rng.integers(0, 7))
-        hdr = types['std_msgs/msg/Header'](stamp=bagio.stamp(t_ns, ns=True), frame_id=frame)
+        hdr = types['std_msgs/msg/Header'](stamp=messages.stamp(t_ns, ns=True), frame_id=frame)
         ref = types['sensor_msgs/msg/JointState'](
             header=hdr, name=names, **{k: np.zeros(0) if a is None else a for k, a in
                                        zip(('position', 'velocity', 'effort'), arrays)})
-        assert bagio.encode_joint_state(t_ns, names, *arrays, frame_id=frame) == \
-            bagio.serialize(ref)
-        assert bagio.JointStateEncoder(names, frame)(t_ns, *arrays) == bagio.serialize(ref)
+        assert cdr.encode_joint_state(t_ns, names, *arrays, frame_id=frame) == \
+            messages.serialize(ref)
+        assert cdr.JointStateEncoder(names, frame)(t_ns, *arrays) == messages.serialize(ref)
         p = float(rng.normal() * 1e5)
         fp = types['sensor_msgs/msg/FluidPressure'](header=hdr, fluid_pressure=p, variance=0.25)
-        assert bagio.encode_fluid_pressure(t_ns, p, 0.25, frame_id=frame) == bagio.serialize(fp)
+        assert cdr.encode_fluid_pressure(t_ns, p, 0.25, frame_id=frame) == messages.serialize(fp)
 
 
 def test_encoder_bytes_read_by_rclpy_typesupport():
-    """sim_node publishes JointStateEncoder bytes straight to DDS: rclpy's (Fast-CDR)
-    typesupport must read them back exactly, empty sequences included (brake_cylinders has
-    no velocity; Fast-CDR pads empty float64 sequences differently from rosbags)."""
-    from rclpy.serialization import deserialize_message
-    from sensor_msgs.msg import JointState
+    """
+    Check that rclpy's (Fast-CDR) typesupport reads JointStateEncoder bytes back exactly.
 
+    sim_node publishes these bytes straight to DDS; empty sequences included (brake_cylinders
+    has no velocity; Fast-CDR pads empty float64 sequences differently from rosbags).
+    """
     rng = np.random.default_rng(11)
     for n in (0, 1, 2, 3, 7, 300):
         names = [f'coach_{i}' for i in range(1, n + 1)]
-        enc = bagio.JointStateEncoder(names)
+        enc = cdr.JointStateEncoder(names)
         for empty in (None, 0, 1, 2):
             arrays = [rng.normal(size=n) * 1e5 for _ in range(3)]
             if empty is not None:

@@ -1,21 +1,29 @@
 """The offline command: replay of brake inputs from bags, determinism, errors, compare."""
 from __future__ import annotations
 
+import io
 import math
 import os
+from pathlib import Path
+import signal
 import subprocess
 import sys
-from pathlib import Path
+import time
 
 import numpy as np
 import pytest
+from rosbags.rosbag2 import StoragePlugin, Writer
 
 from train_dynamics.cli import offline as cli
-from train_dynamics.physics import runner
-from train_dynamics.recording import bags as bagio
-from train_dynamics.recording.bags import BagRecorder, read_topics
+from train_dynamics.cli.errors import EXIT_FAULT, EXIT_INTERRUPT, EXIT_TERMINATED
+from train_dynamics.cli.progress import progress_bar
+from train_dynamics.physics import runner, train
 from train_dynamics.physics.parameters import load_param_file
 from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.recording import messages
+from train_dynamics.recording.bags import bag_info, BagRecorder, read_topics
+from train_dynamics.recording.plots import png_size, SIZE_PX
+from train_dynamics.recording.sinks import BagSink
 
 ATM = 101325.0
 REPO = Path(__file__).resolve().parents[1]
@@ -35,23 +43,28 @@ train_dynamics:
 {extra}"""
 
 
-def write_params(path: Path, n: int = 3, mode: str = 'cylinder_per_coach', extra: str = '') -> Path:
+def write_params(path: Path, n: int = 3, mode: str = 'cylinder_per_coach',
+                 extra: str = '') -> Path:
     path.write_text(PARAMS.format(n=n, mode=mode, extra=extra))
     return path
 
 
 def cylinder_curve(t: float, delay: float) -> float:
-    """A known brake-cylinder filling [Pa gauge]: 3.8 bar, time constant 1.2 s, after delay."""
+    """Return a known brake-cylinder filling [Pa gauge]: 3.8 bar, tau 1.2 s, from ``delay``."""
     return 0.0 if t < delay else 380000.0 * (1.0 - math.exp(-(t - delay) / 1.2))
 
 
 def cylinder_bag(path: Path, n: int = 3, t_end: float = 3.0, dt: float = 0.02,
                  odd: float | None = 0.0105) -> list[tuple[int, int, float]]:
-    """Bag with coach_<i>/brake_cylinder/pressure (absolute) every ``dt`` and one message at an
-    off-grid time ``odd`` [s]; returns the events (t_rel_ns, coach index, gauge)."""
+    """
+    Write a bag with coach_<i>/brake_cylinder/pressure (absolute) every ``dt``.
+
+    And one message at an off-grid time ``odd`` [s]; return the events (t_rel_ns, coach
+    index, gauge).
+    """
     events = []
     with BagRecorder(path) as rec:
-        rec.write_msg('/unrelated/topic', EPOCH_NS, bagio.fluid_pressure(0.0, ATM))  # bag start
+        rec.write_msg('/unrelated/topic', EPOCH_NS, messages.fluid_pressure(0.0, ATM))  # bag start
         times = [k * dt for k in range(int(round(t_end / dt)) + 1)]
         if odd is not None:
             times = sorted(times + [odd])
@@ -61,7 +74,7 @@ def cylinder_bag(path: Path, n: int = 3, t_end: float = 3.0, dt: float = 0.02,
                 p = cylinder_curve(t, 0.1 * i)
                 events.append((t_ns, i, p))
                 rec.write_msg(f'/coach_{i + 1}/brake_cylinder/pressure', EPOCH_NS + t_ns,
-                              bagio.fluid_pressure(t, p + ATM))
+                              messages.fluid_pressure(t, p + ATM))
     return events
 
 
@@ -71,7 +84,7 @@ def run(*args: str) -> int:
 
 def coupler_arrays(bag: Path):
     msgs = [m for _, _, m in read_topics(bag, ['couplers'])]
-    t = np.array([bagio.stamp_to_sec(m.header.stamp) for m in msgs])
+    t = np.array([messages.stamp_to_sec(m.header.stamp) for m in msgs])
     return t, np.array([m.position for m in msgs]), np.array([m.velocity for m in msgs]), \
         np.array([m.effort for m in msgs])
 
@@ -110,7 +123,7 @@ def test_replayed_cylinder_bag_gives_the_core_histories(tmp_path):
     # not a trivial history: the delayed brakes compress the buffers (F < 0)
     assert force.min() < -1000.0
     # outputs of the contract, and the inputs used, re-stamped from t = 0
-    info = bagio.bag_info(tmp_path / 'out')
+    info = bag_info(tmp_path / 'out')
     assert info.topics['coaches'] == ('sensor_msgs/msg/JointState', 251)
     assert info.topics['brake_cylinders'] == ('sensor_msgs/msg/JointState', 251)
     # inputs up to the end of the run: 126 on the 20 ms grid (0..2.5 s) + the odd one
@@ -124,15 +137,13 @@ def test_replayed_cylinder_bag_gives_the_core_histories(tmp_path):
 
 
 def test_sqlite3_input_bag_and_namespace(tmp_path):
-    from rosbags.rosbag2 import StoragePlugin, Writer
-
     params = write_params(tmp_path / 'p.yaml', n=2, mode='pipe_head')
     with Writer(tmp_path / 'in', version=9, storage_plugin=StoragePlugin.SQLITE3) as w:
         conn = w.add_connection('/train1/brake_pipe/pressure', 'sensor_msgs/msg/FluidPressure',
-                                typestore=bagio.typestore())
+                                typestore=messages.typestore())
         for t, p in [(0.0, 500000.0), (0.5, 0.0)]:
             w.write(conn, EPOCH_NS + int(t * 1e9),
-                    bagio.serialize(bagio.fluid_pressure(t, p + ATM)))
+                    messages.serialize(messages.fluid_pressure(t, p + ATM)))
     assert run('simulate', '--params', params, '--input', tmp_path / 'in', '--namespace',
                '/train1', '--duration', 1.0, '--output', tmp_path / 'out', '-q') == 0
     msgs = list(read_topics(tmp_path / 'out', ['coaches', 'brake_pipe/pressure']))
@@ -147,8 +158,8 @@ def test_brake_valve_schedule_drives_the_head_and_is_recorded(tmp_path):
         'brake_valve:\n  ros__parameters:\n    schedule: ["0.0:release", "0.5:emergency"]\n'))
     assert run('simulate', '--params', params, '--duration', 2.0, '--output',
                tmp_path / 'out', '-q') == 0
-    head = [(n, m.fluid_pressure) for _, n, m in read_topics(tmp_path / 'out',
-                                                              ['brake_pipe/pressure'])]
+    head = [(n, m.fluid_pressure)
+            for _, n, m in read_topics(tmp_path / 'out', ['brake_pipe/pressure'])]
     assert len(head) == 201
     p = dict(head)
     assert p[0] == pytest.approx(500000.0 + ATM)
@@ -157,7 +168,7 @@ def test_brake_valve_schedule_drives_the_head_and_is_recorded(tmp_path):
     assert p[2_000_000_000] == pytest.approx(ATM)
     coaches = [m for _, _, m in read_topics(tmp_path / 'out', ['coaches'])]
     assert coaches[-1].effort[0] > coaches[-1].effort[2] > 0.0         # brake wave front->rear
-    assert bagio.bag_info(tmp_path / 'out').custom_data['model_type'] == 'tanh'
+    assert bag_info(tmp_path / 'out').custom_data['model_type'] == 'tanh'
 
 
 def test_same_inputs_give_byte_identical_bags(tmp_path):
@@ -183,8 +194,8 @@ def _damaged_bag(tmp_path: Path) -> Path:
 
 def _bag_without_inputs(tmp_path: Path) -> Path:
     with BagRecorder(tmp_path / 'noin') as rec:
-        rec.write_msg('couplers', 0, bagio.joint_state(0.0, ['coupler_1'], [0.0], [0.0], [0.0]))
-        rec.write_msg('coach_1/brake_pipe/pressure', 0, bagio.fluid_pressure(0.0, 6e5))
+        rec.write_msg('couplers', 0, messages.joint_state(0.0, ['coupler_1'], [0.0], [0.0], [0.0]))
+        rec.write_msg('coach_1/brake_pipe/pressure', 0, messages.fluid_pressure(0.0, 6e5))
     return tmp_path / 'noin'
 
 
@@ -280,7 +291,7 @@ def test_interrupt_removes_the_partial_output(tmp_path, monkeypatch):
     params = write_params(tmp_path / 'p.yaml')
     cylinder_bag(tmp_path / 'in', t_end=1.0)
     calls = []
-    original = cli.BagSink.sample
+    original = BagSink.sample
 
     def sample(self, s):
         calls.append(s.t)
@@ -288,10 +299,10 @@ def test_interrupt_removes_the_partial_output(tmp_path, monkeypatch):
             raise KeyboardInterrupt
         original(self, s)
 
-    monkeypatch.setattr(cli.BagSink, 'sample', sample)
+    monkeypatch.setattr(BagSink, 'sample', sample)
     before = sorted(p.name for p in tmp_path.iterdir())
     assert run('simulate', '--params', params, '--input', tmp_path / 'in', '--duration', 1.0,
-               '--output', tmp_path / 'out', '-q') == cli.EXIT_INTERRUPT
+               '--output', tmp_path / 'out', '-q') == EXIT_INTERRUPT
     assert len(calls) == 50
     assert sorted(p.name for p in tmp_path.iterdir()) == before
 
@@ -299,8 +310,8 @@ def test_interrupt_removes_the_partial_output(tmp_path, monkeypatch):
 def test_python_dash_m_and_help(tmp_path):
     env = dict(os.environ,
                PYTHONPATH=os.pathsep.join([str(REPO), os.environ.get('PYTHONPATH', '')]))
-    proc = subprocess.run([sys.executable, '-m', 'train_dynamics.cli.offline', 'simulate', '--params',
-                           str(tmp_path / 'nope.yaml'), '--duration', '1', '--output',
+    proc = subprocess.run([sys.executable, '-m', 'train_dynamics.cli.offline', 'simulate',
+                           '--params', str(tmp_path / 'nope.yaml'), '--duration', '1', '--output',
                            str(tmp_path / 'o')], capture_output=True, text=True, env=env,
                           timeout=120)
     assert proc.returncode == 2
@@ -321,8 +332,6 @@ def test_output_steps_and_input_steps():
 
 
 def test_compare_prints_table_and_writes_figures(tmp_path, capsys):
-    from train_dynamics.recording.plots import SIZE_PX, png_size
-
     params = write_params(tmp_path / 'p.yaml', n=3, mode='pipe_head', extra=(
         'brake_valve:\n  ros__parameters:\n    schedule: ["0.2:emergency"]\n'))
     assert run('compare', '--params', params, '--duration', 1.2, '--output', tmp_path / 'cmp',
@@ -344,17 +353,14 @@ def test_compare_prints_table_and_writes_figures(tmp_path, capsys):
 
 
 def test_sigterm_cleans_up_and_stale_partials_are_removed(tmp_path):
-    import signal
-    import time
-
     params = write_params(tmp_path / 'p.yaml', mode='pipe_head')
     # leftovers of a writer killed with SIGKILL (pid 2^22 + 1 > pid_max: not running)
     stale = tmp_path / f'.out.partial-{2 ** 22 + 1}'
     stale.mkdir()
     env = dict(os.environ,
                PYTHONPATH=os.pathsep.join([str(REPO), os.environ.get('PYTHONPATH', '')]))
-    proc = subprocess.Popen([sys.executable, '-m', 'train_dynamics.cli.offline', 'simulate', '--params',
-                             str(params), '--duration', '100000', '--output',
+    proc = subprocess.Popen([sys.executable, '-m', 'train_dynamics.cli.offline', 'simulate',
+                             '--params', str(params), '--duration', '100000', '--output',
                              str(tmp_path / 'out'), '-q'], env=env, stderr=subprocess.PIPE,
                             text=True)
     try:
@@ -365,7 +371,7 @@ def test_sigterm_cleans_up_and_stale_partials_are_removed(tmp_path):
         assert not stale.exists()               # removed by the new writer
         time.sleep(0.3)
         proc.send_signal(signal.SIGTERM)
-        assert proc.wait(30) == cli.EXIT_TERMINATED
+        assert proc.wait(30) == EXIT_TERMINATED
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -375,8 +381,6 @@ def test_sigterm_cleans_up_and_stale_partials_are_removed(tmp_path):
 
 
 def test_simulation_fault_keeps_the_valid_bag_and_exits_3(tmp_path, monkeypatch, capsys):
-    from train_dynamics.physics import train
-
     original = train.TrainSimulator.advance
 
     def advance(self, n_steps):
@@ -388,8 +392,48 @@ def test_simulation_fault_keeps_the_valid_bag_and_exits_3(tmp_path, monkeypatch,
     monkeypatch.setattr(train.TrainSimulator, 'advance', advance)
     params = write_params(tmp_path / 'p.yaml', mode='pipe_head')
     assert run('simulate', '--params', params, '--duration', 2.0, '--output', tmp_path / 'out',
-               '-q') == cli.EXIT_FAULT
+               '-q') == EXIT_FAULT
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and 'simulation fault' in err[0] and 'out of range' in err[0]
     t, y, _, _ = coupler_arrays(tmp_path / 'out')
     assert t[-1] == pytest.approx(0.5) and len(t) == 51
+
+
+def test_input_bag_warnings_name_ignored_topics_and_missing_coaches(tmp_path, capsys):
+    params = write_params(tmp_path / 'p.yaml')
+    with BagRecorder(tmp_path / 'in') as rec:
+        for topic in ('coach_1/brake_cylinder/pressure', 'coach_5/brake_cylinder/pressure'):
+            rec.write_msg(topic, EPOCH_NS, messages.fluid_pressure(0.0, 3e5 + ATM))
+        rec.write_msg('coach_1/brake_cylinder/pressure', EPOCH_NS + 1000,
+                      messages.fluid_pressure(0.0, -1.0))
+    capsys.readouterr()
+    assert run('simulate', '--params', params, '--input', tmp_path / 'in', '--duration', 0.1,
+               '--output', tmp_path / 'out', '-q') == 0
+    err = capsys.readouterr().err.strip().splitlines()
+    assert all(line.startswith('train-dynamics: warning: input bag: ') for line in err), err
+    assert len(err) == 3
+    assert 'coach_5/brake_cylinder/pressure names coach 5' in err[0]
+    assert 'no input for coach(es) 2-3; held at 0 Pa' in err[1]
+    assert '1 message(s) with a non-finite or negative absolute pressure rejected' in err[2]
+
+
+class _Terminal(io.StringIO):
+
+    def isatty(self) -> bool:
+        return True
+
+
+@pytest.mark.parametrize('quiet, terminal', [(False, True), (True, True), (False, False)])
+def test_progress_bar_only_on_a_terminal_without_quiet(monkeypatch, quiet, terminal):
+    stream = _Terminal() if terminal else io.StringIO()
+    monkeypatch.setattr(sys, 'stderr', stream)
+    show = progress_bar('simulate', 60.0, quiet)
+    for k in range(11):
+        show(k / 10)
+    text = stream.getvalue()
+    if quiet or not terminal:
+        assert text == ''
+    else:
+        last = text.split('\r')[-1]
+        assert last.startswith('simulate [' + '#' * 30 + '] 100.0 % t =   60.00/60 s')
+        assert text.endswith('\n') and text.count('\n') == 1

@@ -1,23 +1,24 @@
 """`train-dynamics plot`: PNG figures from any bag holding couplers."""
 from __future__ import annotations
 
-import zlib
 from pathlib import Path
+import zlib
 
 import numpy as np
 import pytest
 
 from train_dynamics.cli import offline as cli
-from train_dynamics.recording import bags as bagio, plots as plotting
 from train_dynamics.recording.bags import BagRecorder
-from train_dynamics.recording.plots import SIZE_PX, png_size
+from train_dynamics.recording.history import load_history, sign_changes_per_second
+from train_dynamics.recording.messages import fluid_pressure, joint_state
+from train_dynamics.recording.plots import png_size, SIZE_PX
 
 COUPLER_FIGURES = {'coupler_displacement.png': 'single', 'coupler_velocity.png': 'single',
                    'coupler_force.png': 'single', 'couplers.png': 'stack'}
 
 
 def check_png(path: Path, kind: str) -> None:
-    """A complete PNG (signature, IHDR, IDAT, IEND, CRCs) of the expected pixel size."""
+    """Check a complete PNG (signature, IHDR, IDAT, IEND, CRCs) of the expected pixel size."""
     data = path.read_bytes()
     assert data[:8] == b'\x89PNG\r\n\x1a\n'
     pos, chunks = 8, []
@@ -35,7 +36,7 @@ def check_png(path: Path, kind: str) -> None:
 
 def synthetic_bag(path: Path, n_couplers: int, *, slash: str = '', namespace: str = '',
                   reset_at: int | None = None, coaches: bool = False) -> None:
-    """A bag as `ros2 bag record` would write it (absolute names), 10 s at 50 Hz."""
+    """Write a bag as `ros2 bag record` would (absolute names), 10 s at 50 Hz."""
     names = [f'coupler_{i}' for i in range(1, n_couplers + 1)]
     prefix = f'{slash}{namespace}/' if namespace else slash
     with BagRecorder(path) as rec:
@@ -46,14 +47,15 @@ def synthetic_bag(path: Path, n_couplers: int, *, slash: str = '', namespace: st
             t = k * 0.02
             phase = np.arange(n_couplers) * 0.3
             y = -0.02 * np.exp(-t / 3) * np.cos(2 * t + phase)
-            rec.write_msg(prefix + 'couplers', 10 ** 9 + seq * 20_000_000, bagio.joint_state(
+            rec.write_msg(prefix + 'couplers', 10 ** 9 + seq * 20_000_000, joint_state(
                 t, names, y, 0.04 * np.sin(2 * t + phase),
                 2.8e6 * y))
             if coaches:
                 v = 44.4 - 0.8 * t
-                rec.write_msg(prefix + 'coaches', 10 ** 9 + seq * 20_000_000, bagio.joint_state(
-                    t, [f'coach_{i}' for i in range(1, n_couplers + 2)], [v * t] * (n_couplers + 1),
-                    [v] * (n_couplers + 1), [44000.0] * (n_couplers + 1)))
+                n = n_couplers + 1
+                rec.write_msg(prefix + 'coaches', 10 ** 9 + seq * 20_000_000, joint_state(
+                    t, [f'coach_{i}' for i in range(1, n + 1)], [v * t] * n, [v] * n,
+                    [44000.0] * n))
 
 
 def test_plot_of_a_simulated_bag(tmp_path):
@@ -69,7 +71,7 @@ def test_plot_of_a_simulated_bag(tmp_path):
         check_png(tmp_path / 'fig' / name, kind)
     check_png(tmp_path / 'fig' / 'coaches.png', 'coaches')
     # the history behind the figures is the bag's (mm, kN conversions happen only in drawing)
-    hist = plotting.load_history(tmp_path / 'run')
+    hist = load_history(tmp_path / 'run')
     assert hist.couplers.names == ['coupler_1', 'coupler_2']
     assert len(hist.couplers) == 401 and hist.couplers.t[-1] == pytest.approx(4.0)
     assert hist.cylinders is not None and hist.head_pressure is not None
@@ -85,7 +87,7 @@ def test_plot_of_a_recorded_bag_many_couplers_namespace_and_reset(tmp_path, caps
     assert sorted(Path(p).name for p in listed) == sorted(COUPLER_FIGURES)
     for name, kind in COUPLER_FIGURES.items():
         check_png(tmp_path / 'fig' / name, kind)
-    hist = plotting.load_history(tmp_path / 'rec', namespace='/train1')
+    hist = load_history(tmp_path / 'rec', namespace='/train1')
     assert hist.couplers.names[:3] == ['coupler_1', 'coupler_2', 'coupler_3']   # natural order
     assert hist.couplers.names[-1] == 'coupler_14'
     assert len(hist.couplers) == 501                  # only the run after the reset
@@ -94,7 +96,7 @@ def test_plot_of_a_recorded_bag_many_couplers_namespace_and_reset(tmp_path, caps
 
 def test_plot_errors(tmp_path, capsys):
     with BagRecorder(tmp_path / 'nocouplers') as rec:
-        rec.write_msg('brake_pipe/pressure', 0, bagio.fluid_pressure(0.0, 6e5))
+        rec.write_msg('brake_pipe/pressure', 0, fluid_pressure(0.0, 6e5))
     for bag, expect in [(tmp_path / 'nocouplers', 'no couplers topic'),
                         (tmp_path / 'missing', 'bag not found')]:
         capsys.readouterr()
@@ -108,7 +110,7 @@ def test_sign_changes_per_second():
     t = np.linspace(0.0, 2.0, 201)
     v = np.stack([np.sin(2 * np.pi * t), np.where(np.arange(201) % 2, 1e-9, -1e-9),
                   np.zeros(201)], axis=1)
-    rate = plotting.sign_changes_per_second(t, v, tol=0.0)
+    rate = sign_changes_per_second(t, v, tol=0.0)
     assert rate[0] == pytest.approx(1.5)        # sin(2 pi t), t in (0, 2]: zeros at 0.5, 1, 1.5
     assert rate[1] == pytest.approx(100.0)      # flips every sample: chattering
     assert rate[2] == 0.0

@@ -1,4 +1,5 @@
-"""Names and types on the wire: the topics of the product contract, written once.
+"""
+Names and types on the wire: the topics of the product contract, written once.
 
 Every layer takes its topic names, message type strings and joint names from here: the node
 (``ros/``), the bag reader, writer and plots (``recording/``) and the offline command
@@ -52,17 +53,17 @@ DIAGNOSTICS_TOPIC = '/diagnostics'
 
 
 def input_topic(mode: str, coach: int | None = None) -> str:
-    """The input topic of ``mode``; ``coach`` (1-based) for the per-coach modes."""
+    """Return the input topic of ``mode``; ``coach`` (1-based) for the per-coach modes."""
     if mode == PIPE_HEAD:
         return HEAD_PIPE_TOPIC
     return COACH_INPUT_TOPIC[mode].format(i=coach)
 
 
 def coupler_names(n_coaches: int) -> list[str]:
-    """Joint names of the ``couplers`` topic: ``coupler_1`` .. ``coupler_{N-1}``."""
+    """Return the joint names of ``couplers``: ``coupler_1`` .. ``coupler_{N-1}``."""
     return [f'coupler_{i}' for i in range(1, n_coaches)]
 
 
 def coach_names(n_coaches: int) -> list[str]:
-    """Joint names of the ``coaches`` and ``brake_cylinders`` topics: ``coach_1`` .. ``coach_N``."""
+    """Return the joint names of ``coaches``, ``brake_cylinders``: ``coach_1`` .. ``coach_N``."""
     return [f'coach_{i}' for i in range(1, n_coaches + 1)]

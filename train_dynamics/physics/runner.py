@@ -1,18 +1,22 @@
-"""The offline run loop: one simulator, its brake inputs, samples at the output instants.
+"""
+The offline run loop: one simulator, its brake inputs, samples at the output instants.
 
-``train-dynamics simulate`` and ``compare`` run the model through :func:`run_simulation`;
-``sim_node`` takes the same output grid (:func:`output_step`) and input timing
-(:func:`step_of`). Simulation time advances in whole integration steps of ``h`` [s]:
-an output t_j = j / publish_rate is taken at the nearest step, an input at bag time t acts
-from the first step k with k h >= t (zero-order hold). No ROS, no bag I/O.
+``train-dynamics simulate`` and ``compare`` (:mod:`train_dynamics.cli`) run the model through
+:func:`run_simulation`; ``sim_node`` takes the same output grid (:func:`output_step`) and
+input timing (:func:`step_of`). Simulation time advances in whole integration steps of ``h``
+[s]: an output t_j = j / rate is taken at the nearest step, an input at bag time t acts from
+the first step k with k h >= t (zero-order hold). No ROS, no bag I/O: the input events come
+from :mod:`train_dynamics.recording.inputs` or a brake-valve model, the samples go to the
+sinks of :mod:`train_dynamics.recording.sinks`.
 """
 from __future__ import annotations
 
-import math
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
+import math
 from typing import Any
 
+from train_dynamics import topics
 from train_dynamics.physics.train import TrainSimulator
 
 
@@ -37,6 +41,13 @@ class BrakeInputs:
     valve: Any = None                                  # BrakeValveModel (pipe_head, no bag)
     source: str = ''
 
+    def for_step(self, h: float) -> BrakeInputs:
+        """Return the same inputs for a run with integration step ``h`` [s] (:func:`step_of`)."""
+        if not self.events:
+            return self
+        return BrakeInputs(self.mode, [replace(e, step=step_of(e.t_ns, h)) for e in self.events],
+                           None, self.source)
+
 
 def step_of(t_ns: int, h: float) -> int:
     """First integration step k with k*h >= t (t in ns): where an input at t takes effect."""
@@ -46,14 +57,13 @@ def step_of(t_ns: int, h: float) -> int:
     return max(0, math.ceil(t_ns / h_ns - 1e-9))
 
 
-
 def output_step(j: int, rate: float, h: float) -> int:
     """Integration step of the j-th output, t_j = j / rate [Hz]: the nearest step."""
     return int(math.floor(j / rate / h + 0.5))
 
 
 def end_step(duration: float, h: float) -> int:
-    """The last integration step of a run of ``duration`` [s]: the step nearest to it."""
+    """Return the last integration step of a run of ``duration`` [s]: the nearest step."""
     return int(math.floor(duration / h + 0.5))
 
 
@@ -62,13 +72,17 @@ class Sample:
 
     __slots__ = ('step', 't', 'sim', 'head_gauge')
 
-    def __init__(self, step: int, t: float, sim, head_gauge: float | None):
+    def __init__(self, step: int, t: float, sim: TrainSimulator,
+                 head_gauge: float | None) -> None:
         self.step, self.t, self.sim, self.head_gauge = step, t, sim, head_gauge
 
 
 def iter_output_steps(duration: float, rate: float, h: float):
-    """Integration steps of the output samples t_j = j / rate, 0 <= t_j <= duration (lazy;
-    the nearest step, each step at most once)."""
+    """
+    Yield the integration steps of the samples t_j = j / rate [Hz], 0 <= t_j <= duration.
+
+    Each the nearest step (:func:`output_step`), each step at most once; lazy.
+    """
     n = int(math.floor(duration * rate + 1e-9))
     last = None
     for j in range(n + 1):
@@ -79,8 +93,29 @@ def iter_output_steps(duration: float, rate: float, h: float):
 
 
 def output_steps(duration: float, rate: float, h: float) -> list[int]:
-    """:func:`iter_output_steps` as a list."""
+    """Return :func:`iter_output_steps` as a list."""
     return list(iter_output_steps(duration, rate, h))
+
+
+def _drive_head(valve: Any, sim: TrainSimulator, k: int, head: float | None,
+                k_end: int) -> tuple[float | None, int]:
+    """
+    Set the head-pipe pressure of the brake valve at step ``k`` [Pa gauge].
+
+    Return the pressure applied and the next step at which the valve's output may change.
+    """
+    h = sim.h
+    # (+1e-9 step: an event due exactly at this step is applied despite rounding of k*h)
+    p = valve.advance_to(k * h + 1e-9 * h)
+    if p != head:
+        sim.set_head_pipe_pressure(p)
+        head = p
+    if p != valve.target:
+        return head, k + 1                              # ramping: follow every step
+    pending = valve.pending
+    if pending:
+        return head, step_of(int(round(pending[0].time * 1e9)), h)
+    return head, k_end
 
 
 def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
@@ -88,10 +123,12 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
                    on_input: Callable[[InputEvent], None] | None = None,
                    sample_steps: Sequence[int] | None = None,
                    progress: Callable[[float], None] | None = None):
-    """Run a fresh TrainSimulator for ``duration`` [s]; returns it (check ``sim.fault``).
+    """
+    Run a fresh TrainSimulator for ``duration`` [s]; return it (check ``sim.fault``).
 
     ``on_sample`` is called at every output step (default: ``publish_rate``), after the
-    inputs due at that step were applied; ``on_input`` for every input event applied.
+    inputs due at that step were applied; ``on_input`` for every input event applied;
+    ``progress`` with the fraction done (after each 0.2 % of the run or more; 1.0 at the end).
     """
     sim = TrainSimulator(cfg)
     h = sim.h
@@ -103,9 +140,9 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
     valve = inputs.valve
     if valve is not None:
         valve.reset()
-    setter = {'pipe_head': lambda e: sim.set_head_pipe_pressure(e.gauge),
-              'pipe_per_coach': lambda e: sim.set_pipe_pressure(e.gauge, e.index),
-              'cylinder_per_coach': lambda e: sim.set_cylinder_pressure(e.gauge, e.index)
+    setter = {topics.PIPE_HEAD: lambda e: sim.set_head_pipe_pressure(e.gauge),
+              topics.PIPE_PER_COACH: lambda e: sim.set_pipe_pressure(e.gauge, e.index),
+              topics.CYLINDER_PER_COACH: lambda e: sim.set_cylinder_pressure(e.gauge, e.index)
               }[inputs.mode]
     ie = 0
     k = 0
@@ -119,17 +156,7 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
             ie += 1
         valve_next = k_end
         if valve is not None:
-            # (+1e-9 step: an event due exactly at this step is applied despite rounding of k*h)
-            p = valve.advance_to(k * h + 1e-9 * h)
-            if p != head:
-                sim.set_head_pipe_pressure(p)
-                head = p
-            if p != valve.target:
-                valve_next = k + 1                          # ramping: follow every step
-            else:
-                pending = valve.pending
-                if pending:
-                    valve_next = step_of(int(round(pending[0].time * 1e9)), h)
+            head, valve_next = _drive_head(valve, sim, k, head, k_end)
         while next_sample is not None and next_sample <= k:
             if next_sample <= k_end:
                 on_sample(Sample(k, k * h, sim, head))

@@ -1,1 +1,13 @@
-"""recording."""
+"""
+Runs on disk and in memory: rosbag2 I/O, output encoding, histories, figures (no rclpy).
+
+- :mod:`.bags`: rosbag2 directories written (:class:`~.bags.BagRecorder`) and read with
+  ``rosbags``;
+- :mod:`.messages`: ``rosbags`` message objects (Jazzy typestore), :mod:`.cdr`: the direct
+  CDR encoders of the hot output path;
+- :mod:`.outputs`: the bytes of the output topics and the run's ``custom_data`` (node and
+  offline command alike);
+- :mod:`.inputs`: brake inputs read from a bag, :mod:`.sinks`: where the offline run loop
+  puts its samples;
+- :mod:`.history`: time histories as arrays, :mod:`.plots`: the figures (matplotlib).
+"""

@@ -1,10 +1,11 @@
-"""Rosbag2 reading and writing with the ``rosbags`` library (no rosbag2 / ``ros2`` CLI needed).
+"""
+Rosbag2 directories written and read with the ``rosbags`` library (no rosbag2 / ``ros2`` CLI).
 
 Writing: :class:`BagRecorder` writes a rosbag2 directory (format version 9, MCAP storage),
 readable by ``rosbags`` and by ``ros2 bag``. Messages go in either as raw CDR bytes
-(``rclpy.serialization.serialize_message(msg)``) or as ``rosbags`` message objects (built
-with the helpers :func:`joint_state`, :func:`fluid_pressure`, :func:`clock`,
-:func:`diagnostic_array`).
+(``rclpy.serialization.serialize_message(msg)``, or the encoders of
+:mod:`train_dynamics.recording.cdr`) or as ``rosbags`` message objects (built with
+:mod:`train_dynamics.recording.messages`).
 
 Robustness. The ``rosbags`` MCAP writer keeps the current chunk (up to 1 MiB) in memory and
 writes the MCAP summary/footer and ``metadata.yaml`` only in ``close()``; a writer killed
@@ -32,36 +33,20 @@ that do not embed their message definitions. Topic names are returned without a 
 """
 from __future__ import annotations
 
-import math
-import os
-import shutil
-import struct
-import threading
-from collections.abc import Iterable, Iterator, Sequence
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
 from io import StringIO
+import os
 from pathlib import Path
+import shutil
+import threading
 from typing import Any
 
-import numpy as np
+from rosbags.highlevel import AnyReader
+from rosbags.rosbag2 import StoragePlugin, Writer
+from ruamel.yaml import YAML
 
-__all__ = [
-    'BagError', 'BagRecorder', 'BagInfo', 'bag_info', 'read_topics', 'typestore',
-    'time_to_ns', 'stamp', 'stamp_to_sec', 'header', 'joint_state', 'fluid_pressure', 'clock',
-    'diagnostic_status', 'diagnostic_array', 'serialize', 'deserialize', 'encode_joint_state',
-    'encode_fluid_pressure',
-]
-
-_TYPESTORE = None
-
-
-def typestore():
-    """The ``rosbags`` typestore of ROS 2 Jazzy (cached)."""
-    global _TYPESTORE
-    if _TYPESTORE is None:
-        from rosbags.typesys import Stores, get_typestore
-        _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
-    return _TYPESTORE
+from train_dynamics.recording.messages import time_to_ns, typestore
 
 
 class BagError(Exception):
@@ -75,181 +60,6 @@ def _one_line(exc: BaseException) -> str:
 
 def _norm_topic(topic: str) -> str:
     return topic[1:] if topic.startswith('/') else topic
-
-
-# -- message helpers --------------------------------------------------------------------------
-
-def time_to_ns(t: float) -> int:
-    """Time [s] -> integer nanoseconds (rounded to the nearest ns)."""
-    if not math.isfinite(t):
-        raise ValueError(f'time must be finite, got {t}')
-    return int(round(float(t) * 1e9))
-
-
-def stamp(t: float | int, *, ns: bool = False):
-    """``builtin_interfaces/msg/Time`` for time ``t`` [s] (or [ns] if ``ns``)."""
-    t_ns = int(t) if ns else time_to_ns(t)
-    sec, nanosec = divmod(t_ns, 1_000_000_000)
-    return typestore().types['builtin_interfaces/msg/Time'](sec=int(sec), nanosec=int(nanosec))
-
-
-def stamp_to_sec(msg_stamp: Any) -> float:
-    """``builtin_interfaces/msg/Time`` (rosbags or rclpy) -> seconds."""
-    return msg_stamp.sec + msg_stamp.nanosec * 1e-9
-
-
-def header(t: float, frame_id: str = ''):
-    """``std_msgs/msg/Header`` stamped with time ``t`` [s]."""
-    return typestore().types['std_msgs/msg/Header'](stamp=stamp(t), frame_id=frame_id)
-
-
-def _f64(values: Iterable[float] | None) -> np.ndarray:
-    if values is None:
-        return np.zeros(0, dtype=np.float64)
-    return np.array(values, dtype=np.float64).reshape(-1)
-
-
-def joint_state(t: float, names: Sequence[str], position: Iterable[float] | None = None,
-                velocity: Iterable[float] | None = None, effort: Iterable[float] | None = None,
-                frame_id: str = ''):
-    """``sensor_msgs/msg/JointState`` at time ``t`` [s]; ``None`` arrays are left empty."""
-    return typestore().types['sensor_msgs/msg/JointState'](
-        header=header(t, frame_id), name=[str(n) for n in names],
-        position=_f64(position), velocity=_f64(velocity), effort=_f64(effort))
-
-
-def fluid_pressure(t: float, pressure: float, variance: float = 0.0, frame_id: str = ''):
-    """``sensor_msgs/msg/FluidPressure`` at time ``t`` [s]; ``pressure`` ABSOLUTE [Pa]."""
-    return typestore().types['sensor_msgs/msg/FluidPressure'](
-        header=header(t, frame_id), fluid_pressure=float(pressure), variance=float(variance))
-
-
-def clock(t: float):
-    """``rosgraph_msgs/msg/Clock`` for time ``t`` [s]."""
-    return typestore().types['rosgraph_msgs/msg/Clock'](clock=stamp(t))
-
-
-def diagnostic_status(name: str, level: int = 0, message: str = '', hardware_id: str = '',
-                      values: dict[str, Any] | Sequence[tuple[str, Any]] | None = None):
-    """``diagnostic_msgs/msg/DiagnosticStatus``; level 0 OK, 1 WARN, 2 ERROR, 3 STALE."""
-    types = typestore().types
-    items = values.items() if isinstance(values, dict) else (values or [])
-    kvs = [types['diagnostic_msgs/msg/KeyValue'](key=str(k), value=str(v)) for k, v in items]
-    return types['diagnostic_msgs/msg/DiagnosticStatus'](
-        level=int(level), name=name, message=message, hardware_id=hardware_id, values=kvs)
-
-
-def diagnostic_array(t: float, statuses: Sequence[Any]):
-    """``diagnostic_msgs/msg/DiagnosticArray`` at time ``t`` [s] holding ``statuses``."""
-    return typestore().types['diagnostic_msgs/msg/DiagnosticArray'](
-        header=header(t), status=list(statuses))
-
-
-def _cdr_string(out: bytearray, text: str) -> None:
-    data = text.encode('utf-8')
-    _cdr_align(out, 4)
-    out += struct.pack('<I', len(data) + 1)
-    out += data
-    out += b'\x00'
-
-
-def _cdr_align(out: bytearray, n: int) -> None:
-    pad = (-(len(out) - 4)) % n          # alignment counts from the end of the 4-byte header
-    if pad:
-        out += bytes(pad)
-
-
-def _cdr_header(out: bytearray, t_ns: int, frame_id: str) -> None:
-    sec, nanosec = divmod(int(t_ns), 1_000_000_000)
-    _cdr_align(out, 4)
-    out += struct.pack('<iI', sec, nanosec)
-    _cdr_string(out, frame_id)
-
-
-def _cdr_doubles(out: bytearray, values) -> None:
-    arr = np.ascontiguousarray(values if values is not None else (), dtype='<f8').reshape(-1)
-    _cdr_align(out, 4)
-    out += struct.pack('<I', arr.shape[0])
-    if arr.shape[0]:
-        _cdr_align(out, 8)
-        out += arr.tobytes()
-
-
-def encode_joint_state(t_ns: int, names: Sequence[str], position=None, velocity=None,
-                       effort=None, frame_id: str = '') -> bytes:
-    """CDR bytes of a ``sensor_msgs/msg/JointState`` stamped ``t_ns`` [ns], written directly.
-
-    Byte-identical to ``rosbags`` serialisation (zero padding; tested) and ~10x faster; the
-    offline command writes its outputs with it.
-    """
-    out = bytearray(b'\x00\x01\x00\x00')
-    _cdr_header(out, t_ns, frame_id)
-    _cdr_align(out, 4)
-    out += struct.pack('<I', len(names))
-    for name in names:
-        _cdr_string(out, name)
-    for values in (position, velocity, effort):
-        _cdr_doubles(out, values)
-    return bytes(out)
-
-
-class JointStateEncoder:
-    """Fast CDR encoder for JointState messages with fixed ``names`` (same bytes as rosbags).
-
-    ``enc(t_ns, position, velocity, effort)`` -> bytes; arrays of float64 (None = empty).
-    """
-
-    def __init__(self, names: Sequence[str], frame_id: str = '') -> None:
-        head = bytearray(b'\x00\x01\x00\x00')
-        _cdr_header(head, 0, frame_id)
-        self._stamp_at = 4                          # sec, nanosec follow the encapsulation
-        _cdr_align(head, 4)
-        head += struct.pack('<I', len(names))
-        for name in names:
-            _cdr_string(head, name)
-        self._head = bytes(head)
-        self._frame_id = frame_id
-
-    def __call__(self, t_ns: int, position=None, velocity=None, effort=None) -> bytes:
-        sec, nanosec = divmod(int(t_ns), 1_000_000_000)
-        out = bytearray(self._head)
-        struct.pack_into('<iI', out, 4, sec, nanosec)
-        for values in (position, velocity, effort):
-            if values is None:
-                n = 0
-            else:
-                data = np.asarray(values, dtype='<f8').tobytes()
-                n = len(data) >> 3
-            pad = (-(len(out) - 4)) % 4
-            if pad:
-                out += bytes(pad)
-            out += struct.pack('<I', n)
-            if n:
-                pad = (-(len(out) - 4)) % 8
-                if pad:
-                    out += bytes(pad)
-                out += data
-        return bytes(out)
-
-
-def encode_fluid_pressure(t_ns: int, pressure: float, variance: float = 0.0,
-                          frame_id: str = '') -> bytes:
-    """CDR bytes of a ``sensor_msgs/msg/FluidPressure`` (ABSOLUTE [Pa]) stamped ``t_ns``."""
-    out = bytearray(b'\x00\x01\x00\x00')
-    _cdr_header(out, t_ns, frame_id)
-    _cdr_align(out, 8)
-    out += struct.pack('<dd', float(pressure), float(variance))
-    return bytes(out)
-
-
-def serialize(msg: Any) -> bytes:
-    """CDR bytes of a rosbags message object."""
-    return bytes(typestore().serialize_cdr(msg, msg.__msgtype__))
-
-
-def deserialize(data: bytes, msgtype: str) -> Any:
-    """A rosbags message object from CDR bytes (Jazzy typestore)."""
-    return typestore().deserialize_cdr(data, msgtype)
 
 
 # -- writing ----------------------------------------------------------------------------------
@@ -293,7 +103,8 @@ class _Open:
 
 
 class BagRecorder:
-    """Write a rosbag2 (version 9, MCAP) with ``rosbags``.
+    """
+    Write a rosbag2 (version 9, MCAP) with ``rosbags``.
 
     ``BagRecorder(path)`` refuses an existing ``path`` (:class:`FileExistsError`).
     ``split_seconds``: start a new MCAP file when a message's bag time is that far from the
@@ -340,7 +151,7 @@ class BagRecorder:
     # -- public API ---------------------------------------------------------------------------
     @property
     def topics(self) -> dict[str, str]:
-        """Registered topics -> message types."""
+        """Return the registered topics -> message types."""
         return dict(self._topics)
 
     @property
@@ -348,7 +159,8 @@ class BagRecorder:
         return self._closed
 
     def add_topic(self, topic: str, msgtype: str) -> None:
-        """Register ``topic`` with ``msgtype`` (e.g. ``sensor_msgs/msg/JointState``).
+        """
+        Register ``topic`` with ``msgtype`` (e.g. ``sensor_msgs/msg/JointState``).
 
         Idempotent; a different type for a known topic raises :class:`ValueError`, an
         unknown type :class:`KeyError`.
@@ -466,8 +278,6 @@ class BagRecorder:
         seg.connections[topic] = seg.writer.add_connection(topic, msgtype, typestore=typestore())
 
     def _start_segment(self) -> _Open:
-        from rosbags.rosbag2 import StoragePlugin, Writer
-
         name = f'{self._stem}_{len(self._segments)}'
         self._staging.mkdir(exist_ok=True)
         seg_dir = self._staging / name
@@ -482,8 +292,6 @@ class BagRecorder:
         return seg
 
     def _finish_segment(self) -> None:
-        from ruamel.yaml import YAML
-
         seg, self._open = self._open, None
         assert seg is not None
         writer = seg.writer
@@ -503,8 +311,6 @@ class BagRecorder:
 
     def _write_metadata(self) -> None:
         """Write ``metadata.yaml`` for the finished files (atomically)."""
-        from ruamel.yaml import YAML
-
         segs = self._segments
         nonempty = [s for s in segs if s.count]
         start = min((s.start_ns for s in nonempty), default=0)
@@ -566,8 +372,6 @@ class BagInfo:
 
 
 def _open_reader(path: str | os.PathLike):
-    from rosbags.highlevel import AnyReader
-
     p = Path(path)
     if not p.exists():
         raise BagError(f'bag not found: {p}')
@@ -593,8 +397,6 @@ def _custom_data(path: Path) -> dict[str, str]:
     if not meta.is_file():
         return {}
     try:
-        from ruamel.yaml import YAML
-
         info = YAML(typ='safe').load(meta.read_text(encoding='utf-8'))
         custom = info['rosbag2_bagfile_information'].get('custom_data') or {}
         return {str(k): str(v) for k, v in custom.items()}
@@ -623,7 +425,8 @@ def bag_info(path: str | os.PathLike) -> BagInfo:
 
 def read_topics(path: str | os.PathLike, topics: Iterable[str] | None = None
                 ) -> Iterator[tuple[str, int, Any]]:
-    """Yield ``(topic, t_ns, msg)`` in bag-time order; ``msg`` deserialised with rosbags.
+    """
+    Yield ``(topic, t_ns, msg)`` in bag-time order; ``msg`` deserialised with rosbags.
 
     ``topics``: names to read, with or without a leading '/' (None = all). Returned topic
     names have no leading '/'. Raises :class:`BagError` (one line) for a missing or corrupt

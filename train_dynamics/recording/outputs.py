@@ -1,4 +1,5 @@
-"""The output messages of a simulator state, encoded once for publishing and recording.
+"""
+The output messages of a simulator state, encoded once for publishing and recording.
 
 ``sim_node`` publishes these bytes and records the very same bytes; the offline command
 writes them to its bag. One definition of what each output topic carries:
@@ -14,11 +15,11 @@ import json
 from typing import Any
 
 from train_dynamics import topics
-from train_dynamics.recording.bags import JointStateEncoder
+from train_dynamics.recording.cdr import JointStateEncoder
 
 
 def time_ns(t: float) -> int:
-    """Simulation time [s] as the integer nanoseconds of stamps and bag times."""
+    """Return simulation time ``t`` [s] as the integer nanoseconds of stamps and bag times."""
     return int(round(t * 1e9))
 
 
@@ -30,7 +31,8 @@ class OutputEncoder:
         self._coaches = JointStateEncoder(topics.coach_names(n_coaches))
 
     def encode(self, t_ns: int, sim: Any) -> tuple[bytes, bytes, bytes]:
-        """(couplers, coaches, brake_cylinders) of ``sim``'s present state, stamped ``t_ns``.
+        """
+        Return (couplers, coaches, brake_cylinders) of ``sim``'s present state at ``t_ns``.
 
         In the order of :data:`train_dynamics.topics.OUTPUT_TOPICS`.
         """
@@ -40,7 +42,8 @@ class OutputEncoder:
 
 
 def run_metadata(cfg: Any, generator: str, **extra: str) -> dict[str, str]:
-    """The ``custom_data`` of a recorded run's ``metadata.yaml``: model, step, train, input.
+    """
+    Return the ``custom_data`` of a run's ``metadata.yaml``: model, step, train, input.
 
     ``extra`` adds or overrides keys (e.g. the node name, the input source, the duration).
     """
@@ -54,5 +57,5 @@ def run_metadata(cfg: Any, generator: str, **extra: str) -> dict[str, str]:
 
 
 def parameters_json(cfg: Any) -> str:
-    """Every simulator parameter of the run, as recorded in ``custom_data['parameters']``."""
+    """Return every simulator parameter of the run as JSON (``custom_data['parameters']``)."""
     return json.dumps(cfg.values, sort_keys=True)

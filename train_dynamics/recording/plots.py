@@ -1,9 +1,9 @@
-"""Figures of a run: the paper's figs. 5-7 / 9-11 from any bag that holds ``couplers``.
+"""
+Figures of a run: the paper's figs. 5-7 / 9-11 from any bag that holds ``couplers``.
 
-:func:`load_history` reads the contract's output topics from a rosbag2 (offline command,
-``record_bag`` or ``ros2 bag record``; topic names with or without a leading '/', optionally
-under a namespace); time comes from ``header.stamp`` (simulation time). :func:`plot_history`
-draws, one curve per coupler, in engineering units with the SI quantity in the label:
+:func:`plot_bag` reads a bag (:func:`train_dynamics.recording.history.load_history`) and
+:func:`plot_history` draws, one curve per coupler, in engineering units with the SI quantity
+in the label:
 
 * ``coupler_displacement.png``  relative displacement y = x_i - x_{i+1} [mm]  (fig. 5 / 9)
 * ``coupler_velocity.png``      relative velocity ydot [m/s]                  (fig. 6 / 10)
@@ -17,14 +17,21 @@ draws, one curve per coupler, in engineering units with the SI quantity in the l
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 import math
 import os
-import re
-from collections.abc import Sequence
-from dataclasses import dataclass, field
 from pathlib import Path
+import re
 
+from matplotlib import colormaps
+from matplotlib.backends.backend_agg import FigureCanvasAgg
+from matplotlib.cm import ScalarMappable
+from matplotlib.colors import Normalize
+from matplotlib.figure import Figure
 import numpy as np
+
+from train_dynamics import topics
+from train_dynamics.recording.history import History, load_history
 
 #: Figure sizes [inch] and resolution [dpi]; SIZE_PX gives the PNG sizes in pixels.
 DPI = 120
@@ -32,7 +39,6 @@ FIGSIZE = {'single': (11.0, 6.0), 'stack': (11.0, 11.0), 'coaches': (11.0, 11.0)
            'compare': (15.0, 9.0), 'zoom': (11.0, 8.0)}
 SIZE_PX = {k: (int(round(w * DPI)), int(round(h * DPI))) for k, (w, h) in FIGSIZE.items()}
 
-ATMOSPHERIC_PRESSURE = 101325.0  # [Pa], converts FluidPressure (absolute) to gauge
 MAX_LEGEND_ENTRIES = 10          # more curves than this: colour map + colour bar instead
 
 
@@ -40,134 +46,9 @@ class PlotError(Exception):
     """Nothing to plot (e.g. no ``couplers`` topic); the message is one line."""
 
 
-# -- data -------------------------------------------------------------------------------------
-
-@dataclass
-class JointSeries:
-    """A JointState topic as arrays: row k = message k, column j = joint ``names[j]``."""
-
-    t: np.ndarray                    # (K,) [s]
-    names: list[str]
-    position: np.ndarray             # (K, M); NaN where a message lacked the value
-    velocity: np.ndarray
-    effort: np.ndarray
-
-    def __len__(self) -> int:
-        return int(self.t.shape[0])
-
-
-@dataclass
-class History:
-    """Time histories of one run (what the figures show)."""
-
-    couplers: JointSeries | None = None
-    coaches: JointSeries | None = None
-    cylinders: JointSeries | None = None            # ``brake_cylinders`` topic
-    head_pressure: tuple[np.ndarray, np.ndarray] | None = None   # t [s], gauge [Pa]
-    label: str = ''                                 # e.g. bag name, for titles
-    info: dict[str, str] = field(default_factory=dict)   # model description (custom_data)
-    notes: list[str] = field(default_factory=list)        # warnings met while loading
-
-
-def _natural_key(name: str):
-    return [int(p) if p.isdigit() else p for p in re.split(r'(\d+)', name)]
-
-
-def _stamp_s(msg) -> float:
-    return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
-
-
-def _last_run(t: np.ndarray) -> tuple[int, bool]:
-    """Index where the last monotone run of stamps starts, and whether time ran backwards."""
-    back = np.nonzero(np.diff(t) < 0)[0]
-    return (int(back[-1]) + 1, True) if back.size else (0, False)
-
-
-def joint_series(samples: Sequence[tuple[int, object]], topic: str = '',
-                 notes: list[str] | None = None) -> JointSeries | None:
-    """JointState messages ``[(bag_t_ns, msg), ...]`` -> :class:`JointSeries` (stamp time).
-
-    Joints are matched by name (columns in natural order: coupler_2 before coupler_10). If
-    the stamps run backwards (the simulator was reset during a recording) only the last run
-    is kept; if every stamp is zero the bag time (from the first message) is used.
-    """
-    if not samples:
-        return None
-    t = np.array([_stamp_s(m) for _, m in samples])
-    if not np.any(t):
-        t = (np.array([n for n, _ in samples], dtype=np.int64) - samples[0][0]) * 1e-9
-        if notes is not None:
-            notes.append(f'{topic}: header stamps are zero, using bag time')
-    start, reset = _last_run(t)
-    if reset and notes is not None:
-        notes.append(f'{topic}: time runs backwards (reset during recording); '
-                     f'plotting the last run only ({len(t) - start} of {len(t)} messages)')
-    samples = samples[start:]
-    t = t[start:]
-    names: dict[str, None] = {}
-    for _, m in samples:
-        for n in m.name:
-            names.setdefault(str(n), None)
-    cols = sorted(names, key=_natural_key)
-    index = {n: j for j, n in enumerate(cols)}
-    arrays = {f: np.full((len(samples), len(cols)), np.nan) for f in ('position', 'velocity',
-                                                                      'effort')}
-    for k, (_, m) in enumerate(samples):
-        idx = [index[str(n)] for n in m.name]
-        for f, arr in arrays.items():
-            vals = np.asarray(getattr(m, f), dtype=float)
-            if vals.shape[0] == len(idx):
-                arr[k, idx] = vals
-    return JointSeries(t, cols, arrays['position'], arrays['velocity'], arrays['effort'])
-
-
-def load_history(bag: str | os.PathLike, *, namespace: str = '',
-                 atmospheric_pressure: float = ATMOSPHERIC_PRESSURE) -> History:
-    """Read ``couplers``, ``coaches``, ``brake_cylinders`` and ``brake_pipe/pressure``.
-
-    ``namespace``: the node's namespace if it ran in one (``/train1`` reads
-    ``/train1/couplers``). Raises :class:`train_dynamics.recording.bags.BagError` for an unreadable bag.
-    """
-    from train_dynamics.recording.bags import bag_info, read_topics
-
-    ns = namespace.strip('/')
-    prefix = f'{ns}/' if ns else ''
-    wanted = {prefix + n: n for n in ('couplers', 'coaches', 'brake_cylinders',
-                                      'brake_pipe/pressure')}
-    info = bag_info(bag)
-    data: dict[str, list] = {n: [] for n in wanted.values()}
-    types = {'couplers': 'JointState', 'coaches': 'JointState', 'brake_cylinders': 'JointState',
-             'brake_pipe/pressure': 'FluidPressure'}
-    hist = History(label=Path(bag).name, info=dict(info.custom_data))
-    usable = []
-    for topic, short in wanted.items():
-        if topic in info.topics:
-            if info.topics[topic][0].endswith('/' + types[short]):
-                usable.append(topic)
-            else:
-                hist.notes.append(f'{topic}: type {info.topics[topic][0]} ignored')
-    for topic, t_ns, msg in read_topics(bag, usable):
-        data[wanted[topic]].append((t_ns, msg))
-    hist.couplers = joint_series(data['couplers'], 'couplers', hist.notes)
-    hist.coaches = joint_series(data['coaches'], 'coaches', hist.notes)
-    hist.cylinders = joint_series(data['brake_cylinders'], 'brake_cylinders', hist.notes)
-    if data['brake_pipe/pressure']:
-        samples = data['brake_pipe/pressure']
-        t = np.array([_stamp_s(m) for _, m in samples])
-        if not np.any(t):
-            t = (np.array([n for n, _ in samples], dtype=np.int64) - samples[0][0]) * 1e-9
-        p = np.array([m.fluid_pressure for _, m in samples]) - atmospheric_pressure
-        start, _ = _last_run(t)
-        hist.head_pressure = (t[start:], p[start:])
-    return hist
-
-
 # -- drawing helpers ----------------------------------------------------------------------------
 
 def _new_figure(kind: str):
-    from matplotlib.backends.backend_agg import FigureCanvasAgg
-    from matplotlib.figure import Figure
-
     fig = Figure(figsize=FIGSIZE[kind], dpi=DPI, layout='constrained')
     FigureCanvasAgg(fig)
     return fig
@@ -180,8 +61,6 @@ def _style(ax) -> None:
 
 
 def _colors(n: int):
-    from matplotlib import colormaps
-
     if n <= MAX_LEGEND_ENTRIES:
         cmap = colormaps['tab10']
         return [cmap(j % 10) for j in range(n)], None
@@ -209,9 +88,6 @@ def _plot_lines(ax, t, values, names, kind: str, *, legend: bool = True, lw: flo
             continue
         ax.plot(t, col, color=colors[j], linewidth=lw, label=_curve_label(name, kind), zorder=3)
     if cmap is not None:
-        from matplotlib.cm import ScalarMappable
-        from matplotlib.colors import Normalize
-
         sm = ScalarMappable(norm=Normalize(1, len(names)), cmap=cmap)
         cb = ax.figure.colorbar(sm, ax=ax, pad=0.01, aspect=30)
         cb.set_label(f'{kind} number (1 = front)', fontsize=10)
@@ -267,7 +143,7 @@ def _save(fig, path: Path) -> Path:
 
 def plot_history(hist: History, outdir: str | os.PathLike, *, title: str | None = None
                  ) -> list[Path]:
-    """Write the PNG figures of ``hist`` into ``outdir`` (created); returns their paths."""
+    """Write the PNG figures of ``hist`` into ``outdir`` (created); return their paths."""
     if hist.couplers is None or len(hist.couplers) == 0 or not hist.couplers.names:
         raise PlotError('no coupler data (topic couplers) to plot')
     out = Path(outdir)
@@ -354,17 +230,19 @@ def _plot_coaches(hist: History, path: Path, sub: str) -> Path:
 
 def plot_bag(bag: str | os.PathLike, outdir: str | os.PathLike, *, namespace: str = '',
              title: str | None = None) -> list[Path]:
-    """:func:`load_history` + :func:`plot_history`; raises PlotError / BagError."""
+    """Read a bag and write its figures (:func:`plot_history`); raise PlotError / BagError."""
     hist = load_history(bag, namespace=namespace)
     if hist.couplers is None:
-        raise PlotError(f'{bag}: no couplers topic (sensor_msgs/msg/JointState) in the bag')
+        raise PlotError(f'{bag}: no {topics.COUPLERS_TOPIC} topic ({topics.JOINT_STATE}) in '
+                        'the bag')
     return plot_history(hist, outdir, title=title)
 
 
 def plot_comparison(runs: Sequence[tuple[str, History]], outdir: str | os.PathLike, *,
-                    title: str = '', zoom: tuple[float, float] | None = None,
+                    title: str = '', zoom: tuple[float, float, int] | None = None,
                     prefix: str = 'compare') -> list[Path]:
-    """The ``compare`` figures: one figure per quantity, one panel per run (shared axes).
+    """
+    Write the ``compare`` figures: one per quantity, one panel per run (shared axes).
 
     Also ``<prefix>_zoom.png``: relative velocity and force of coupler ``j`` (0-based) of every
     run overlaid on the window ``zoom = (t0, t1, j)`` [s], where the sign model chatters.
@@ -373,89 +251,85 @@ def plot_comparison(runs: Sequence[tuple[str, History]], outdir: str | os.PathLi
     out.mkdir(parents=True, exist_ok=True)
     if not runs:
         raise PlotError('no runs to compare')
-    n = len(runs)
-    ncols = n if n <= 3 else math.ceil(n / 2)
-    nrows = math.ceil(n / ncols)
-    paths = []
-    for key, fld, scale, ylabel, heading in COUPLER_QUANTITIES:
-        fig = _new_figure('compare')
-        axes = np.atleast_1d(fig.subplots(nrows, ncols, sharex=True, sharey=True, squeeze=False)
-                             ).ravel()
-        for ax, (label, hist) in zip(axes, runs):
-            c = hist.couplers
-            _style(ax)
-            _plot_lines(ax, c.t, getattr(c, fld) * scale, c.names, 'coupler',
-                        legend=(ax is axes[0]), lw=1.0)
-            ax.set_title(label, fontsize=11)
-            _set_xlim(ax, c.t)
-        for k, ax in enumerate(axes):
-            if k >= n:
-                ax.set_visible(False)
-                continue
-            if k % ncols == 0:
-                ax.set_ylabel(ylabel, fontsize=11)
-            if k // ncols == nrows - 1 or k + ncols >= n:
-                ax.set_xlabel('time t [s]', fontsize=11)
-                ax.xaxis.set_tick_params(labelbottom=True)
-        fig.suptitle(heading + (f'\n{title}' if title else ''), fontsize=13)
-        paths.append(_save(fig, out / f'{prefix}_{key}.png'))
+    paths = [_save(_compare_figure(runs, quantity, title), out / f'{prefix}_{quantity[0]}.png')
+             for quantity in COUPLER_QUANTITIES]
     if zoom is not None:
-        t0, t1, jc = zoom
-        fig = _new_figure('zoom')
-        axes = fig.subplots(2, 1, sharex=True)
-        colors, _ = _colors(n)
-        labels = {'velocity': f'relative velocity $\\dot{{y}}_{{{jc + 1}}}$ [m/s]',
-                  'force': f'coupler force F$_{{{jc + 1}}}$ [kN]'}
-        for ax, (key, fld, scale, _, _) in zip(axes, COUPLER_QUANTITIES[1:]):
-            _style(ax)
-            sign_vals = []
-            for k, (label, hist) in enumerate(runs):
-                c = hist.couplers
-                sel = (c.t >= t0) & (c.t <= t1)
-                vals = getattr(c, fld)[sel, jc] * scale
-                is_sign = label.startswith('sign')
-                if is_sign:
-                    sign_vals.append(vals)
-                ax.plot(c.t[sel], vals, color=colors[k], linewidth=0.9 if is_sign else 1.6,
-                        label=label, zorder=(10 - k) if is_sign else 3,
-                        drawstyle='steps-post' if is_sign else 'default')
-            if key == 'velocity' and sign_vals:
-                # scale to the sign runs: their chattering is orders of magnitude smaller
-                lim = 1.3 * max(float(np.nanmax(np.abs(v))) if v.size else 0.0 for v in sign_vals)
-                if lim > 0:
-                    ax.set_ylim(-lim, lim)
-                    ax.set_title('relative velocity (axis scaled to the sign runs; smooth tanh '
-                                 'curves may leave it)', fontsize=10)
-            ax.set_ylabel(labels[key], fontsize=11)
-            ax.set_xlim(t0, t1)
-        axes[0].legend(loc='best', fontsize=9, framealpha=0.9, ncols=2)
-        axes[-1].set_xlabel('time t [s]', fontsize=11)
-        fig.suptitle(f'Coupler {jc + 1} from {t0:.2f} s to {t1:.2f} s: the sign model chatters '
-                     '(its friction force flips with the sign of $\\dot{y}$ every step)'
-                     + (f'\n{title}' if title else ''), fontsize=12)
-        paths.append(_save(fig, out / f'{prefix}_zoom.png'))
+        paths.append(_save(_zoom_figure(runs, zoom, title), out / f'{prefix}_zoom.png'))
     return paths
 
 
+def _compare_figure(runs: Sequence[tuple[str, History]], quantity: tuple, title: str):
+    """Return the figure of one coupler quantity: a panel per run, shared axes."""
+    key, fld, scale, ylabel, heading = quantity
+    n = len(runs)
+    ncols = n if n <= 3 else math.ceil(n / 2)
+    nrows = math.ceil(n / ncols)
+    fig = _new_figure('compare')
+    axes = np.atleast_1d(fig.subplots(nrows, ncols, sharex=True, sharey=True, squeeze=False)
+                         ).ravel()
+    for ax, (label, hist) in zip(axes, runs):
+        c = hist.couplers
+        _style(ax)
+        _plot_lines(ax, c.t, getattr(c, fld) * scale, c.names, 'coupler',
+                    legend=(ax is axes[0]), lw=1.0)
+        ax.set_title(label, fontsize=11)
+        _set_xlim(ax, c.t)
+    for k, ax in enumerate(axes):
+        if k >= n:
+            ax.set_visible(False)
+            continue
+        if k % ncols == 0:
+            ax.set_ylabel(ylabel, fontsize=11)
+        if k // ncols == nrows - 1 or k + ncols >= n:
+            ax.set_xlabel('time t [s]', fontsize=11)
+            ax.xaxis.set_tick_params(labelbottom=True)
+    fig.suptitle(heading + (f'\n{title}' if title else ''), fontsize=13)
+    return fig
+
+
+def _zoom_figure(runs: Sequence[tuple[str, History]], zoom: tuple[float, float, int],
+                 title: str):
+    """Return the zoom figure: ydot and F of one coupler of every run on a short window."""
+    t0, t1, jc = zoom
+    fig = _new_figure('zoom')
+    axes = fig.subplots(2, 1, sharex=True)
+    colors, _ = _colors(len(runs))
+    labels = {'velocity': f'relative velocity $\\dot{{y}}_{{{jc + 1}}}$ [m/s]',
+              'force': f'coupler force F$_{{{jc + 1}}}$ [kN]'}
+    for ax, (key, fld, scale, _, _) in zip(axes, COUPLER_QUANTITIES[1:]):
+        _style(ax)
+        sign_vals = []
+        for k, (label, hist) in enumerate(runs):
+            c = hist.couplers
+            sel = (c.t >= t0) & (c.t <= t1)
+            vals = getattr(c, fld)[sel, jc] * scale
+            is_sign = label.startswith('sign')
+            if is_sign:
+                sign_vals.append(vals)
+            ax.plot(c.t[sel], vals, color=colors[k], linewidth=0.9 if is_sign else 1.6,
+                    label=label, zorder=(10 - k) if is_sign else 3,
+                    drawstyle='steps-post' if is_sign else 'default')
+        if key == 'velocity' and sign_vals:
+            # scale to the sign runs: their chattering is orders of magnitude smaller
+            lim = 1.3 * max(float(np.nanmax(np.abs(v))) if v.size else 0.0 for v in sign_vals)
+            if lim > 0:
+                ax.set_ylim(-lim, lim)
+                ax.set_title('relative velocity (axis scaled to the sign runs; smooth tanh '
+                             'curves may leave it)', fontsize=10)
+        ax.set_ylabel(labels[key], fontsize=11)
+        ax.set_xlim(t0, t1)
+    axes[0].legend(loc='best', fontsize=9, framealpha=0.9, ncols=2)
+    axes[-1].set_xlabel('time t [s]', fontsize=11)
+    fig.suptitle(f'Coupler {jc + 1} from {t0:.2f} s to {t1:.2f} s: the sign model chatters '
+                 '(its friction force flips with the sign of $\\dot{y}$ every step)'
+                 + (f'\n{title}' if title else ''), fontsize=12)
+    return fig
+
+
 def png_size(path: str | os.PathLike) -> tuple[int, int]:
-    """(width, height) [px] from a PNG file's IHDR; ValueError if it is not a PNG."""
+    """Return (width, height) [px] from a PNG file's IHDR; ValueError if it is not a PNG."""
     with open(path, 'rb') as fh:
         head = fh.read(24)
     if len(head) < 24 or head[:8] != b'\x89PNG\r\n\x1a\n' or head[12:16] != b'IHDR':
         raise ValueError(f'{path}: not a PNG file')
     return int.from_bytes(head[16:20], 'big'), int.from_bytes(head[20:24], 'big')
-
-
-def sign_changes_per_second(t: np.ndarray, values: np.ndarray, tol: float = 1e-9) -> np.ndarray:
-    """Sign changes per second of each column of ``values`` (|value| <= tol counts as 0 and
-    is skipped, so +,0,- is one change)."""
-    values = np.atleast_2d(np.asarray(values, dtype=float).T).T
-    span = float(t[-1] - t[0]) if len(t) > 1 else 0.0
-    out = np.zeros(values.shape[1])
-    for j in range(values.shape[1]):
-        s = np.sign(values[:, j])
-        s = s[(np.abs(values[:, j]) > tol) & np.isfinite(values[:, j])]
-        changes = int(np.count_nonzero(s[1:] != s[:-1]))
-        out[j] = changes / span if span > 0 else 0.0
-    return out
-

@@ -1,0 +1,40 @@
+"""
+The offline command's errors and exit statuses, and its one-line messages on stderr.
+
+Exit statuses: 0 done, 2 bad input (parameter file, bag, duration, existing output; also
+argparse's usage errors), 1 anything else, 3 simulation fault (the bag up to the fault is
+kept), 130 Ctrl-C, 143 SIGTERM.
+"""
+from __future__ import annotations
+
+import sys
+
+PROG = 'train-dynamics'
+EXIT_OK = 0
+EXIT_ERROR = 1
+EXIT_USAGE = 2
+EXIT_FAULT = 3
+EXIT_INTERRUPT = 130
+EXIT_TERMINATED = 143
+
+
+class CliError(Exception):
+    """A one-line error for the user; ``code`` is the exit status."""
+
+    def __init__(self, message: str, code: int = EXIT_USAGE) -> None:
+        super().__init__(' '.join(str(message).split()))
+        self.code = code
+
+
+class Terminated(BaseException):
+    """SIGTERM, raised like KeyboardInterrupt so that partial output is cleaned up."""
+
+
+def warn(text: str) -> None:
+    """Print ``train-dynamics: warning: <text>`` on stderr."""
+    print(f'{PROG}: warning: {text}', file=sys.stderr)
+
+
+def error(text: str) -> None:
+    """Print ``train-dynamics: error: <text>`` on stderr."""
+    print(f'{PROG}: error: {text}', file=sys.stderr)

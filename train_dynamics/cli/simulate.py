@@ -1,0 +1,116 @@
+"""
+``train-dynamics simulate``: run the simulator offline and write a rosbag2 (MCAP).
+
+The output bag holds, stamped with simulation time from t = 0 at ``publish_rate``:
+``couplers`` and ``coaches`` (contract), ``brake_cylinders`` (JointState, name coach_i,
+position = brake-cylinder gauge pressure [Pa], effort = local brake-pipe gauge pressure [Pa])
+and the brake input it used (``brake_pipe/pressure`` absolute, or the input bag's messages,
+re-stamped with their simulation time); :class:`train_dynamics.recording.sinks.BagSink`
+writes them. Its ``metadata.yaml`` ``custom_data`` records the model, step and input. Same
+inputs -> byte-identical bag. Nothing is left under the output path unless the command wrote
+a complete bag (it writes a hidden sibling directory and renames it at the end).
+"""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from train_dynamics import topics
+from train_dynamics.cli.errors import CliError, error, EXIT_FAULT, EXIT_OK, PROG
+from train_dynamics.cli.progress import progress_bar
+from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
+from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.runner import BrakeInputs, run_simulation
+from train_dynamics.recording.bags import BagError, BagRecorder
+from train_dynamics.recording.outputs import run_metadata
+from train_dynamics.recording.sinks import BagSink
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Add the ``simulate`` command and its options."""
+    s = sub.add_parser('simulate', help='run the simulator, write a rosbag2 (MCAP)',
+                       description='Run the simulator for --duration seconds of simulation time '
+                       'and write the output topics to a new rosbag2 (MCAP).')
+    s.add_argument('--params', required=True, metavar='FILE',
+                   help='ROS 2 parameter file (train_dynamics and optional brake_valve sections)')
+    s.add_argument('--input', metavar='BAG',
+                   help='rosbag2 (MCAP or sqlite3) with brake-pressure inputs (FluidPressure, '
+                   'absolute Pa); without it the brake_valve schedule drives the head pipe')
+    s.add_argument('--duration', required=True, type=float, metavar='T',
+                   help='simulated time [s], > 0')
+    s.add_argument('--output', required=True, metavar='BAG', help='new rosbag2 directory')
+    s.add_argument('--namespace', default='', metavar='NS',
+                   help='read the input topics under this namespace (e.g. /train1)')
+    s.add_argument('-q', '--quiet', action='store_true', help='no progress bar, no summary')
+    s.set_defaults(func=cmd_simulate)
+
+
+def cmd_simulate(args: argparse.Namespace) -> int:
+    """Run ``simulate``; return the exit status."""
+    duration = check_duration(args.duration)
+    out = Path(args.output)
+    if out.exists() or out.is_symlink():
+        raise CliError(f'output {out} exists already; choose a new path (nothing was written)')
+    parent = out.resolve().parent
+    if parent.exists() and not parent.is_dir():
+        raise CliError(f'{parent} is not a directory')
+    cfg = load_config(args.params)
+    inputs = brake_inputs(args, cfg)
+    created, rec = _open_recorder(out, parent)
+    try:
+        for key, value in _model_info(cfg, inputs, duration).items():
+            rec.set_custom_data(key, value)
+        sink = BagSink(rec, cfg)
+        if inputs.valve is not None:
+            rec.add_topic(topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE)
+        for topic in dict.fromkeys(e.topic for e in inputs.events):
+            rec.add_topic(topic, topics.FLUID_PRESSURE)
+        sim = run_simulation(cfg, duration, inputs, on_sample=sink.sample, on_input=sink.input,
+                             progress=progress_bar('simulate', duration, args.quiet))
+        rec.close()
+    except BaseException:
+        rec.abort()
+        _remove_empty(created)
+        raise
+    if sim.fault is not None:
+        error(f'simulation fault: {sim.fault}; {out} holds the run up to t = {sim.t:.3f} s')
+        return EXIT_FAULT
+    if not args.quiet:
+        print(f'wrote {out} ({cfg.n_coaches} coaches, {cfg.model_type}, {duration:g} s, '
+              f'input: {inputs.source})')
+    return EXIT_OK
+
+
+def _open_recorder(out: Path, parent: Path) -> tuple[list[Path], BagRecorder]:
+    """Create the missing parent folders and an atomic recorder; return both."""
+    created = []            # parent folders to create (and to remove again on failure)
+    p = parent
+    while not p.exists():
+        created.append(p)
+        p = p.parent
+    try:
+        for d in reversed(created):
+            d.mkdir()
+        return created, BagRecorder(out, atomic=True, file_stem=out.name)
+    except (BagError, FileExistsError, OSError) as exc:
+        _remove_empty(created)
+        raise CliError(str(exc)) from None
+
+
+def _model_info(cfg: SimConfig, inputs: BrakeInputs, duration: float) -> dict[str, str]:
+    """Return the bag's ``custom_data``: the run's metadata and the valve schedule used."""
+    info = run_metadata(cfg, f'{PROG} simulate', input=inputs.source,
+                        duration=repr(float(duration)))
+    if inputs.valve is not None:
+        info['brake_valve_schedule'] = ', '.join(
+            f'{e.time:g}:{e.position}' for e in inputs.valve.schedule)
+    return info
+
+
+def _remove_empty(folders: list[Path]) -> None:
+    """Remove the folders this run created (innermost first), if they are still empty."""
+    for d in folders:
+        try:
+            d.rmdir()
+        except OSError:
+            pass

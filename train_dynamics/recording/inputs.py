@@ -1,0 +1,128 @@
+"""
+Brake inputs read from a rosbag2: the events that drive an offline run.
+
+:func:`read_input_bag` takes the contract's input topics of the run's ``brake_input`` mode
+(:data:`train_dynamics.topics.INPUT_TOPIC_PATTERNS`; ``sensor_msgs/FluidPressure``, ABSOLUTE
+[Pa]; a leading '/' and a namespace prefix are accepted) from an MCAP or sqlite3 bag. A
+message takes effect at its bag time relative to the bag's first message, at the first
+integration step starting at or after that time
+(:func:`train_dynamics.physics.runner.step_of`), and holds until the next one.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Sequence
+import logging
+import math
+from pathlib import Path
+from typing import Any
+
+from train_dynamics import topics
+from train_dynamics.physics.runner import BrakeInputs, InputEvent, step_of
+from train_dynamics.recording.bags import bag_info, BagError, BagInfo, read_topics
+
+_log = logging.getLogger(__name__)
+
+
+class InputBagError(ValueError):
+    """An input bag with nothing usable for the run; the message is one line."""
+
+
+def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
+                   warn: Callable[[str], None] = _log.warning) -> BrakeInputs:
+    """
+    Return the input events of ``cfg.brake_input`` in the bag at ``path``.
+
+    Gauge pressure = absolute - ``cfg.atmospheric_pressure`` [Pa]; events sorted by time (bag
+    order for equal times). Ignored topics and rejected messages are reported through
+    ``warn``; :class:`InputBagError` if the bag is unreadable or holds no usable input.
+    """
+    mode = cfg.brake_input
+    ns = namespace.strip('/')
+    try:
+        info = bag_info(path)
+    except BagError as exc:
+        raise InputBagError(f'input bag: {exc}') from None
+    selected = _select_topics(info, mode, ns, int(cfg.n_coaches), warn, path)
+    atm = float(cfg.atmospheric_pressure)
+    h = float(cfg.integration_step)
+    events: list[InputEvent] = []
+    rejected = 0
+    try:
+        for topic, t_ns, msg in read_topics(path, list(selected)):
+            p = float(msg.fluid_pressure)
+            if not math.isfinite(p) or p < 0.0:
+                rejected += 1
+                continue
+            rel_ns = t_ns - info.start_ns
+            rel_topic = topic[len(ns) + 1:] if ns else topic
+            events.append(InputEvent(step_of(rel_ns, h), rel_ns, selected[topic], p - atm,
+                                     rel_topic, msg))
+    except BagError as exc:
+        raise InputBagError(f'input bag: {exc}') from None
+    if rejected:
+        warn(f'input bag: {rejected} message(s) with a non-finite or negative absolute '
+             'pressure rejected')
+    if not events:
+        raise InputBagError(f'input bag {path}: no usable input message for brake_input {mode}')
+    events.sort(key=lambda e: e.t_ns)           # stable: bag order for equal times
+    return BrakeInputs(mode, events, None, f'bag {Path(path).name}')
+
+
+def _select_topics(info: BagInfo, mode: str, ns: str, n_coaches: int,
+                   warn: Callable[[str], None], path: str) -> dict[str, int | None]:
+    """Return the bag's usable input topics of ``mode`` -> 0-based coach (None: the head)."""
+    pattern = topics.INPUT_TOPIC_PATTERNS[mode]
+    selected: dict[str, int | None] = {}
+    other_modes = []
+    for topic, (msgtype, count) in info.topics.items():
+        rel = topic
+        if ns:
+            if not topic.startswith(ns + '/'):
+                continue
+            rel = topic[len(ns) + 1:]
+        m = pattern.fullmatch(rel)
+        if m is None:
+            if any(p.fullmatch(rel) for p in topics.INPUT_TOPIC_PATTERNS.values()):
+                other_modes.append(rel)
+            continue
+        if msgtype != topics.FLUID_PRESSURE:
+            warn(f'input bag: {topic} has type {msgtype}, not {topics.FLUID_PRESSURE}; ignored')
+            continue
+        if count == 0:
+            continue
+        index = None
+        if m.groups():
+            i = int(m.group(1))
+            if not 1 <= i <= n_coaches:
+                warn(f'input bag: {topic} names coach {i}, the train has coaches '
+                     f'1..{n_coaches}; ignored')
+                continue
+            index = i - 1
+        selected[topic] = index
+    if not selected:
+        hint = f' (it has {", ".join(sorted(other_modes))}: set brake_input to match)' \
+            if other_modes else ''
+        raise InputBagError(
+            f'input bag {path}: no usable input topic for brake_input {mode}: needs '
+            f'{topics.INPUT_TOPIC_DISPLAY[mode]} ({topics.FLUID_PRESSURE}){hint}')
+    if mode != topics.PIPE_HEAD:
+        have = set(selected.values())
+        missing = [i + 1 for i in range(n_coaches) if i not in have]
+        if missing:
+            held = 'pipe_nominal_pressure' if mode == topics.PIPE_PER_COACH else '0 Pa'
+            warn(f'input bag: no input for coach(es) {_ranges(missing)}; held at {held}')
+    return selected
+
+
+def _ranges(numbers: Sequence[int]) -> str:
+    """Return sorted coach numbers as ranges: [1, 2, 3, 5] -> '1-3,5'."""
+    out, start, prev = [], None, None
+    for n in list(numbers) + [None]:
+        if start is None:
+            start = prev = n
+        elif n is not None and n == prev + 1:
+            prev = n
+        else:
+            out.append(str(start) if start == prev else f'{start}-{prev}')
+            start = prev = n
+    return ','.join(out)

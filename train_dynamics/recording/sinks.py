@@ -1,0 +1,95 @@
+"""
+Output sinks of the offline run loop (:func:`train_dynamics.physics.runner.run_simulation`).
+
+- :class:`BagSink` writes the output topics of each sample, and the brake inputs used, to a
+  :class:`train_dynamics.recording.bags.BagRecorder` (``train-dynamics simulate``);
+- :class:`ArraySink` keeps y, ydot, F (and x, v, Fb) of each sample in memory as a
+  :class:`train_dynamics.recording.history.History` (``train-dynamics compare``).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from train_dynamics import topics
+from train_dynamics.physics import couplers
+from train_dynamics.physics.runner import InputEvent, Sample
+from train_dynamics.recording.bags import BagRecorder
+from train_dynamics.recording.cdr import encode_fluid_pressure
+from train_dynamics.recording.history import History, JointSeries
+from train_dynamics.recording.messages import stamp
+from train_dynamics.recording.outputs import OutputEncoder, time_ns
+
+
+class BagSink:
+    """
+    Write the output topics of each sample (and the inputs used) to a BagRecorder.
+
+    The outputs are the bytes of :class:`train_dynamics.recording.outputs.OutputEncoder` (the
+    node's), the head-pipe pressure of a brake-valve run ABSOLUTE [Pa]; input messages of an
+    input bag are re-stamped with their simulation time.
+    """
+
+    def __init__(self, rec: BagRecorder, cfg: Any) -> None:
+        self.rec = rec
+        self.atm = float(cfg.atmospheric_pressure)
+        self.encoder = OutputEncoder(cfg.n_coaches)
+        for topic in topics.OUTPUT_TOPICS:
+            rec.add_topic(topic, topics.JOINT_STATE)
+
+    def sample(self, s: Sample) -> None:
+        """Write the outputs at an output step (and the head-pipe pressure of a valve run)."""
+        write = self.rec.write
+        t_ns = time_ns(s.t)
+        for topic, data in zip(topics.OUTPUT_TOPICS, self.encoder.encode(t_ns, s.sim)):
+            write(topic, t_ns, data)
+        if s.head_gauge is not None:
+            write(topics.HEAD_PIPE_TOPIC, t_ns,
+                  encode_fluid_pressure(t_ns, s.head_gauge + self.atm))
+
+    def input(self, e: InputEvent) -> None:  # noqa: A003 - the runner's on_input hook
+        """Write an input message as applied, stamped with its time from the run's start."""
+        msg = e.msg
+        msg.header.stamp = stamp(e.t_ns, ns=True)
+        self.rec.write_msg(e.topic, e.t_ns, msg)
+
+
+class ArraySink:
+    """Collect x, v and Fb of each sample; :meth:`history` adds y, ydot and F."""
+
+    def __init__(self) -> None:
+        self.t: list[float] = []
+        self.x: list[np.ndarray] = []
+        self.v: list[np.ndarray] = []
+        self.fb: list[np.ndarray] = []
+
+    def sample(self, s: Sample) -> None:
+        """Keep the coach states of one sample."""
+        self.t.append(s.t)
+        self.x.append(s.sim.x)
+        self.v.append(s.sim.v)
+        self.fb.append(s.sim.brake_force)
+
+    def history(self, sim: Any, label: str = '') -> History:
+        """
+        Return the samples as a :class:`History`.
+
+        y = x_i - x_{i+1} [m], ydot [m/s], F [N] from the simulator's force law (paper eqs.
+        2-7) with ``sim``'s coupler constants.
+        """
+        t = np.asarray(self.t)
+        x, v = np.asarray(self.x), np.asarray(self.v)
+        y, yd = x[:, :-1] - x[:, 1:], v[:, :-1] - v[:, 1:]
+        m = y.shape[1]
+
+        def tile(a):
+            return np.tile(a, len(t))
+
+        force = couplers.coupler_force(y.ravel(), yd.ravel(), tile(sim.ke), tile(sim.kf),
+                                       tile(sim.kec), tile(sim.kfc), sim.model, sim.u
+                                       ).reshape(len(t), m)
+        n = x.shape[1]
+        cp = JointSeries(t, topics.coupler_names(n), y, yd, force)
+        co = JointSeries(t, topics.coach_names(n), x, v, np.asarray(self.fb))
+        return History(couplers=cp, coaches=co, label=label)
