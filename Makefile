@@ -1,4 +1,4 @@
-# train_dynamics: make run | make test | make bench | make soak | make venv | make clean
+# train_dynamics: make run | make test | make lint | make bench | make soak | make venv | make clean
 #
 # Every target creates the virtual environment it needs (.venv, pinned by requirements.txt)
 # on first use; later runs skip the install (stamp file) unless requirements.txt, setup.py or
@@ -25,11 +25,12 @@ export ROS_DOMAIN_ID
 # Keep matplotlib off any display.
 export MPLBACKEND ?= Agg
 
-.PHONY: help venv test run bench soak clean distclean
+.PHONY: help venv test lint run bench soak clean distclean
 
 help:
 	@echo "make run    - the paper's emergency braking through sim_node + brake_valve (DDS on loopback), recorded"
-	@echo "make test   - the test suite (pytest)"
+	@echo "make test   - the test suite (pytest), the ament linters included"
+	@echo "make lint   - only the ament linter tests (test_flake8.py, test_pep257.py)"
 	@echo "make bench  - benchmarks (bench/run_all.py)"
 	@echo "make soak   - long run (bench/soak.py)"
 	@echo "make venv   - only create/update .venv"
@@ -48,6 +49,10 @@ $(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml
 
 test: venv
 	$(VPY) -m pytest test/ $(PYTEST_ARGS)
+
+# The linter tests carry the pytest mark `linter` and the list of paths they check.
+lint: venv
+	$(VPY) -m pytest test/ -m linter -q -p no:logging $(PYTEST_ARGS)
 
 run: venv
 	$(VPY) -m train_dynamics.cli.demo

@@ -1,4 +1,5 @@
-"""Benchmark of sim_node (issue 5): 300 coaches, 100 Hz output, real_time_factor 1, 60 s.
+"""
+Benchmark of sim_node (issue 5): 300 coaches, 100 Hz output, real_time_factor 1, 60 s.
 
 ``sim_node`` runs as a child process (``python -m train_dynamics.ros.sim_node --ros-args -p
 num_coaches:=300 -p publish_rate:=100.0 -p real_time_factor:=1.0``) with loopback-only DDS
@@ -122,8 +123,12 @@ def run(n: int = 300, rate: float = 100.0, duration: float = 60.0, log=print,
 
 
 def startup_trials(n: int = 300, trials: int = 4, log=print) -> list[dict]:
-    """Start the node ``trials`` times: time to its 'started' log line and to the first
-    output in this process (DDS discovery included); stop it with SIGINT each time."""
+    """
+    Start the node ``trials`` times and time its start-up; stop it with SIGINT each time.
+
+    Timed: to its 'started' log line and to the first output in this process (DDS discovery
+    included).
+    """
     out = []
     lst = U.Listener('bench_startup_listener', record=False)
     lst.start()
@@ -184,8 +189,8 @@ def table(res: dict) -> str:
         f"| CPU share of the node process (1.0 = one core) | {res['cpu_share']:.2f} | |",
         f"| output period mean | {res['period_mean_ms']:.3f} ms | 10 ms |",
         f"| jitter abs(period - 10 ms) p50 | {res['jitter_p50_ms']:.3f} ms | |",
-        f"| jitter abs(period - 10 ms) p99 | {res['jitter_p99_ms']:.3f} ms | <= {TARGET_P99_MS} ms "
-        f"{ok(t['jitter_p99'])} |",
+        f"| jitter abs(period - 10 ms) p99 | {res['jitter_p99_ms']:.3f} ms | "
+        f"<= {TARGET_P99_MS} ms {ok(t['jitter_p99'])} |",
         f"| jitter max | {res['jitter_max_ms']:.3f} ms | |",
         f"| arrival lag vs. ideal real time at the end | {res['lag_final_ms']:.1f} ms | |",
         f"| messages received / stamp gaps / non-monotonic | {res['messages']} / "
@@ -200,12 +205,12 @@ def table(res: dict) -> str:
     if st:
         firsts = [x['first_output_s'] for x in st if x['first_output_s'] is not None]
         logs = [x['node_started_s'] for x in st if x['node_started_s'] is not None]
-        rows.append(f"| start-up, {len(st)} more starts: first output min / median / max | "
-                    + (f"{min(firsts):.2f} / {sorted(firsts)[len(firsts) // 2]:.2f} / "
-                       f"{max(firsts):.2f} s" if firsts else 'n/a')
+        rows.append(f'| start-up, {len(st)} more starts: first output min / median / max | '
+                    + (f'{min(firsts):.2f} / {sorted(firsts)[len(firsts) // 2]:.2f} / '
+                       f'{max(firsts):.2f} s' if firsts else 'n/a')
                     + ' | |')
         rows.append("| start-up, same starts: 'started' log line min / max | "
-                    + (f"{min(logs):.2f} / {max(logs):.2f} s" if logs else 'n/a') + ' | |')
+                    + (f'{min(logs):.2f} / {max(logs):.2f} s' if logs else 'n/a') + ' | |')
     return '\n'.join(rows)
 
 

@@ -1,4 +1,5 @@
-"""Shared helpers of the node benchmarks (bench/node.py, bench/soak.py).
+"""
+Shared helpers of the node benchmarks (bench/node.py, bench/soak.py).
 
 - start ``sim_node`` as a child process (``python -m train_dynamics.ros.sim_node --ros-args ...``)
   on loopback-only DDS in this process's ROS domain;
@@ -81,7 +82,7 @@ _CLK_TCK = os.sysconf('SC_CLK_TCK')
 
 
 def proc_cpu_seconds(pid: int) -> float | None:
-    """utime + stime of a process [s] (all its threads), or None once it has gone."""
+    """Return utime + stime of a process [s] (all its threads), or None once it has gone."""
     try:
         with open(f'/proc/{pid}/stat') as fh:
             fields = fh.read().rsplit(')', 1)[1].split()
@@ -109,8 +110,12 @@ def cdr_stamp_ns(raw: bytes) -> int:
 
 
 class Listener:
-    """rclpy node in this process: records (arrival monotonic [s], stamp [ns]) of every
-    ``couplers`` message, the last /diagnostics, and can publish the head pipe pressure."""
+    """
+    An rclpy node in this process that listens to the simulator's outputs.
+
+    Records (arrival monotonic [s], stamp [ns]) of every ``couplers`` message and the last
+    /diagnostics, and can publish the head pipe pressure.
+    """
 
     def __init__(self, name: str = 'bench_listener', qos_depth: int = 10,
                  record: bool = True):
@@ -168,7 +173,7 @@ class Listener:
 
     @property
     def diag(self) -> dict[str, str]:
-        """The last /diagnostics as {'<status name>/<key>': value}."""
+        """Return the last /diagnostics as {'<status name>/<key>': value}."""
         from rclpy.serialization import deserialize_message
         out: dict[str, str] = {}
         raw = self._diag_raw

@@ -1,4 +1,5 @@
-"""`make bench`: the physics-core benchmark, the solve_ivp baseline and the node benchmark.
+"""
+`make bench`: the physics-core benchmark, the solve_ivp baseline and the node benchmark.
 
 Prints the tables (markdown) and writes ``bench/RESULTS.md`` (machine, load, tables, targets,
 and the soak figures of the last ``make soak`` from ``bench/soak_results.md``), plus the raw
@@ -33,8 +34,11 @@ def log(msg: str) -> None:
 
 
 class CpuMeter:
-    """CPU time used on the machine by processes other than this one and its children
-    (from /proc/stat minus our own os.times()), averaged over the wall time [cores]."""
+    """
+    CPU time used on the machine by other processes, averaged over the wall time [cores].
+
+    Other processes: all but this one and its children (/proc/stat minus our own os.times()).
+    """
 
     def __init__(self):
         self.t0, self.busy0, self.own0 = time.monotonic(), self._busy(), self._own()
@@ -77,7 +81,7 @@ def machine() -> dict:
     mem = ''
     try:
         with open('/proc/meminfo') as fh:
-            mem = f"{int(fh.readline().split()[1]) / 1048576:.1f} GiB"
+            mem = f'{int(fh.readline().split()[1]) / 1048576:.1f} GiB'
     except OSError:
         pass
     return {'cpu': cpu, 'cores': os.cpu_count(), 'memory': mem,
@@ -144,8 +148,8 @@ def baseline_table(rows: list[dict]) -> str:
 
 
 def startup_table(st: dict) -> str:
-    out = ['| numba cache | import train_dynamics.physics.train [s] | first TrainSimulator + first '
-           'output (10 ms) [s] | total [s] |', '| --- | ---: | ---: | ---: |']
+    out = ['| numba cache | import train_dynamics.physics.train [s] | first TrainSimulator '
+           '+ first output (10 ms) [s] | total [s] |', '| --- | ---: | ---: | ---: |']
     for k, label in (('cold', 'cold (empty NUMBA_CACHE_DIR: compiles)'),
                      ('warm', 'warm (cache loaded)'), ('warm2', 'warm, again')):
         s = st[k]
@@ -155,10 +159,14 @@ def startup_table(st: dict) -> str:
 
 
 def core_targets(rows: list[dict]) -> list[tuple[str, bool, str]]:
-    """The issue's core targets. Each is judged at the LARGEST integration step of the run
-    whose peak coupler force is within 1 % of the reference for that train (the step a user
-    who wants speed at that accuracy would pick); the row says which step, and gives the
-    default step's figures next to it."""
+    """
+    Judge the issue's core targets: (target, met, figures) for each.
+
+    Each is judged at the LARGEST integration step of the run whose peak coupler force is
+    within 1 % of the reference for that train (the step a user who wants speed at that
+    accuracy would pick); the row says which step, and gives the default step's figures next
+    to it.
+    """
     def at(n):
         mine = [r for r in rows if r['n'] == n and r['model'] == 'tanh' and r['u'] == 1000.0]
         default = next((r for r in mine if r['h'] == core.DEFAULT_H), None)
@@ -226,7 +234,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
              'Numbers are from one run on the machine below; timings are wall-clock, single '
              'process, one core for the model. Core wall times: each 60 s run is repeated (5x, '
              '3x for the slowest) and timed in six 10 s parts; the figure is the sum of each '
-             'part\'s fastest time (the host\'s speed drifts by up to 2x within seconds).', '',
+             "part's fastest time (the host's speed drifts by up to 2x within seconds).", '',
              '## Machine', '',
              f"- CPU: {mach['cpu']}, {mach['cores']} cores, {mach['memory']} RAM",
              f"- {mach['platform']}; Python {mach['python']}, numpy {mach['numpy']}, "
@@ -249,7 +257,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
             f'Scenario: paper defaults (45 t coaches, 44.444 m/s, `pipe_head`, P brake), head '
             f'brake pipe vented to 0 gauge at t = {core.T_EMERGENCY:g} s, {core.T_END:g} s '
             'simulated. Timed: `sim.advance_to` in 10 ms chunks and `sim.coupler_force` after '
-            'each (the node\'s 100 Hz read-out); numba warm-up excluded (see start-up). '
+            "each (the node's 100 Hz read-out); numba warm-up excluded (see start-up). "
             '"peak abs(F)" = max over couplers and 10 ms samples. Reference: '
             '`integrators.reference_solution` (Radau, rtol 1e-9, atol 1e-11) with the brake '
             'forces Fb_i(t) = mu_a m_i g fill(t - t_e - d_i) (checked against '
@@ -259,13 +267,13 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
             'or in the reference (the reference does not model the brake holding a stopped '
             'coach), at most 60 s. '
             'peak error = (our peak - reference peak) / reference peak over 0-W s; envelope '
-            'error = max over the 10 ms samples of abs(our max_j abs(F_j) - the reference\'s), / '
+            "error = max over the 10 ms samples of abs(our max_j abs(F_j) - the reference's), / "
             'reference peak. Memory: tracemalloc peak of Python/numpy allocations while '
             'building the simulator and running the 60 s (numba-internal scratch arrays are '
             'not traced), and the peak RSS of the whole benchmark process (interpreter, numpy, '
             'scipy, numba, LLVM) for context. Host speed: a fixed pure-Python workload timed '
             'next to each case, relative to its fastest time in this run (1.00 = the machine '
-            'ran at its best; this virtual machine\'s speed drifts by up to 2x over minutes '
+            "ran at its best; this virtual machine's speed drifts by up to 2x over minutes "
             'even with nothing else running on it, and every timing drifts with it); cases '
             f'timed below {core.SLOW_HOST:g} of it were timed again, up to {core.RETRIES} '
             'times, keeping the run at the higher host speed (retries: '
@@ -284,8 +292,8 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
             'largest measured.', '',
             baseline_table(core_res['baseline']), '',
             '### Start-up of the core (numba)', '',
-            'Fresh process each: `import train_dynamics.physics.train`, then a 30-coach simulator and '
-            'its first 10 ms. Cold = empty numba cache (first run after install or after a '
+            'Fresh process each: `import train_dynamics.physics.train`, then a 30-coach simulator '
+            'and its first 10 ms. Cold = empty numba cache (first run after install or after a '
             'source change: every kernel compiles); warm = cache loaded from `__pycache__`.',
             '', startup_table(core_res['startup']), '']
     if node_res:

@@ -1,4 +1,5 @@
-"""`make soak` (issue 6): one hour of simulated time, 30 coaches, free-running, recorded.
+"""
+`make soak` (issue 6): one hour of simulated time, 30 coaches, free-running, recorded.
 
 ``sim_node`` runs as a child process with ``num_coaches:=30 real_time_factor:=0.0
 publish_rate:=100.0 duration:=3600.0 record_bag:=<tmp>/soak_bag``; as soon as its first output
@@ -214,9 +215,9 @@ def render(res: dict) -> str:
              f"({res['last_received_stamp_s'] / res['wall_s']:.1f}x real time), node CPU "
              f"{res['cpu_s']:.0f} s; start-up to first output {res['startup_s']:.2f} s; "
              f"node exit status {res['exit_code']}",
-             f"- memory (node RSS): {rss0:.1f} MiB at the first output, {rss10:.1f} MiB at "
-             f"10 min, {rss_end:.1f} MiB at t = duration: {rss_end - rss10:+.1f} MiB from 10 min "
-             f"to the end, {rss_end - half:+.2f} MiB over the second half of the run; peak "
+             f'- memory (node RSS): {rss0:.1f} MiB at the first output, {rss10:.1f} MiB at '
+             f'10 min, {rss_end:.1f} MiB at t = duration: {rss_end - rss10:+.1f} MiB from 10 min '
+             f'to the end, {rss_end - half:+.2f} MiB over the second half of the run; peak '
              f"{res['hwm_kib'] / 1024:.1f} MiB", '',
              '| simulated time [s] | wall [s] | node RSS [MiB] | recorder backlog (last '
              '/diagnostics) |', '| ---: | ---: | ---: | ---: |']
@@ -256,7 +257,7 @@ def render(res: dict) -> str:
             lines.append(f"| {topic} | {d['type']} | {d['count']} | {bspan} | {span} | "
                          f"{d.get('stamp_non_monotonic', '-')} | {step} | "
                          f"{d.get('bag_non_monotonic', '-')} |")
-        lines += ['', f"- expected per output topic: duration x rate + 1 = "
+        lines += ['', '- expected per output topic: duration x rate + 1 = '
                   f"{res['expected_per_topic']} messages stamped 0 .. duration in 10 ms steps: "
                   + ', '.join(f"`{t}` {'EXACT' if ok else 'MISMATCH'}"
                               for t, ok in res['exact'].items())]

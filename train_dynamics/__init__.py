@@ -1,6 +1,13 @@
-"""train_dynamics: longitudinal dynamics of a braking train (ROS 2 Jazzy package).
+"""
+Longitudinal dynamics of a braking train: a ROS 2 Jazzy package (train_dynamics).
 
-The physics core (config, couplers, brakes, train, integrators) never imports rclpy; the
-node (sim_node), the brake valve and the offline command (cli) wrap it.
+One folder per layer; a layer imports only the layers before it in this list:
+
+- ``topics``: names and types on the wire (standard library only).
+- ``physics``: the model (couplers, brakes, train, integrators, parameters, brake valve,
+  offline run loop); never rclpy, rosbags or matplotlib.
+- ``recording``: bag reading and writing, output encoding, plots; never rclpy.
+- ``ros``: the nodes ``sim_node`` and ``brake_valve``, the only place importing rclpy and
+  ROS message packages; ``cli``: the ``train-dynamics`` command and ``make run``.
 """
 __version__ = '0.1.0'

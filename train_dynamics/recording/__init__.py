@@ -1,6 +1,9 @@
 """
 Runs on disk and in memory: rosbag2 I/O, output encoding, histories, figures (no rclpy).
 
+Import rule: may import ``train_dynamics.topics`` and ``train_dynamics.physics``, rosbags,
+numpy and matplotlib; never rclpy or ROS message packages, nor the ``ros`` or ``cli`` layers.
+
 - :mod:`.bags`: rosbag2 directories written (:class:`~.bags.BagRecorder`) and read with
   ``rosbags``;
 - :mod:`.messages`: ``rosbags`` message objects (Jazzy typestore), :mod:`.cdr`: the direct
