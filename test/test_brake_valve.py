@@ -10,8 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from train_dynamics.physics.brake_valve import (DEFAULTS, BrakeValveModel, parse_schedule,
-                                              target_pressure, validate_settings)
+from train_dynamics.physics.brake_valve import (BrakeValveModel, parse_schedule,
+                                                target_pressure, validate_settings,
+                                                VALVE_PARAMETERS)
+
+DEFAULTS = {name: spec.default for name, spec in VALVE_PARAMETERS.items()}
 
 ATM = 101325.0
 NOMINAL = 500000.0

@@ -7,18 +7,8 @@ import pytest
 from train_dynamics.physics.parameters import (PARAMETERS, ConfigError, SimConfig, load_param_file,
                                    validate_value)
 
-CONTRACT_DEFAULTS = {
-    'model_type': 'tanh', 'num_coaches': 3, 'coach_mass': 45000.0, 'masses': [],
-    'coach_length': 25.0, 'buffer_stiffness': 2.8e6, 'buffer_friction': 1.4e6,
-    'draw_gear_stiffness': 5.46e6, 'draw_gear_friction': 2.43e6, 'gravity': 9.81,
-    'max_cylinder_pressure': 380000.0, 'initial_speed': 44.444, 'brake_input': 'pipe_head',
-    'brake_propagation_speed': 250.0, 'publish_rate': 100.0, 'real_time_factor': 1.0,
-    'publish_clock': False, 'record_bag': '',
-}
-
-
-def test_contract_names_and_defaults():
-    for name, default in CONTRACT_DEFAULTS.items():
+def test_contract_names_and_defaults(contract_defaults):
+    for name, default in contract_defaults.items():
         assert PARAMETERS[name].default == default, name
     for name in ('scale_factor', 'adhesion_coefficient', 'integration_step'):
         assert name in PARAMETERS

@@ -14,8 +14,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from test_sim_node_support import (all_finite, diag_values, fluid, joint_arrays,
-                                   stamp_s)
+from sim_node_helpers import all_finite, diag_values, fluid, joint_arrays, stamp_s
 
 ATM = 101325.0
 SIM = 'train_dynamics: simulation'
@@ -345,7 +344,7 @@ def test_rapid_live_model_switching_keeps_the_state_continuous(harness):
         assert res.successful
         harness.spin_for(0.005)
     harness.spin_for(0.2)
-    assert (node._sim.model_type, node._sim.u) == (model, u)
+    assert (node.simulator.model_type, node.simulator.u) == (model, u)
     assert node.fault is None
     t, x, v, fb = joint_arrays(coaches)
     assert all_finite(x, v, fb) and np.all(np.diff(t) > 0) and t[-1] > 2.0
