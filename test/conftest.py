@@ -1,4 +1,5 @@
-"""Shared test setup: a private, loopback-only ROS 2 domain per test session.
+"""
+Shared test setup: a private, loopback-only ROS 2 domain per test session.
 
 Before anything imports rclpy this sets, for this process and every subprocess it starts:
 
@@ -85,7 +86,7 @@ def contract_defaults():
 
 @pytest.fixture
 def rclpy_context():
-    """rclpy initialised (default context) for one test; shut down afterwards."""
+    """Initialise rclpy (default context) for one test; shut it down afterwards."""
     import rclpy
 
     rclpy.init()
@@ -113,13 +114,13 @@ def _spin_until(spinner, predicate, timeout: float = 5.0, step: float = 0.02) ->
 
 @pytest.fixture
 def spin_until():
-    """``spin_until(executor_or_node, predicate, timeout=5.0) -> bool``."""
+    """Return the spin helper: ``f(executor_or_node, predicate, timeout=5.0) -> bool``."""
     return _spin_until
 
 
 @pytest.fixture
 def harness(rclpy_context):
-    """Yield a sim_node test harness (sim_node_helpers.Harness), closed after the test."""
+    """Yield a sim_node test harness: ``sim_node_helpers.Harness``, closed after the test."""
     # imported here: only the tests with real rclpy load it (and rclpy)
     from sim_node_helpers import Harness
 

@@ -4,8 +4,11 @@ from pathlib import Path
 
 import pytest
 
-from train_dynamics.physics.parameters import (PARAMETERS, ConfigError, SimConfig, load_param_file,
-                                   validate_value)
+from train_dynamics.physics.parameters import (ConfigError, load_param_file, markdown_table,
+                                               PARAMETERS, SimConfig, validate_value)
+
+REPO = Path(__file__).resolve().parents[1]
+
 
 def test_contract_names_and_defaults(contract_defaults):
     for name, default in contract_defaults.items():
@@ -15,7 +18,7 @@ def test_contract_names_and_defaults(contract_defaults):
 
 
 def test_paper_parameter_file_loads_with_scientific_notation(tmp_path):
-    cfg = load_param_file(str(Path(__file__).resolve().parents[1] / 'config' / 'paper_3coach.yaml'))
+    cfg = load_param_file(str(REPO / 'config' / 'paper_3coach.yaml'))
     assert cfg.buffer_stiffness == 2.8e6 and isinstance(cfg.buffer_stiffness, float)
     assert cfg.n_coaches == 3 and cfg.initial_speed == pytest.approx(160 / 3.6, rel=1e-4)
     f = tmp_path / 'p.yaml'
@@ -72,8 +75,6 @@ def test_cylinder_tables_checked():
 
 
 def test_readme_parameter_table_is_current():
-    """The README's table is generated from PARAMETERS (python -m train_dynamics.physics.parameters)."""
-    from train_dynamics.physics.parameters import markdown_table
-
-    readme = (Path(__file__).resolve().parents[1] / 'README.md').read_text(encoding='utf-8')
+    """Check the README's table: python -m train_dynamics.physics.parameters generates it."""
+    readme = (REPO / 'README.md').read_text(encoding='utf-8')
     assert markdown_table() in readme, 'regenerate: python -m train_dynamics.physics.parameters'

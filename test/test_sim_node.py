@@ -1,4 +1,5 @@
-"""sim_node with real rclpy, in-process, DDS on loopback (issue 3).
+"""
+sim_node with real rclpy, in-process, DDS on loopback (issue 3).
 
 Parameters (contract names, defaults, descriptors, rejection of invalid values), the node's
 output against the physics core run offline on the same inputs, brake_valve -> sim_node over
@@ -173,16 +174,20 @@ def _offline_replay(cfg, inputs, outputs):
 
 
 def test_cylinder_inputs_over_topics_match_the_core_run_offline(harness, tmp_path):
-    """cylinder_per_coach from a test publisher: the node's couplers == TrainSimulator replayed
-    on the inputs as recorded (bag time = the step at which each one took effect)."""
+    """
+    Match the node's couplers with TrainSimulator replayed on the recorded inputs.
+
+    cylinder_per_coach from a test publisher: the node's couplers == TrainSimulator replayed
+    on the inputs as recorded (bag time = the step at which each one took effect).
+    """
     from sensor_msgs.msg import JointState
 
     from train_dynamics.recording.bags import read_topics
     from train_dynamics.physics.parameters import SimConfig
 
     bag = tmp_path / 'run'
-    params = dict(brake_input='cylinder_per_coach', real_time_factor=2.0, duration=4.0,
-                  record_bag=str(bag))
+    params = {'brake_input': 'cylinder_per_coach', 'real_time_factor': 2.0, 'duration': 4.0,
+              'record_bag': str(bag)}
     node = harness.start(**params)
     couplers = harness.collect(JointState, 'couplers')
     # Coach 2 through a best-effort publisher: both kinds connect.
@@ -232,8 +237,12 @@ def test_cylinder_inputs_over_topics_match_the_core_run_offline(harness, tmp_pat
 
 
 def test_brake_valve_emergency_over_topics(harness):
-    """brake_valve (emergency at t = 1 s on /clock) -> sim_node: brakes apply coach after coach
-    (25 m / 250 m/s = 0.1 s apart) and the couplers stay in compression while braking."""
+    """
+    Brake the train through brake_valve -> sim_node over topics.
+
+    brake_valve (emergency at t = 1 s on /clock) -> sim_node: brakes apply coach after coach
+    (25 m / 250 m/s = 0.1 s apart) and the couplers stay in compression while braking.
+    """
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import JointState
 
@@ -262,8 +271,12 @@ def test_brake_valve_emergency_over_topics(harness):
 
 
 def test_live_model_switches_take_effect_with_continuous_state(harness):
-    """scale_factor and model_type change while running: the published coupler forces follow
-    the new law from the switch on, and x, v, y do not jump."""
+    """
+    Switch scale_factor and model_type while running.
+
+    The published coupler forces follow the new law from the switch on, and x, v, y do not
+    jump.
+    """
     from sensor_msgs.msg import JointState
 
     from train_dynamics.physics import couplers as C
@@ -381,3 +394,42 @@ def test_wait_for_input_holds_t0_until_a_publisher_connects(harness):
     harness.probe.destroy_publisher(pub)
     node = harness.start(wait_for_input=0.5, real_time_factor=2.0)
     assert harness.wait(lambda: node.sim_time > 0.2, 5.0)
+
+
+def test_set_callback_validates_only_and_the_post_set_callback_applies(harness):
+    """ROS 2 parameter design: the set callback has no side effects; post-set applies."""
+    from rcl_interfaces.msg import SetParametersResult
+    from rclpy.parameter import Parameter
+
+    node = harness.start(real_time_factor=2.0)
+    assert harness.wait(lambda: node.sim_time > 0.1, 10.0)
+    live = [Parameter('model_type', value='sign'), Parameter('scale_factor', value=50.0)]
+    for callback in node._on_set_parameters_callbacks:      # rclpy's list of set callbacks
+        assert callback(live).successful
+    assert (node.simulator.model_type, node.simulator.u) == ('tanh', 1000.0)   # untouched
+
+    def veto(params):
+        return SetParametersResult(successful=False, reason='vetoed')
+    node.add_on_set_parameters_callback(veto)
+    assert not node.set_parameters_atomically(live).successful
+    assert (node.simulator.model_type, node.simulator.u) == ('tanh', 1000.0)
+    node.remove_on_set_parameters_callback(veto)
+    assert node.set_parameters_atomically(live).successful
+    assert (node.simulator.model_type, node.simulator.u) == ('sign', 50.0)
+
+
+def test_duration_changes_after_the_end_resume_the_run(harness):
+    from rclpy.parameter import Parameter
+
+    node = harness.start(real_time_factor=0.0, duration=0.5)
+    assert harness.wait(lambda: node.finished, 10.0)
+    assert node.sim_time == pytest.approx(0.5)
+    (res,) = node.set_parameters([Parameter('duration', value=0.8)])
+    assert res.successful and not node.finished
+    assert harness.wait(lambda: node.finished, 10.0)
+    assert node.sim_time == pytest.approx(0.8)
+    (res,) = node.set_parameters([Parameter('duration', value=0.0)])     # 0 = forever
+    assert res.successful and not node.finished
+    assert harness.wait(lambda: node.sim_time > 1.0, 10.0)
+    (res,) = node.set_parameters([Parameter('duration', value=-1.0)])
+    assert not res.successful and 'duration' in res.reason

@@ -1,15 +1,18 @@
-"""sim_node hardening (issue 6), real rclpy and real bags: bad and flooding inputs, stale
-inputs, numerical faults, SIGINT/SIGTERM/SIGKILL during a recorded run, a long free run, rapid
-live model switching."""
+"""
+sim_node hardening (issue 6), real rclpy and real bags.
+
+Bad and flooding inputs, stale inputs, numerical faults, SIGINT/SIGTERM/SIGKILL during a
+recorded run, a long free run, rapid live model switching.
+"""
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -22,7 +25,7 @@ INPUT = 'train_dynamics: brake input'
 REPO = Path(__file__).resolve().parents[1]
 
 
-FLOODER = r'''
+FLOODER = r"""
 import sys, time, rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure
@@ -44,7 +47,7 @@ while time.monotonic() < end:
 print(n, flush=True)
 node.destroy_node()
 rclpy.try_shutdown()
-'''
+"""
 
 
 def test_bad_inputs_are_rejected_counted_and_a_flood_does_not_slow_the_node(harness, capfd):
@@ -297,8 +300,11 @@ def _rss_mb() -> float:
 
 
 def test_long_free_run_memory_flat_stamps_monotonic_exact_counts(harness, tmp_path):
-    """Shortened soak (the hour is in bench/soak): 30 coaches as fast as possible for 120 s of
-    simulated time, recorded."""
+    """
+    Run a shortened soak (the hour is in bench/soak).
+
+    30 coaches as fast as possible for 120 s of simulated time, recorded.
+    """
     from train_dynamics.recording.bags import bag_info, read_topics
 
     duration = 120.0

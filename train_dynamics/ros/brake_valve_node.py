@@ -27,8 +27,8 @@ from sensor_msgs.msg import FluidPressure
 from train_dynamics import topics
 from train_dynamics.physics.brake_valve import (BrakeValveModel, check_live_change,
                                                 parse_schedule, SETTING_NAMES,
-                                                VALVE_NODE_PARAMETERS, VALVE_PARAMETERS,
-                                                validate_position, validate_settings)
+                                                validate_position, validate_settings,
+                                                VALVE_NODE_PARAMETERS, VALVE_PARAMETERS)
 from train_dynamics.ros import parameters as ros_parameters
 from train_dynamics.ros.executor import ExitOn, run_node
 
