@@ -71,18 +71,27 @@ def kernel_cache_dir() -> str:
     return _cache_dir
 
 
-def jit(func):
-    """Compile ``func`` with numba, cached in :func:`kernel_cache_dir`; without numba keep it."""
+def jit(func=None, *, inline: bool = False):
+    """
+    Compile ``func`` with numba, cached in :func:`kernel_cache_dir`; without numba keep it.
+
+    ``@jit(inline=True)``: numba inlines the function into its compiled callers (at its IR
+    level), for the named steps of a kernel that run once per step: a call costs the
+    reference counting of every array argument, which a 3-coach step would notice.
+    """
+    if func is None:
+        return lambda f: jit(f, inline=inline)
     if _numba is None:
         return func
+    options = {'nogil': True, 'fastmath': _FASTMATH, 'inline': 'always' if inline else 'never'}
     if os.environ.get('NUMBA_CACHE_DIR'):
-        return _numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)(func)
+        return _numba.njit(cache=True, **options)(func)
     path = kernel_cache_dir()
     if not path:       # nowhere to write: compile in memory
-        return _numba.njit(cache=False, nogil=True, fastmath=_FASTMATH)(func)
+        return _numba.njit(cache=False, **options)(func)
     saved = _numba.config.CACHE_DIR
     _numba.config.CACHE_DIR = path     # read when the dispatcher sets up its cache
     try:
-        return _numba.njit(cache=True, nogil=True, fastmath=_FASTMATH)(func)
+        return _numba.njit(cache=True, **options)(func)
     finally:
         _numba.config.CACHE_DIR = saved

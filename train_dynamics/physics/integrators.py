@@ -103,17 +103,14 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
 
 
 @jit
-def _eval_couplers(x, v, cpl, model, u, gh, ws):
+def _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws):
     """
     Write every coupler's F [N], dF/dy [N/m] and stage-matrix weight [kg] at (x, v) to ws.
 
-    Coupler j: y = x_j - x_{j+1} (eq. 9), force law eqs. (2)-(4) / (14)-(16); the weight is
-    g h dF/dydot + (g h)^2 dF/dy (rows WORK.F, DFDY, KK).
+    Coupler j: y = x_j - x_{j+1} (eq. 9), force law eqs. (2)-(4) / (14)-(16) with the
+    constants ke, kf, kec, kfc [N/m]; the weight is g h dF/dydot + (g h)^2 dF/dy (rows
+    WORK.F, DFDY, KK).
     """
-    ke = cpl[COUPLER.KE]
-    kf = cpl[COUPLER.KF]
-    kec = cpl[COUPLER.KEC]
-    kfc = cpl[COUPLER.KFC]
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
@@ -126,17 +123,13 @@ def _eval_couplers(x, v, cpl, model, u, gh, ws):
 
 
 @jit
-def _eval_couplers_work(x, v, x_old, cpl, model, u, gh, ws):
+def _eval_couplers_work(x, v, x_old, ke, kf, kec, kfc, model, u, gh, ws):
     """
     Do :func:`_eval_couplers` at the new state (x, v); return the couplers' work [J].
 
     The work over the step from positions x_old [m] is trapezoidal in the force:
     sum_j (F_j(old) + F_j(new)) / 2 (y_j(new) - y_j(old)).
     """
-    ke = cpl[COUPLER.KE]
-    kf = cpl[COUPLER.KF]
-    kec = cpl[COUPLER.KEC]
-    kfc = cpl[COUPLER.KFC]
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
@@ -152,30 +145,20 @@ def _eval_couplers_work(x, v, x_old, cpl, model, u, gh, ws):
 
 
 # ----------------------------------------------------------------------------- ROS2
-@jit
-def _stage1(h, v, held, brake, masses, ws):
+@jit(inline=True)
+def _stage1(gh, v, held, brake, masses, F0, dfdy, kk, diag, lower, rhs1, b1, c, winv):
     """
-    Solve stage 1 of ROS2 for the velocity stage b1 [m/s^2] (row WORK.B1).
+    Solve stage 1 of ROS2 for the velocity stage b1 [m/s^2].
 
-    A b1 = g(x, v) - g h K_c v - Fb with A = M + g h C_c + (g h)^2 K_c [kg] (tridiagonal),
-    g the net coupler force of eqs. (5)-(7) [N], Fb = ``brake`` [N] (signed, positive
-    retarding). A held coach's row becomes b1_i = 0. Assembly, LU factorisation and forward
-    substitution in one sweep, then back substitution; keeps the factors (WORK.LOWER, C,
-    WINV) for stage 2 and the free rows' diagonal and right-hand side (WORK.DIAG, RHS1) for
-    the holding forces. The couplers at the step's start must be in ws.
+    A b1 = g(x, v) - g h K_c v - Fb with A = M + g h C_c + (g h)^2 K_c [kg] (tridiagonal,
+    off-diagonal -kk), g the net coupler force of eqs. (5)-(7) from F0 [N], Fb = ``brake``
+    [N] (signed, positive retarding). A held coach's row becomes b1_i = 0. Assembly, LU
+    factorisation and forward substitution in one sweep, then back substitution; keeps the
+    factors (lower, c, winv) for stage 2 and the free rows' diagonal and right-hand side
+    (diag, rhs1) for the holding forces.
     """
     n = v.shape[0]
     m = n - 1
-    gh = GAMMA * h
-    F0 = ws[WORK.F]
-    dfdy = ws[WORK.DFDY]
-    kk = ws[WORK.KK]
-    diag = ws[WORK.DIAG]
-    lower = ws[WORK.LOWER]
-    rhs1 = ws[WORK.RHS1]
-    b1 = ws[WORK.B1]
-    c = ws[WORK.C]
-    winv = ws[WORK.WINV]
     for i in range(n):
         d = masses[i]
         kv = 0.0
@@ -206,30 +189,19 @@ def _stage1(h, v, held, brake, masses, ws):
         b1[i] -= c[i] * b1[i + 1]
 
 
-@jit
-def _stage2(h, x, v, held, brake, masses, cpl, model, u, ws):
+@jit(inline=True)
+def _stage2(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, dfdy, lower, c, winv,
+            b1, F2, rhs2, b2):
     """
-    Solve stage 2 of ROS2 for the velocity stage b2 [m/s^2] (row WORK.B2).
+    Solve stage 2 of ROS2 for the velocity stage b2 [m/s^2].
 
     A b2 = g(x + h a1, v + h b1) - 2 M b1 - g h K_c r - Fb with a1 = v + g h b1 and
     r = v + h b1 - 2 a1 [m/s]; the couplers' forces at the stage point (eqs. 2-4 / 14-16)
-    go to WORK.F2. Reuses the factors of :func:`_stage1`.
+    go to F2 [N]. Reuses the factors (lower, c, winv) of :func:`_stage1`.
     """
     n = x.shape[0]
     m = n - 1
     gh = GAMMA * h
-    ke = cpl[COUPLER.KE]
-    kf = cpl[COUPLER.KF]
-    kec = cpl[COUPLER.KEC]
-    kfc = cpl[COUPLER.KFC]
-    dfdy = ws[WORK.DFDY]
-    lower = ws[WORK.LOWER]
-    rhs2 = ws[WORK.RHS2]
-    b1 = ws[WORK.B1]
-    b2 = ws[WORK.B2]
-    c = ws[WORK.C]
-    winv = ws[WORK.WINV]
-    F2 = ws[WORK.F2]
     for j in range(m):
         dv = v[j] - v[j + 1]
         db = b1[j] - b1[j + 1]
@@ -255,29 +227,20 @@ def _stage2(h, x, v, held, brake, masses, cpl, model, u, ws):
         b2[i] -= c[i] * b2[i + 1]
 
 
-@jit
-def _combine_stages(h, x, v, held, ws):
+@jit(inline=True)
+def _combine_stages(h, x, v, held, kk, diag, rhs1, rhs2, b1, b2, x_new, v_new, hold):
     """
-    Write the new state and the holding forces of the held coaches to ws.
+    Write the new state and the holding forces of the held coaches.
 
     x' = x + h (3/2 a1 + 1/2 a2) [m], v' = v + h (3/2 b1 + 1/2 b2) [m/s] with
-    a1 = v + g h b1, a2 = r + g h b2 (WORK.XNEW, VNEW). A held coach's holding force [N]
-    (WORK.HOLD, signed, positive retarding; 0 on moving coaches) is the mean over both
-    stages of the residual its free row would leave: rhs - (A b)_i.
+    a1 = v + g h b1, a2 = r + g h b2. A held coach's holding force [N] (``hold``, signed,
+    positive retarding; 0 on moving coaches) is the mean over both stages of the residual
+    its free row would leave: rhs - (A b)_i.
     """
     n = x.shape[0]
     m = n - 1
     gh = GAMMA * h
     hr = h - 2.0 * gh
-    kk = ws[WORK.KK]
-    diag = ws[WORK.DIAG]
-    rhs1 = ws[WORK.RHS1]
-    rhs2 = ws[WORK.RHS2]
-    b1 = ws[WORK.B1]
-    b2 = ws[WORK.B2]
-    x_new = ws[WORK.XNEW]
-    v_new = ws[WORK.VNEW]
-    hold = ws[WORK.HOLD]
     for i in range(n):
         a1 = v[i] + gh * b1[i]
         a2 = hr * b1[i] - v[i] + gh * b2[i]
@@ -298,17 +261,31 @@ def _combine_stages(h, x, v, held, ws):
 
 
 @jit
-def _ros2_step(h, x, v, held, brake, masses, cpl, model, u, ws):
+def _ros2_step(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, ws):
     """
     Do one ROS2 step of eqs. (5)-(7) from (x, v) with the coaches in ``held`` at rest.
 
     ``brake`` [N] is the signed braking force on the moving coaches (positive retarding).
-    Leaves the new state and the holding forces in ws (:func:`_combine_stages`). The
-    couplers' forces and Jacobian at (x, v) must be in ws (:func:`_eval_couplers`).
+    Leaves the new state in WORK.XNEW, VNEW and the holding forces in WORK.HOLD
+    (:func:`_combine_stages`). The couplers' forces and Jacobian at (x, v) must be in ws
+    (:func:`_eval_couplers`).
     """
-    _stage1(h, v, held, brake, masses, ws)
-    _stage2(h, x, v, held, brake, masses, cpl, model, u, ws)
-    _combine_stages(h, x, v, held, ws)
+    F0 = ws[WORK.F]
+    dfdy = ws[WORK.DFDY]
+    kk = ws[WORK.KK]
+    diag = ws[WORK.DIAG]
+    lower = ws[WORK.LOWER]
+    rhs1 = ws[WORK.RHS1]
+    rhs2 = ws[WORK.RHS2]
+    b1 = ws[WORK.B1]
+    b2 = ws[WORK.B2]
+    c = ws[WORK.C]
+    winv = ws[WORK.WINV]
+    _stage1(GAMMA * h, v, held, brake, masses, F0, dfdy, kk, diag, lower, rhs1, b1, c, winv)
+    _stage2(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, dfdy, lower, c, winv,
+            b1, ws[WORK.F2], rhs2, b2)
+    _combine_stages(h, x, v, held, kk, diag, rhs1, rhs2, b1, b2, ws[WORK.XNEW],
+                    ws[WORK.VNEW], ws[WORK.HOLD])
 
 
 # ----------------------------------------------------------------------------- active set
@@ -327,7 +304,7 @@ def _stops(v0, v1, fb):
     return fb > 0.0 and abs(v1) < V_REST
 
 
-@jit
+@jit(inline=True)
 def _signed_brake(v_start, rel_dir, fb, signed):
     """
     Sign the braking force fb [N] against each coach's motion, into ``signed``.
@@ -344,7 +321,7 @@ def _signed_brake(v_start, rel_dir, fb, signed):
             signed[i] = rel_dir[i] * fb[i]
 
 
-@jit
+@jit(inline=True)
 def _release_slipping(held, hold, fb, rel_dir, v_start):
     """
     Release the held coaches whose holding force [N] exceeds the braking force fb [N].
@@ -362,7 +339,7 @@ def _release_slipping(held, hold, fb, rel_dir, v_start):
     return changed
 
 
-@jit
+@jit(inline=True)
 def _hold_stopping(held, rel_dir, v_start, v_new, fb, masses, extra_work):
     """
     Hold the moving coaches that stop within the step from the step's start.
@@ -380,94 +357,82 @@ def _hold_stopping(held, rel_dir, v_start, v_new, fb, masses, extra_work):
     return changed, extra_work
 
 
-@jit
-def _active_set_step(coach, cpl, h, model, u, held, ws):
+@jit(inline=True)
+def _active_set_step(h, x, v, masses, was_held, ke, kf, kec, kfc, model, u, fb, held, signed,
+                     v_start, rel_dir, hold, v_new, ws):
     """
     Do one ROS2 step of the chain with the active set of held coaches; return work [J].
 
-    Starts from the coaches held at the end of the last step (COACH.HELD) and iterates
-    (at most N + 2 times): release the held coaches the brake cannot hold, else stop the
-    moving coaches whose velocity would change sign. The returned work is the kinetic
-    energy of the coaches stopped at the step's start. The braking force over the step
-    must be in WORK.FB; the new state is left in WORK.XNEW, VNEW.
+    Starts from the coaches held at the end of the last step (``was_held``, 1.0 = held) and
+    iterates (at most N + 2 times): release the held coaches the brake cannot hold, else
+    stop the moving coaches whose velocity would change sign. ``fb`` is the braking force
+    over the step [N]; ``signed`` gets it signed against the motion. The returned work is
+    the kinetic energy of the coaches stopped at the step's start. The new state and the
+    holding forces are left in WORK.XNEW, ``v_new`` (WORK.VNEW) and ``hold`` (WORK.HOLD).
     """
-    n = coach.shape[1]
-    x = coach[COACH.X]
-    v = coach[COACH.V]
-    masses = coach[COACH.MASS]
-    held_now = coach[COACH.HELD]
-    fb = ws[WORK.FB]
-    signed = ws[WORK.SIGNED]
-    v_start = ws[WORK.VSTART]
-    rel_dir = ws[WORK.RELDIR]
+    n = x.shape[0]
     for i in range(n):
-        held[i] = held_now[i] > 0.5
+        held[i] = was_held[i] > 0.5
         rel_dir[i] = 0.0
         v_start[i] = v[i]
     extra_work = 0.0
     for it in range(n + 2):
         if it > 0:   # the active set changed some starting velocities
-            _eval_couplers(x, v_start, cpl, model, u, GAMMA * h, ws)
+            _eval_couplers(x, v_start, ke, kf, kec, kfc, model, u, GAMMA * h, ws)
         _signed_brake(v_start, rel_dir, fb, signed)
-        _ros2_step(h, x, v_start, held, signed, masses, cpl, model, u, ws)
-        changed = _release_slipping(held, ws[WORK.HOLD], fb, rel_dir, v_start)
+        _ros2_step(h, x, v_start, held, signed, masses, ke, kf, kec, kfc, model, u, ws)
+        changed = _release_slipping(held, hold, fb, rel_dir, v_start)
         if not changed:
-            changed, extra_work = _hold_stopping(held, rel_dir, v_start, ws[WORK.VNEW], fb,
-                                                 masses, extra_work)
+            changed, extra_work = _hold_stopping(held, rel_dir, v_start, v_new, fb, masses,
+                                                 extra_work)
         if not changed:
             break
     return extra_work
 
 
 # ----------------------------------------------------------------------------- one step
-@jit
-def _brake_system_step(coach, sc, iv, ring, tables, ws):
+@jit(inline=True)
+def _brake_system_step(mode, sc, iv, ring, tables, pipe_in, cyl_in, p_pipe, p_cyl, applied,
+                       k0, frac, target):
     """
     Move the brake system to the end of the step (it does not depend on the motion).
 
     ``pipe_head``: the head pressure [Pa] enters the delay line and each coach reads its
-    delayed pipe pressure; ``pipe_per_coach``: the pipe pressures are the inputs. Then the
-    distributors' targets and the cylinders along their filling/release tables [Pa]; or,
-    ``cylinder_per_coach``, the cylinder pressures are the inputs (see ``brakes``).
+    delayed pipe pressure (k0 + frac steps ago); ``pipe_per_coach``: the pipe pressures are
+    the inputs ``pipe_in``. Then the distributors' targets and the cylinders along their
+    filling/release tables [Pa]; or, ``cylinder_per_coach``, the cylinder pressures are the
+    inputs ``cyl_in`` (see ``brakes``).
     """
-    mode = iv[FLAG.MODE]
-    p_pipe = coach[COACH.PPIPE]
-    p_cyl = coach[COACH.PCYL]
-    p_max = sc[SCALAR.PMAX]
     if mode == brakes.PIPE_HEAD:
         iv[FLAG.RING_POS] = brakes.delay_line_push(ring, iv[FLAG.RING_POS],
                                                    sc[SCALAR.HEAD_IN])
-        brakes.delay_line_read(ring, iv[FLAG.RING_POS], ws[WORK.K0], ws[WORK.FRAC], p_pipe)
+        brakes.delay_line_read(ring, iv[FLAG.RING_POS], k0, frac, p_pipe)
     elif mode == brakes.PIPE_PER_COACH:
-        p_pipe[:] = coach[COACH.PIPE_IN]
+        p_pipe[:] = pipe_in
     if mode == brakes.CYLINDER_PER_COACH:
-        p_cyl[:] = coach[COACH.CYL_IN]
+        p_cyl[:] = cyl_in
     else:
-        target = ws[WORK.TARGET]
-        brakes.distributor_target(p_pipe, coach[COACH.APPLIED], sc[SCALAR.PNOM],
-                                  sc[SCALAR.PFS], sc[SCALAR.SENS], p_max, target)
-        brakes.cylinder_advance(p_cyl, target, sc[SCALAR.H], p_max, tables)
+        brakes.distributor_target(p_pipe, applied, sc[SCALAR.PNOM], sc[SCALAR.PFS],
+                                  sc[SCALAR.SENS], sc[SCALAR.PMAX], target)
+        brakes.cylinder_advance(p_cyl, target, sc[SCALAR.H], sc[SCALAR.PMAX], tables)
 
 
-@jit
-def _braking_force_trapezoid(coach, sc, ws):
+@jit(inline=True)
+def _braking_force_trapezoid(sc, p_cyl, masses, fb_avail, fb_next, fb):
     """
-    Write the braking force over the step [N] to WORK.FB: trapezoid of eq. (13).
+    Write the braking force over the step [N] to ``fb``: the trapezoid of eq. (13).
 
     The mean of the available force (eq. 13, limited by eq. 12) at both ends of the step,
-    second order; COACH.FB_AVAIL moves on to the step's end.
+    second order; ``fb_avail`` moves on to the step's end (``fb_next``).
     """
-    fb = ws[WORK.FB]
-    fb_next = ws[WORK.FBNEXT]
-    fb_avail = coach[COACH.FB_AVAIL]
-    brakes.braking_force(coach[COACH.PCYL], sc[SCALAR.PMAX], sc[SCALAR.MU],
-                         coach[COACH.MASS], sc[SCALAR.G], fb_next)
+    brakes.braking_force(p_cyl, sc[SCALAR.PMAX], sc[SCALAR.MU], masses, sc[SCALAR.G],
+                         fb_next)
     for i in range(fb.shape[0]):
         fb[i] = 0.5 * (fb_avail[i] + fb_next[i])
         fb_avail[i] = fb_next[i]
 
 
-@jit
+@jit(inline=True)
 def _fault_check(x_new, v_new, y_limit):
     """
     Return the status of the new state: OK, NON_FINITE or OUT_OF_RANGE.
@@ -486,24 +451,16 @@ def _fault_check(x_new, v_new, y_limit):
     return bad
 
 
-@jit
-def _accept_step(coach, held, extra_work, ws):
+@jit(inline=True)
+def _accept_step(x, v, is_held, fb_applied, x_old, held, hold, signed, x_new, v_new,
+                 extra_work):
     """
     Move the coaches to the new state; return the brakes' work over the step [J].
 
-    The work is sum_i Fb_i (x_i' - x_i) with the holding force on held coaches, plus
-    ``extra_work``; COACH.FB_APPLIED gets |Fb_i| [N], COACH.HELD the active set, WORK.XOLD
-    the positions at the step's start.
+    The work is sum_i Fb_i (x_i' - x_i) with the holding force ``hold`` on held coaches and
+    ``signed`` on the others, plus ``extra_work``; ``fb_applied`` gets |Fb_i| [N],
+    ``is_held`` the active set (1.0 = held), ``x_old`` the positions at the step's start.
     """
-    x = coach[COACH.X]
-    v = coach[COACH.V]
-    fb_applied = coach[COACH.FB_APPLIED]
-    held_now = coach[COACH.HELD]
-    hold = ws[WORK.HOLD]
-    signed = ws[WORK.SIGNED]
-    x_new = ws[WORK.XNEW]
-    v_new = ws[WORK.VNEW]
-    x_old = ws[WORK.XOLD]
     wb = extra_work
     for i in range(x.shape[0]):
         b = hold[i] if held[i] else signed[i]
@@ -512,7 +469,7 @@ def _accept_step(coach, held, extra_work, ws):
         x_old[i] = x[i]
         x[i] = x_new[i]
         v[i] = v_new[i]
-        held_now[i] = 1.0 if held[i] else 0.0
+        is_held[i] = 1.0 if held[i] else 0.0
     return wb
 
 
@@ -526,33 +483,43 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
     p/p_max); ring: head-pressure history [Pa]; ws: :func:`make_workspace`. The layouts are
     in :mod:`train_dynamics.physics.layout`. Each step: the brake system to the step's end,
     the braking force over the step (trapezoid), one ROS2 step with the active set of held
-    coaches, the fault check, then the new state is accepted and the work booked.
+    coaches, the fault check, then the new state is accepted and the work booked. The rows
+    are taken apart once, here: a row view made inside the step loop would cost reference
+    counting at every step.
     """
-    x = coach[COACH.X]
-    v = coach[COACH.V]
-    h = sc[SCALAR.H]
-    u = sc[SCALAR.U]
+    x, v, masses = coach[COACH.X], coach[COACH.V], coach[COACH.MASS]
+    p_cyl, p_pipe, applied = coach[COACH.PCYL], coach[COACH.PPIPE], coach[COACH.APPLIED]
+    pipe_in, cyl_in, is_held = coach[COACH.PIPE_IN], coach[COACH.CYL_IN], coach[COACH.HELD]
+    fb_avail, fb_applied = coach[COACH.FB_AVAIL], coach[COACH.FB_APPLIED]
+    ke, kf, kec, kfc = cpl[COUPLER.KE], cpl[COUPLER.KF], cpl[COUPLER.KEC], cpl[COUPLER.KFC]
+    k0, frac, target = ws[WORK.K0], ws[WORK.FRAC], ws[WORK.TARGET]
+    fb, fb_next, signed, hold = ws[WORK.FB], ws[WORK.FBNEXT], ws[WORK.SIGNED], ws[WORK.HOLD]
+    v_start, rel_dir = ws[WORK.VSTART], ws[WORK.RELDIR]
+    x_new, v_new, x_old = ws[WORK.XNEW], ws[WORK.VNEW], ws[WORK.XOLD]
+    h, u, model, mode = sc[SCALAR.H], sc[SCALAR.U], iv[FLAG.MODEL], iv[FLAG.MODE]
     gh = GAMMA * h
-    model = iv[FLAG.MODEL]
-    held = np.empty(coach.shape[1], dtype=np.bool_)
+    held = np.empty(x.shape[0], dtype=np.bool_)
     tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
                                    rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
     if iv[FLAG.WS_VALID] == 0:
         # first call after reset()/set_model(): pipe delays and the couplers at (x, v); later
         # calls find them in ws, left there by the last step of the previous call
-        brakes.delay_split(coach[COACH.DELAY], ws[WORK.K0], ws[WORK.FRAC])
-        _eval_couplers(x, v, cpl, model, u, gh, ws)
+        brakes.delay_split(coach[COACH.DELAY], k0, frac)
+        _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws)
         iv[FLAG.WS_VALID] = 1
     for step in range(n_steps):
-        _brake_system_step(coach, sc, iv, ring, tables, ws)
-        _braking_force_trapezoid(coach, sc, ws)
-        extra_work = _active_set_step(coach, cpl, h, model, u, held, ws)
-        status = _fault_check(ws[WORK.XNEW], ws[WORK.VNEW], sc[SCALAR.YLIM])
+        _brake_system_step(mode, sc, iv, ring, tables, pipe_in, cyl_in, p_pipe, p_cyl,
+                           applied, k0, frac, target)
+        _braking_force_trapezoid(sc, p_cyl, masses, fb_avail, fb_next, fb)
+        extra_work = _active_set_step(h, x, v, masses, is_held, ke, kf, kec, kfc, model, u, fb,
+                                      held, signed, v_start, rel_dir, hold, v_new, ws)
+        status = _fault_check(x_new, v_new, sc[SCALAR.YLIM])
         if status != OK:
             return step, status
-        sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws)
+        sc[SCALAR.WB] += _accept_step(x, v, is_held, fb_applied, x_old, held, hold, signed,
+                                      x_new, v_new, extra_work)
         # the couplers at the new state: their work over the step, and the next step's start
-        sc[SCALAR.WC] += _eval_couplers_work(x, v, ws[WORK.XOLD], cpl, model, u, gh, ws)
+        sc[SCALAR.WC] += _eval_couplers_work(x, v, x_old, ke, kf, kec, kfc, model, u, gh, ws)
     return n_steps, OK
 
 
