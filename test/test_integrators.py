@@ -6,8 +6,8 @@ import numpy as np
 from physics_helpers import paper_reference, paper_sim, record
 import pytest
 
-from train_dynamics.physics import _jit, integrators
-from train_dynamics.physics.layout import WORK
+from train_dynamics.physics import _jit, couplers, integrators
+from train_dynamics.physics.layout import COACH, WORK
 
 T_END = 12.0   # the brake wave, the buffer shock and the oscillations after it
 
@@ -21,7 +21,7 @@ def reference_u1000():
 
 def test_stage_solve_matches_dense_solve_with_held_coaches():
     """
-    Check the kernel's stage 1 (fused assembly and Thomas algorithm) against a dense solve.
+    Check the ROS2 step's stage 1 (fused assembly, Thomas algorithm) against a dense solve.
 
     (M + D^T diag(kk) D) b1 = -D^T F - g h D^T diag(dF/dy) D v - Fb on the free rows, with
     b1 = 0 on the rows of held coaches (their columns drop out).
@@ -35,9 +35,13 @@ def test_stage_solve_matches_dense_solve_with_held_coaches():
     v, brake = rng.uniform(10.0, 11.0, n), rng.uniform(0.0, 4e4, n)
     held = np.zeros(n, dtype=bool)
     held[[0, 4, 5]] = True
+    coach = np.zeros((len(COACH), n))
+    coach[COACH.MASS] = masses
+    cpl = np.tile(np.array([[2.8e6], [1.4e6], [5.46e6], [2.43e6]]), (1, m))
     ws = integrators.make_workspace(n)
     ws[WORK.F, :m], ws[WORK.DFDY, :m], ws[WORK.KK, :m] = F, dfdy, kk
-    integrators._stage1(h, v, held, brake, masses, ws)
+    ws[WORK.VSTART], ws[WORK.SIGNED] = v, brake
+    integrators._ros2_step(h, coach, cpl, couplers.TANH, 1000.0, held, ws)
     D = np.eye(n)[:-1] - np.eye(n, k=1)[:-1]          # y = D x
     A = np.diag(masses) + D.T @ np.diag(kk) @ D
     rhs = -D.T @ F - gh * D.T @ (dfdy * (D @ v))

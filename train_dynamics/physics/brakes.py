@@ -43,7 +43,7 @@ MODE_CODES = {'pipe_head': PIPE_HEAD, 'pipe_per_coach': PIPE_PER_COACH,
 RELEASE_FRACTION_OF_SENSITIVITY = 0.5
 
 
-@jit
+@jit(inline=True)
 def braking_force(p_cyl: np.ndarray, p_max: float, mu_a: float, mass: np.ndarray,
                   g: float, out: np.ndarray) -> np.ndarray:
     """
@@ -71,7 +71,7 @@ def delay_split(delay_steps: np.ndarray, k0: np.ndarray, frac: np.ndarray) -> No
         frac[i] = delay_steps[i] - k0[i]
 
 
-@jit
+@jit(inline=True)
 def delay_line_push(ring: np.ndarray, pos: int, value: float) -> int:
     """Store the head pressure of a new step in the ring buffer; return the new position."""
     pos += 1
@@ -81,7 +81,7 @@ def delay_line_push(ring: np.ndarray, pos: int, value: float) -> int:
     return pos
 
 
-@jit
+@jit(inline=True)
 def delay_line_read(ring: np.ndarray, pos: int, k0: np.ndarray, frac: np.ndarray,
                     out: np.ndarray) -> None:
     """Head pressure k0 + frac steps ago at each coach (linear interpolation) [Pa]."""
@@ -96,7 +96,7 @@ def delay_line_read(ring: np.ndarray, pos: int, k0: np.ndarray, frac: np.ndarray
         out[i] = (1.0 - frac[i]) * ring[i0] + frac[i] * ring[i1]
 
 
-@jit
+@jit(inline=True)
 def distributor_target(p_pipe: np.ndarray, applied: np.ndarray, p_nominal: float,
                        p_full_service: float, sensitivity: float, p_max: float,
                        out: np.ndarray) -> np.ndarray:
@@ -125,7 +125,7 @@ CylinderTables.__doc__ = """Filling (p/p_max rising 0 -> 1 against time [s]) and
 inverse look-up."""
 
 
-@jit
+@jit(inline=True)
 def table_interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
     """
     Return fp at x by piecewise-linear look-up in (xp, fp), clamped at both ends.
@@ -145,7 +145,7 @@ def table_interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
     return fp[k - 1] + w * (fp[k] - fp[k - 1])
 
 
-@jit
+@jit(inline=True)
 def cylinder_advance(p_cyl: np.ndarray, target: np.ndarray, dt: float, p_max: float,
                      tables) -> None:
     """

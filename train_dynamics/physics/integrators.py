@@ -35,11 +35,17 @@ One step of :func:`advance_chain`, in named parts:
 1. :func:`_brake_system_step`: brake pipe, distributors and cylinders to t + h (they do not
    depend on the motion);
 2. :func:`_braking_force_trapezoid`: the braking force over the step, eq. (13);
-3. :func:`_active_set_step`: ROS2 (:func:`_ros2_step`: :func:`_stage1`, :func:`_stage2`,
-   :func:`_combine_stages`) with the active set of held coaches;
-4. :func:`_fault_check`, then :func:`_accept_step` and the couplers at the new state.
+3. :func:`_active_set_step`: :func:`_ros2_step` with the active set of held coaches
+   (:func:`_signed_brake`, :func:`_release_slipping`, :func:`_hold_stopping`);
+4. :func:`_fault_check`, then :func:`_accept_step` and the couplers at the new state
+   (:func:`_eval_couplers_work`).
 
 The packed arrays the kernel works on are laid out in :mod:`train_dynamics.physics.layout`.
+Speed: the steps take the packed arrays and are inlined into :func:`advance_chain` by numba
+(``@jit(inline=True)``, as are the brake-system functions they call). A compiled function
+that takes arrays, or makes row views, pays their reference counting at every call, and
+a call left inside an inlined step stops LLVM from removing that counting: split into
+ordinary calls, a 3-coach step ran 1.5-2 times slower.
 
 Reference: :func:`reference_solution`, scipy ``solve_ivp`` (Radau by default) with the
 analytical sparse Jacobian and tight tolerances, for tests and benchmarks.
@@ -102,15 +108,19 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
     return f, stiff, kfr * y * u * ratio
 
 
-@jit
-def _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws):
+@jit(inline=True)
+def _eval_couplers(x, v, cpl, model, u, gh, ws):
     """
     Write every coupler's F [N], dF/dy [N/m] and stage-matrix weight [kg] at (x, v) to ws.
 
     Coupler j: y = x_j - x_{j+1} (eq. 9), force law eqs. (2)-(4) / (14)-(16) with the
-    constants ke, kf, kec, kfc [N/m]; the weight is g h dF/dydot + (g h)^2 dF/dy (rows
-    WORK.F, DFDY, KK).
+    constants of ``cpl`` [N/m]; the weight is g h dF/dydot + (g h)^2 dF/dy (rows WORK.F,
+    DFDY, KK).
     """
+    ke = cpl[COUPLER.KE]
+    kf = cpl[COUPLER.KF]
+    kec = cpl[COUPLER.KEC]
+    kfc = cpl[COUPLER.KFC]
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
@@ -123,13 +133,20 @@ def _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws):
 
 
 @jit
-def _eval_couplers_work(x, v, x_old, ke, kf, kec, kfc, model, u, gh, ws):
+def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     """
-    Do :func:`_eval_couplers` at the new state (x, v); return the couplers' work [J].
+    Do :func:`_eval_couplers` at the new state (COACH.X, V); return the couplers' work [J].
 
-    The work over the step from positions x_old [m] is trapezoidal in the force:
+    The work over the step from the positions WORK.XOLD [m] is trapezoidal in the force:
     sum_j (F_j(old) + F_j(new)) / 2 (y_j(new) - y_j(old)).
     """
+    x = coach[COACH.X]
+    v = coach[COACH.V]
+    x_old = ws[WORK.XOLD]
+    ke = cpl[COUPLER.KE]
+    kf = cpl[COUPLER.KF]
+    kec = cpl[COUPLER.KEC]
+    kfc = cpl[COUPLER.KFC]
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
@@ -146,19 +163,55 @@ def _eval_couplers_work(x, v, x_old, ke, kf, kec, kfc, model, u, gh, ws):
 
 # ----------------------------------------------------------------------------- ROS2
 @jit(inline=True)
-def _stage1(gh, v, held, brake, masses, F0, dfdy, kk, diag, lower, rhs1, b1, c, winv):
+def _ros2_step(h, coach, cpl, model, u, held, ws):
     """
-    Solve stage 1 of ROS2 for the velocity stage b1 [m/s^2].
+    Do one ROS2 step of eqs. (5)-(7) from (x, v) with the coaches in ``held`` at rest.
 
-    A b1 = g(x, v) - g h K_c v - Fb with A = M + g h C_c + (g h)^2 K_c [kg] (tridiagonal,
-    off-diagonal -kk), g the net coupler force of eqs. (5)-(7) from F0 [N], Fb = ``brake``
-    [N] (signed, positive retarding). A held coach's row becomes b1_i = 0. Assembly, LU
-    factorisation and forward substitution in one sweep, then back substitution; keeps the
-    factors (lower, c, winv) for stage 2 and the free rows' diagonal and right-hand side
-    (diag, rhs1) for the holding forces.
+    x = COACH.X [m], v = WORK.VSTART [m/s]; brake = WORK.SIGNED [N], the signed braking
+    force on the moving coaches (positive retarding). The couplers' forces and Jacobian at
+    (x, v) must be in ws (:func:`_eval_couplers`).
+    Leaves the new state in WORK.XNEW, VNEW and in WORK.HOLD the holding force [N] the
+    stage equations require of each held coach (signed, positive retarding; 0 on moving
+    coaches). Stage equations, with A = M + g h C_c + (g h)^2 K_c [kg] (tridiagonal):
+
+      A b1 = g(x, v) - g h K_c v - Fb,                        a1 = v + g h b1
+      A b2 = g(x + h a1, v + h b1) - 2 M b1 - g h K_c r - Fb,  r = v + h b1 - 2 a1,
+                                                               a2 = r + g h b2
+      x' = x + h (3/2 a1 + 1/2 a2),  v' = v + h (3/2 b1 + 1/2 b2),
+
+    g the net coupler force of eqs. (5)-(7). A held coach's row becomes b_i = 0; its
+    holding force is the mean over both stages of the residual its free row would leave.
+    Written as fused loops (one pass: assembly, LU factorisation and forward substitution)
+    in the caller's scratch rows: no allocation, no call per stage.
     """
-    n = v.shape[0]
+    x = coach[COACH.X]
+    v = ws[WORK.VSTART]
+    masses = coach[COACH.MASS]
+    brake = ws[WORK.SIGNED]
+    ke = cpl[COUPLER.KE]
+    kf = cpl[COUPLER.KF]
+    kec = cpl[COUPLER.KEC]
+    kfc = cpl[COUPLER.KFC]
+    n = x.shape[0]
     m = n - 1
+    gh = GAMMA * h
+    hr = h - 2.0 * gh            # r = v + h b1 - 2 a1 = (h - 2 g h) b1 - v
+    F0 = ws[WORK.F]
+    dfdy = ws[WORK.DFDY]
+    kk = ws[WORK.KK]
+    diag = ws[WORK.DIAG]       # diagonal of the free rows (for the holding forces)
+    lower = ws[WORK.LOWER]     # A[i+1, i] of the effective matrix
+    rhs1 = ws[WORK.RHS1]       # right-hand sides of the free rows, brake apart
+    rhs2 = ws[WORK.RHS2]
+    b1 = ws[WORK.B1]
+    b2 = ws[WORK.B2]
+    c = ws[WORK.C]
+    winv = ws[WORK.WINV]
+    F2 = ws[WORK.F2]
+    x_new = ws[WORK.XNEW]
+    v_new = ws[WORK.VNEW]
+    hold = ws[WORK.HOLD]
+    # stage 1: assemble, factor and forward-substitute in one sweep
     for i in range(n):
         d = masses[i]
         kv = 0.0
@@ -187,21 +240,7 @@ def _stage1(gh, v, held, brake, masses, F0, dfdy, kk, diag, lower, rhs1, b1, c, 
             b1[i] = (r1 - lo * b1[i - 1]) * winv[i]
     for i in range(n - 2, -1, -1):
         b1[i] -= c[i] * b1[i + 1]
-
-
-@jit(inline=True)
-def _stage2(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, dfdy, lower, c, winv,
-            b1, F2, rhs2, b2):
-    """
-    Solve stage 2 of ROS2 for the velocity stage b2 [m/s^2].
-
-    A b2 = g(x + h a1, v + h b1) - 2 M b1 - g h K_c r - Fb with a1 = v + g h b1 and
-    r = v + h b1 - 2 a1 [m/s]; the couplers' forces at the stage point (eqs. 2-4 / 14-16)
-    go to F2 [N]. Reuses the factors (lower, c, winv) of :func:`_stage1`.
-    """
-    n = x.shape[0]
-    m = n - 1
-    gh = GAMMA * h
+    # stage 2 at (x + h a1, v + h b1), a1 = v + g h b1
     for j in range(m):
         dv = v[j] - v[j + 1]
         db = b1[j] - b1[j + 1]
@@ -209,7 +248,6 @@ def _stage2(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, dfdy, lowe
             x[j] - x[j + 1] + h * (dv + gh * db), dv + h * db, ke[j], kf[j], kec[j], kfc[j],
             model, u)
         F2[j] = f
-    hr = h - 2.0 * gh            # r = v + h b1 - 2 a1 = (h - 2 g h) b1 - v
     for i in range(n):
         kr = 0.0
         ri = hr * b1[i] - v[i]
@@ -225,22 +263,7 @@ def _stage2(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, dfdy, lowe
             b2[i] = (r2 - lower[i - 1] * b2[i - 1]) * winv[i]
     for i in range(n - 2, -1, -1):
         b2[i] -= c[i] * b2[i + 1]
-
-
-@jit(inline=True)
-def _combine_stages(h, x, v, held, kk, diag, rhs1, rhs2, b1, b2, x_new, v_new, hold):
-    """
-    Write the new state and the holding forces of the held coaches.
-
-    x' = x + h (3/2 a1 + 1/2 a2) [m], v' = v + h (3/2 b1 + 1/2 b2) [m/s] with
-    a1 = v + g h b1, a2 = r + g h b2. A held coach's holding force [N] (``hold``, signed,
-    positive retarding; 0 on moving coaches) is the mean over both stages of the residual
-    its free row would leave: rhs - (A b)_i.
-    """
-    n = x.shape[0]
-    m = n - 1
-    gh = GAMMA * h
-    hr = h - 2.0 * gh
+    # the new state, and the holding forces the held rows of the stage equations require
     for i in range(n):
         a1 = v[i] + gh * b1[i]
         a2 = hr * b1[i] - v[i] + gh * b2[i]
@@ -260,35 +283,9 @@ def _combine_stages(h, x, v, held, kk, diag, rhs1, rhs2, b1, b2, x_new, v_new, h
         hold[i] = 0.5 * ((rhs1[i] - ab1) + (rhs2[i] - ab2))
 
 
-@jit
-def _ros2_step(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, ws):
-    """
-    Do one ROS2 step of eqs. (5)-(7) from (x, v) with the coaches in ``held`` at rest.
-
-    ``brake`` [N] is the signed braking force on the moving coaches (positive retarding).
-    Leaves the new state in WORK.XNEW, VNEW and the holding forces in WORK.HOLD
-    (:func:`_combine_stages`). The couplers' forces and Jacobian at (x, v) must be in ws
-    (:func:`_eval_couplers`).
-    """
-    F0 = ws[WORK.F]
-    dfdy = ws[WORK.DFDY]
-    kk = ws[WORK.KK]
-    diag = ws[WORK.DIAG]
-    lower = ws[WORK.LOWER]
-    rhs1 = ws[WORK.RHS1]
-    rhs2 = ws[WORK.RHS2]
-    b1 = ws[WORK.B1]
-    b2 = ws[WORK.B2]
-    c = ws[WORK.C]
-    winv = ws[WORK.WINV]
-    _stage1(GAMMA * h, v, held, brake, masses, F0, dfdy, kk, diag, lower, rhs1, b1, c, winv)
-    _stage2(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, dfdy, lower, c, winv,
-            b1, ws[WORK.F2], rhs2, b2)
-    _combine_stages(h, x, v, held, kk, diag, rhs1, rhs2, b1, b2, ws[WORK.XNEW],
-                    ws[WORK.VNEW], ws[WORK.HOLD])
-
-
 # ----------------------------------------------------------------------------- active set
+# The steps below run once per step: they take the packed arrays and index them per
+# element (coach[COACH.V, i]), which costs no reference counting (see the module's notes).
 @jit
 def _stops(v0, v1, fb):
     """
@@ -305,42 +302,42 @@ def _stops(v0, v1, fb):
 
 
 @jit(inline=True)
-def _signed_brake(v_start, rel_dir, fb, signed):
+def _signed_brake(ws):
     """
-    Sign the braking force fb [N] against each coach's motion, into ``signed``.
+    Sign the braking force over the step against each coach's motion [N] (WORK.SIGNED).
 
-    Positive retarding; a coach released from rest at this step (v_start = 0) is braked
-    against the direction ``rel_dir`` it slides in.
+    From WORK.FB, positive retarding; a coach released from rest at this step
+    (WORK.VSTART = 0) is braked against the direction WORK.RELDIR it slides in.
     """
-    for i in range(v_start.shape[0]):
-        if v_start[i] > 0.0:
-            signed[i] = fb[i]
-        elif v_start[i] < 0.0:
-            signed[i] = -fb[i]
+    for i in range(ws.shape[1]):
+        if ws[WORK.VSTART, i] > 0.0:
+            ws[WORK.SIGNED, i] = ws[WORK.FB, i]
+        elif ws[WORK.VSTART, i] < 0.0:
+            ws[WORK.SIGNED, i] = -ws[WORK.FB, i]
         else:
-            signed[i] = rel_dir[i] * fb[i]
+            ws[WORK.SIGNED, i] = ws[WORK.RELDIR, i] * ws[WORK.FB, i]
 
 
 @jit(inline=True)
-def _release_slipping(held, hold, fb, rel_dir, v_start):
+def _release_slipping(held, ws):
     """
-    Release the held coaches whose holding force [N] exceeds the braking force fb [N].
+    Release the held coaches whose holding force exceeds the braking force [N].
 
-    Such a coach slides, braked against its motion (``rel_dir``). Return whether any was
-    released.
+    Such a coach (WORK.HOLD > WORK.FB) slides, braked against its motion (WORK.RELDIR).
+    Return whether any was released.
     """
     changed = False
     for i in range(held.shape[0]):
-        if held[i] and abs(hold[i]) > fb[i] * (1.0 + 1e-12):
+        if held[i] and abs(ws[WORK.HOLD, i]) > ws[WORK.FB, i] * (1.0 + 1e-12):
             held[i] = False
-            rel_dir[i] = 1.0 if hold[i] > 0.0 else -1.0
-            v_start[i] = 0.0
+            ws[WORK.RELDIR, i] = 1.0 if ws[WORK.HOLD, i] > 0.0 else -1.0
+            ws[WORK.VSTART, i] = 0.0
             changed = True
     return changed
 
 
 @jit(inline=True)
-def _hold_stopping(held, rel_dir, v_start, v_new, fb, masses, extra_work):
+def _hold_stopping(held, coach, ws, extra_work):
     """
     Hold the moving coaches that stop within the step from the step's start.
 
@@ -349,42 +346,45 @@ def _hold_stopping(held, rel_dir, v_start, v_new, fb, masses, extra_work):
     """
     changed = False
     for i in range(held.shape[0]):
-        if (not held[i]) and rel_dir[i] == 0.0 and _stops(v_start[i], v_new[i], fb[i]):
+        if held[i] or ws[WORK.RELDIR, i] != 0.0:
+            continue
+        v0 = ws[WORK.VSTART, i]
+        if _stops(v0, ws[WORK.VNEW, i], ws[WORK.FB, i]):
             held[i] = True
-            extra_work += 0.5 * masses[i] * v_start[i] * v_start[i]
-            v_start[i] = 0.0
+            extra_work += 0.5 * coach[COACH.MASS, i] * v0 * v0
+            ws[WORK.VSTART, i] = 0.0
             changed = True
     return changed, extra_work
 
 
 @jit(inline=True)
-def _active_set_step(h, x, v, masses, was_held, ke, kf, kec, kfc, model, u, fb, held, signed,
-                     v_start, rel_dir, hold, v_new, ws):
+def _active_set_step(coach, cpl, sc, iv, held, ws):
     """
     Do one ROS2 step of the chain with the active set of held coaches; return work [J].
 
-    Starts from the coaches held at the end of the last step (``was_held``, 1.0 = held) and
-    iterates (at most N + 2 times): release the held coaches the brake cannot hold, else
-    stop the moving coaches whose velocity would change sign. ``fb`` is the braking force
-    over the step [N]; ``signed`` gets it signed against the motion. The returned work is
-    the kinetic energy of the coaches stopped at the step's start. The new state and the
-    holding forces are left in WORK.XNEW, ``v_new`` (WORK.VNEW) and ``hold`` (WORK.HOLD).
+    Starts from the coaches held at the end of the last step (COACH.HELD) and iterates (at
+    most N + 2 times): release the held coaches the brake cannot hold, else stop the
+    moving coaches whose velocity would change sign. WORK.FB is the braking force over the
+    step [N]. The returned work is the kinetic energy of the coaches stopped at the step's
+    start. The new state and the holding forces are left in WORK.XNEW, VNEW, HOLD.
     """
-    n = x.shape[0]
+    n = held.shape[0]
+    h = sc[SCALAR.H]
+    model = iv[FLAG.MODEL]
     for i in range(n):
-        held[i] = was_held[i] > 0.5
-        rel_dir[i] = 0.0
-        v_start[i] = v[i]
+        held[i] = coach[COACH.HELD, i] > 0.5
+        ws[WORK.RELDIR, i] = 0.0
+        ws[WORK.VSTART, i] = coach[COACH.V, i]
     extra_work = 0.0
     for it in range(n + 2):
         if it > 0:   # the active set changed some starting velocities
-            _eval_couplers(x, v_start, ke, kf, kec, kfc, model, u, GAMMA * h, ws)
-        _signed_brake(v_start, rel_dir, fb, signed)
-        _ros2_step(h, x, v_start, held, signed, masses, ke, kf, kec, kfc, model, u, ws)
-        changed = _release_slipping(held, hold, fb, rel_dir, v_start)
+            _eval_couplers(coach[COACH.X], ws[WORK.VSTART], cpl, model, sc[SCALAR.U],
+                           GAMMA * h, ws)
+        _signed_brake(ws)
+        _ros2_step(h, coach, cpl, model, sc[SCALAR.U], held, ws)
+        changed = _release_slipping(held, ws)
         if not changed:
-            changed, extra_work = _hold_stopping(held, rel_dir, v_start, v_new, fb, masses,
-                                                 extra_work)
+            changed, extra_work = _hold_stopping(held, coach, ws, extra_work)
         if not changed:
             break
     return extra_work
@@ -392,84 +392,86 @@ def _active_set_step(h, x, v, masses, was_held, ke, kf, kec, kfc, model, u, fb, 
 
 # ----------------------------------------------------------------------------- one step
 @jit(inline=True)
-def _brake_system_step(mode, sc, iv, ring, tables, pipe_in, cyl_in, p_pipe, p_cyl, applied,
-                       k0, frac, target):
+def _brake_system_step(coach, sc, iv, ring, tables, ws):
     """
     Move the brake system to the end of the step (it does not depend on the motion).
 
     ``pipe_head``: the head pressure [Pa] enters the delay line and each coach reads its
-    delayed pipe pressure (k0 + frac steps ago); ``pipe_per_coach``: the pipe pressures are
-    the inputs ``pipe_in``. Then the distributors' targets and the cylinders along their
-    filling/release tables [Pa]; or, ``cylinder_per_coach``, the cylinder pressures are the
-    inputs ``cyl_in`` (see ``brakes``).
+    delayed pipe pressure (WORK.K0 + FRAC steps ago); ``pipe_per_coach``: the pipe
+    pressures are the inputs COACH.PIPE_IN. Then the distributors' targets and the
+    cylinders along their filling/release tables [Pa]; or, ``cylinder_per_coach``, the
+    cylinder pressures are the inputs COACH.CYL_IN (see ``brakes``).
     """
+    mode = iv[FLAG.MODE]
     if mode == brakes.PIPE_HEAD:
         iv[FLAG.RING_POS] = brakes.delay_line_push(ring, iv[FLAG.RING_POS],
                                                    sc[SCALAR.HEAD_IN])
-        brakes.delay_line_read(ring, iv[FLAG.RING_POS], k0, frac, p_pipe)
+        brakes.delay_line_read(ring, iv[FLAG.RING_POS], ws[WORK.K0], ws[WORK.FRAC],
+                               coach[COACH.PPIPE])
     elif mode == brakes.PIPE_PER_COACH:
-        p_pipe[:] = pipe_in
+        coach[COACH.PPIPE] = coach[COACH.PIPE_IN]
     if mode == brakes.CYLINDER_PER_COACH:
-        p_cyl[:] = cyl_in
+        coach[COACH.PCYL] = coach[COACH.CYL_IN]
     else:
-        brakes.distributor_target(p_pipe, applied, sc[SCALAR.PNOM], sc[SCALAR.PFS],
-                                  sc[SCALAR.SENS], sc[SCALAR.PMAX], target)
-        brakes.cylinder_advance(p_cyl, target, sc[SCALAR.H], sc[SCALAR.PMAX], tables)
+        brakes.distributor_target(coach[COACH.PPIPE], coach[COACH.APPLIED], sc[SCALAR.PNOM],
+                                  sc[SCALAR.PFS], sc[SCALAR.SENS], sc[SCALAR.PMAX],
+                                  ws[WORK.TARGET])
+        brakes.cylinder_advance(coach[COACH.PCYL], ws[WORK.TARGET], sc[SCALAR.H],
+                                sc[SCALAR.PMAX], tables)
 
 
 @jit(inline=True)
-def _braking_force_trapezoid(sc, p_cyl, masses, fb_avail, fb_next, fb):
+def _braking_force_trapezoid(coach, sc, ws):
     """
-    Write the braking force over the step [N] to ``fb``: the trapezoid of eq. (13).
+    Write the braking force over the step [N] to WORK.FB: the trapezoid of eq. (13).
 
     The mean of the available force (eq. 13, limited by eq. 12) at both ends of the step,
-    second order; ``fb_avail`` moves on to the step's end (``fb_next``).
+    second order; COACH.FB_AVAIL moves on to the step's end (WORK.FBNEXT).
     """
-    brakes.braking_force(p_cyl, sc[SCALAR.PMAX], sc[SCALAR.MU], masses, sc[SCALAR.G],
-                         fb_next)
-    for i in range(fb.shape[0]):
-        fb[i] = 0.5 * (fb_avail[i] + fb_next[i])
-        fb_avail[i] = fb_next[i]
+    brakes.braking_force(coach[COACH.PCYL], sc[SCALAR.PMAX], sc[SCALAR.MU],
+                         coach[COACH.MASS], sc[SCALAR.G], ws[WORK.FBNEXT])
+    for i in range(coach.shape[1]):
+        ws[WORK.FB, i] = 0.5 * (coach[COACH.FB_AVAIL, i] + ws[WORK.FBNEXT, i])
+        coach[COACH.FB_AVAIL, i] = ws[WORK.FBNEXT, i]
 
 
 @jit(inline=True)
-def _fault_check(x_new, v_new, y_limit):
+def _fault_check(ws, y_limit):
     """
-    Return the status of the new state: OK, NON_FINITE or OUT_OF_RANGE.
+    Return the status of the new state WORK.XNEW, VNEW: OK, NON_FINITE or OUT_OF_RANGE.
 
     OUT_OF_RANGE: a coupler's |y| = |x_i - x_{i+1}| exceeds y_limit [m] (the displacement
     the vehicles physically allow); NON_FINITE wins.
     """
-    n = x_new.shape[0]
+    n = ws.shape[1]
     bad = OK
     for i in range(n):
-        if not (np.isfinite(x_new[i]) and np.isfinite(v_new[i])):
+        if not (np.isfinite(ws[WORK.XNEW, i]) and np.isfinite(ws[WORK.VNEW, i])):
             bad = NON_FINITE
             break
-        if i < n - 1 and abs(x_new[i] - x_new[i + 1]) > y_limit:
+        if i < n - 1 and abs(ws[WORK.XNEW, i] - ws[WORK.XNEW, i + 1]) > y_limit:
             bad = OUT_OF_RANGE
     return bad
 
 
 @jit(inline=True)
-def _accept_step(x, v, is_held, fb_applied, x_old, held, hold, signed, x_new, v_new,
-                 extra_work):
+def _accept_step(coach, held, extra_work, ws):
     """
     Move the coaches to the new state; return the brakes' work over the step [J].
 
-    The work is sum_i Fb_i (x_i' - x_i) with the holding force ``hold`` on held coaches and
-    ``signed`` on the others, plus ``extra_work``; ``fb_applied`` gets |Fb_i| [N],
-    ``is_held`` the active set (1.0 = held), ``x_old`` the positions at the step's start.
+    The work is sum_i Fb_i (x_i' - x_i) with the holding force WORK.HOLD on held coaches
+    and WORK.SIGNED on the others, plus ``extra_work``; COACH.FB_APPLIED gets |Fb_i| [N],
+    COACH.HELD the active set (1.0 = held), WORK.XOLD the positions at the step's start.
     """
     wb = extra_work
-    for i in range(x.shape[0]):
-        b = hold[i] if held[i] else signed[i]
-        wb += b * (x_new[i] - x[i])
-        fb_applied[i] = abs(b)
-        x_old[i] = x[i]
-        x[i] = x_new[i]
-        v[i] = v_new[i]
-        is_held[i] = 1.0 if held[i] else 0.0
+    for i in range(held.shape[0]):
+        b = ws[WORK.HOLD, i] if held[i] else ws[WORK.SIGNED, i]
+        wb += b * (ws[WORK.XNEW, i] - coach[COACH.X, i])
+        coach[COACH.FB_APPLIED, i] = abs(b)
+        ws[WORK.XOLD, i] = coach[COACH.X, i]
+        coach[COACH.X, i] = ws[WORK.XNEW, i]
+        coach[COACH.V, i] = ws[WORK.VNEW, i]
+        coach[COACH.HELD, i] = 1.0 if held[i] else 0.0
     return wb
 
 
@@ -483,43 +485,29 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
     p/p_max); ring: head-pressure history [Pa]; ws: :func:`make_workspace`. The layouts are
     in :mod:`train_dynamics.physics.layout`. Each step: the brake system to the step's end,
     the braking force over the step (trapezoid), one ROS2 step with the active set of held
-    coaches, the fault check, then the new state is accepted and the work booked. The rows
-    are taken apart once, here: a row view made inside the step loop would cost reference
-    counting at every step.
+    coaches, the fault check, then the new state is accepted and the work booked.
     """
-    x, v, masses = coach[COACH.X], coach[COACH.V], coach[COACH.MASS]
-    p_cyl, p_pipe, applied = coach[COACH.PCYL], coach[COACH.PPIPE], coach[COACH.APPLIED]
-    pipe_in, cyl_in, is_held = coach[COACH.PIPE_IN], coach[COACH.CYL_IN], coach[COACH.HELD]
-    fb_avail, fb_applied = coach[COACH.FB_AVAIL], coach[COACH.FB_APPLIED]
-    ke, kf, kec, kfc = cpl[COUPLER.KE], cpl[COUPLER.KF], cpl[COUPLER.KEC], cpl[COUPLER.KFC]
-    k0, frac, target = ws[WORK.K0], ws[WORK.FRAC], ws[WORK.TARGET]
-    fb, fb_next, signed, hold = ws[WORK.FB], ws[WORK.FBNEXT], ws[WORK.SIGNED], ws[WORK.HOLD]
-    v_start, rel_dir = ws[WORK.VSTART], ws[WORK.RELDIR]
-    x_new, v_new, x_old = ws[WORK.XNEW], ws[WORK.VNEW], ws[WORK.XOLD]
-    h, u, model, mode = sc[SCALAR.H], sc[SCALAR.U], iv[FLAG.MODEL], iv[FLAG.MODE]
-    gh = GAMMA * h
-    held = np.empty(x.shape[0], dtype=np.bool_)
+    gh = GAMMA * sc[SCALAR.H]
+    held = np.empty(coach.shape[1], dtype=np.bool_)
     tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
                                    rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
     if iv[FLAG.WS_VALID] == 0:
         # first call after reset()/set_model(): pipe delays and the couplers at (x, v); later
         # calls find them in ws, left there by the last step of the previous call
-        brakes.delay_split(coach[COACH.DELAY], k0, frac)
-        _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws)
+        brakes.delay_split(coach[COACH.DELAY], ws[WORK.K0], ws[WORK.FRAC])
+        _eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh,
+                       ws)
         iv[FLAG.WS_VALID] = 1
     for step in range(n_steps):
-        _brake_system_step(mode, sc, iv, ring, tables, pipe_in, cyl_in, p_pipe, p_cyl,
-                           applied, k0, frac, target)
-        _braking_force_trapezoid(sc, p_cyl, masses, fb_avail, fb_next, fb)
-        extra_work = _active_set_step(h, x, v, masses, is_held, ke, kf, kec, kfc, model, u, fb,
-                                      held, signed, v_start, rel_dir, hold, v_new, ws)
-        status = _fault_check(x_new, v_new, sc[SCALAR.YLIM])
+        _brake_system_step(coach, sc, iv, ring, tables, ws)
+        _braking_force_trapezoid(coach, sc, ws)
+        extra_work = _active_set_step(coach, cpl, sc, iv, held, ws)
+        status = _fault_check(ws, sc[SCALAR.YLIM])
         if status != OK:
             return step, status
-        sc[SCALAR.WB] += _accept_step(x, v, is_held, fb_applied, x_old, held, hold, signed,
-                                      x_new, v_new, extra_work)
+        sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws)
         # the couplers at the new state: their work over the step, and the next step's start
-        sc[SCALAR.WC] += _eval_couplers_work(x, v, x_old, ke, kf, kec, kfc, model, u, gh, ws)
+        sc[SCALAR.WC] += _eval_couplers_work(coach, cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh, ws)
     return n_steps, OK
 
 

@@ -131,7 +131,7 @@ class TrainSimulator:
         self.sc[SCALAR.HEAD_IN] = float(self._finite(p, 'head pipe'))
 
     def set_pipe_pressure(self, p, index: int | None = None) -> None:
-        """Set the local brake-pipe pressure(s), gauge [Pa] (``pipe_per_coach``); index 0-based."""
+        """Set the local brake-pipe pressure(s), gauge [Pa] (``pipe_per_coach``); 0-based."""
         arr = self._finite(p, 'pipe')
         if index is None:
             self.coach[COACH.PIPE_IN] = arr
@@ -139,7 +139,7 @@ class TrainSimulator:
             self.coach[COACH.PIPE_IN, index] = float(arr)
 
     def set_cylinder_pressure(self, p, index: int | None = None) -> None:
-        """Set the brake-cylinder pressure(s), gauge [Pa] (``cylinder_per_coach``); index 0-based."""
+        """Set the brake-cylinder pressure(s), gauge [Pa] (``cylinder_per_coach``); 0-based."""
         arr = self._finite(p, 'cylinder')
         if index is None:
             self.coach[COACH.CYL_IN] = arr
