@@ -478,3 +478,26 @@ class PneumaticBrake:
         veh = self.veh
         return self.pipe_air_mass + float(np.sum(veh[V_MCR] + veh[V_MAUX] + veh[V_MCYL]
                                                  + veh[V_MQS]))
+
+
+def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=None,
+                regimes=None) -> PneumaticBrake:
+    """
+    Return the pneumatic brake of a simulator configuration (``parameters.SimConfig``).
+
+    ``lengths``, ``p_max``, ``regimes``: per-vehicle data of a consist; by default the
+    uniform train's ``coach_length``, ``max_cylinder_pressure`` and ``brake_regime``.
+    """
+    n = cfg.n_coaches
+    spec = PneumaticSpec(
+        pipe_diameter=float(cfg.brake_pipe_diameter),
+        atmospheric_pressure=float(cfg.atmospheric_pressure),
+        nominal_pressure=float(cfg.pipe_nominal_pressure),
+        full_service_pressure=float(cfg.full_service_pressure),
+        leakage=float(cfg.brake_pipe_leakage),
+        angle_cock_closed=int(cfg.angle_cock_closed),
+        main_reservoir_pressure=float(cfg.main_reservoir_pressure))
+    return PneumaticBrake(
+        np.full(n, float(cfg.coach_length)) if lengths is None else lengths,
+        float(cfg.max_cylinder_pressure) if p_max is None else p_max,
+        str(cfg.brake_regime) if regimes is None else regimes, h, spec, external_pipe)

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from . import brakes, couplers
+from . import brakes, couplers, pneumatic
 from train_dynamics.physics import integrators as I
 from ._jit import jit
 from train_dynamics.physics.parameters import SimConfig
@@ -85,6 +85,14 @@ class TrainSimulator:
         self.rel = np.asarray(cfg.release_table(), dtype=float)
         self.delays = brakes.pipe_delays(n, cfg.coach_length, cfg.brake_propagation_speed)
         self.ws = I.make_workspace(n)
+        # brake_model pneumatic: the pneumatic brake hands its cylinder pressures to the
+        # chain step by step (the chain then runs as in cylinder_per_coach); the bypass
+        # cylinder_per_coach keeps the input cylinders
+        self.pneu = None
+        if cfg.brake_model == 'pneumatic' and self.mode != brakes.CYLINDER_PER_COACH:
+            self.pneu = pneumatic.from_config(cfg, self.h,
+                                              external_pipe=self.mode == brakes.PIPE_PER_COACH)
+            self._trace = np.zeros((0, n))
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
         self.reset()
@@ -113,6 +121,10 @@ class TrainSimulator:
             cfg.max_coupler_displacement]
         self.iv = np.zeros(I.N_INT_SCALARS, dtype=np.int64)     # I_WS_VALID = 0
         self.iv[I.I_MODE] = self.mode
+        if self.pneu is not None:
+            self.pneu.reset()
+            self.iv[I.I_MODE] = brakes.CYLINDER_PER_COACH
+            c[I.CYL_IN] = self.pneu.cylinder_pressure
         self.set_model(self.model_type, self.u)
         self.fault: str | None = None
 
@@ -141,6 +153,8 @@ class TrainSimulator:
     def set_head_pipe_pressure(self, p: float) -> None:
         """Head-end brake-pipe pressure, gauge [Pa] (``pipe_head``)."""
         self.sc[I.S_HEAD_IN] = float(self._finite(p, 'head pipe'))
+        if self.pneu is not None:
+            self.pneu.set_command(self.sc[I.S_HEAD_IN])
 
     def set_pipe_pressure(self, p, index: int | None = None) -> None:
         """Local brake-pipe pressure(s), gauge [Pa] (``pipe_per_coach``); index 0-based."""
@@ -149,6 +163,8 @@ class TrainSimulator:
             self.coach[I.PIPE_IN] = arr
         else:
             self.coach[I.PIPE_IN, index] = float(arr)
+        if self.pneu is not None:
+            self.pneu.set_pipe_pressure(arr, index)
 
     def set_cylinder_pressure(self, p, index: int | None = None) -> None:
         """Brake-cylinder pressure(s), gauge [Pa] (``cylinder_per_coach``); index 0-based."""
@@ -168,8 +184,32 @@ class TrainSimulator:
         """Integrate ``n_steps`` fixed steps; returns the steps done (fewer after a fault)."""
         if self.fault is not None or n_steps <= 0:
             return 0
+        if self.pneu is not None:
+            return self._advance_pneumatic(int(n_steps))
         done, status = I.advance_chain(int(n_steps), self.coach, self.cpl, self.sc, self.iv,
                                        self.fill, self.rel, self.ring, self.ws)
+        self.steps += done
+        if status != I.OK:
+            self.fault = I.STATUS_TEXT[status].format(t=self.t)
+        return done
+
+    def _advance_pneumatic(self, n_steps: int) -> int:
+        """Advance the pneumatic brake n_steps ahead, then the chain under its cylinders."""
+        if self._trace.shape[0] < n_steps:
+            self._trace = np.zeros((n_steps, self.n))
+        trace = self._trace[:n_steps]
+        self.pneu.advance(n_steps, trace)
+        cyl_in = self.coach[I.CYL_IN]
+        done = 0
+        status = I.OK
+        for k in range(n_steps):
+            cyl_in[:] = trace[k]
+            step, status = I.advance_chain(1, self.coach, self.cpl, self.sc, self.iv,
+                                           self.fill, self.rel, self.ring, self.ws)
+            done += step
+            if status != I.OK:
+                break
+        self.coach[I.PPIPE] = self.pneu.pipe_pressure
         self.steps += done
         if status != I.OK:
             self.fault = I.STATUS_TEXT[status].format(t=self.t)
