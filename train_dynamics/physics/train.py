@@ -269,6 +269,16 @@ class TrainSimulator:
         return self.coach[I.PPIPE].copy()
 
     @property
+    def auxiliary_pressure(self) -> np.ndarray | None:
+        """Auxiliary-reservoir gauge pressures [Pa] (pneumatic brake), else None."""
+        return None if self.pneu is None else self.pneu.auxiliary_pressure
+
+    @property
+    def control_pressure(self) -> np.ndarray | None:
+        """Control-reservoir gauge pressures [Pa] (pneumatic brake), else None."""
+        return None if self.pneu is None else self.pneu.control_pressure
+
+    @property
     def work_brake(self) -> float:
         """Work done by the brakes since t = 0 [J]."""
         return float(self.sc[I.S_WB])
