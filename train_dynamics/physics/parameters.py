@@ -175,7 +175,7 @@ _PARAMS = [
               'Brake system model: "empirical" (propagation delay, distributor map, filling '
               'tables) or "pneumatic" (brake-pipe gas dynamics, relay valve, UIC '
               'distributors with reservoirs). In pneumatic, brake_pipe/pressure is the '
-              'pressure the driver\'s brake valve regulates the pipe head to.',
+              'pressure the brake valve of the driver regulates the pipe head to.',
               choices=('empirical', 'pneumatic')),
     ParamSpec('brake_pipe_leakage', 0.0, DOUBLE,
               'Pneumatic: leakage of the brake pipe, as the pressure drop rate [Pa/s] of '
@@ -188,7 +188,7 @@ _PARAMS = [
               'Pneumatic: inner diameter of the brake pipe [m] (EN 15355: 25-32 mm).',
               low=0.01, high=0.1),
     ParamSpec('main_reservoir_pressure', 900000.0, DOUBLE,
-              'Pneumatic: main-reservoir pressure feeding the driver\'s brake valve, gauge '
+              'Pneumatic: main-reservoir pressure feeding the brake valve of the driver, gauge '
               '[Pa].', low=1.0e5, high=2.0e6),
 ]
 
