@@ -32,7 +32,8 @@ HAVE_NUMBA = _numba is not None
 _FASTMATH = {'afn', 'contract', 'arcp', 'nsz'}
 
 #: the modules whose compiled code depends on each other
-_KERNEL_SOURCES = ('_jit.py', 'couplers.py', 'brakes.py', 'integrators.py', 'train.py', 'pneumatic.py')
+_KERNEL_SOURCES = ('_jit.py', 'couplers.py', 'brakes.py', 'integrators.py', 'train.py',
+                   'pneumatic.py')
 
 _cache_dir: str | None = None
 
