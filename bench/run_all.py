@@ -324,6 +324,7 @@ def main(argv=None) -> int:
     ap.add_argument('--no-node', action='store_true')
     ap.add_argument('--ref-max-n', type=int, default=100)
     ap.add_argument('--no-write', action='store_true')
+    ap.add_argument('--no-pneumatic', action='store_true', help='skip bench/pneumatic.py')
     ap.add_argument('--from-json', metavar='RAW',
                     help='only re-render RESULTS.md from a raw file (bench/last_run.json)')
     args = ap.parse_args(argv)
@@ -367,9 +368,18 @@ def main(argv=None) -> int:
             nodebench.apply_startup_target(node_res)
         except Exception as exc:  # noqa: BLE001 - report and keep the core results
             log(f'node benchmark failed: {exc}')
+    pneu_md = ''
+    if not args.no_pneumatic:       # issue 12: bench/pneumatic.py owns its section
+        import pneumatic
+        rows = pneumatic.run_offline(log=log)
+        pneu_md = pneumatic.render(rows, None if args.no_node else pneumatic.run_node(log=log))
+        with open(pneumatic.RESULTS_MD, 'w') as fh:
+            fh.write(pneu_md)
     load['after'] = os.getloadavg()[0]
     load['others_cores'] = meter.others_cores()
     text = render(mach, load, core_res, node_res)
+    if pneu_md:
+        text = text.rstrip('\n') + '\n\n' + pneu_md
     print(text)
     log(f'bench: {time.monotonic() - t0:.0f} s')
     if not args.no_write:

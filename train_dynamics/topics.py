@@ -46,6 +46,8 @@ MAX_ABSOLUTE_PRESSURE = 2.0e6
 COUPLERS_TOPIC = 'couplers'
 COACHES_TOPIC = 'coaches'
 BRAKE_CYLINDERS_TOPIC = 'brake_cylinders'
+#: brake_model pneumatic only (after OUTPUT_TOPICS): auxiliary and control reservoirs
+BRAKE_RESERVOIRS_TOPIC = 'brake_reservoirs'
 #: the JointState output topics, in the order they are published and recorded
 OUTPUT_TOPICS = (COUPLERS_TOPIC, COACHES_TOPIC, BRAKE_CYLINDERS_TOPIC)
 CLOCK_TOPIC = '/clock'

@@ -55,7 +55,7 @@ class Outputs:
 
     def __init__(self, node: Node) -> None:
         self._pubs = [node.create_publisher(JointState, topic, OUTPUT_QOS)
-                      for topic in topics.OUTPUT_TOPICS]
+                      for topic in topics.OUTPUT_TOPICS + (topics.BRAKE_RESERVOIRS_TOPIC,)]
         self._pub_clock = node.create_publisher(Clock, topics.CLOCK_TOPIC, OUTPUT_QOS)
         self.writer: BagWriter | None = None
         self.publish_clock = False
@@ -66,9 +66,13 @@ class Outputs:
         self._encoder: OutputEncoder | None = None
 
     def start(self, n: int, rate: float, h: float, publish_clock: bool,
-              writer: BagWriter | None) -> None:
-        """Begin a run of ``n`` coaches at t = 0: outputs at ``rate`` [Hz] on steps ``h``."""
-        self._encoder = OutputEncoder(n)
+              writer: BagWriter | None, reservoirs: bool = False) -> None:
+        """
+        Begin a run of ``n`` coaches at t = 0: outputs at ``rate`` [Hz] on steps ``h``.
+
+        ``reservoirs``: also publish ``brake_reservoirs`` (pneumatic brake).
+        """
+        self._encoder = OutputEncoder(n, reservoirs)
         self.rate = float(rate)
         self._h = h
         self.publish_clock = bool(publish_clock)
@@ -108,7 +112,7 @@ class Outputs:
             self._pub_clock.publish(clock)
         w = self.writer
         if w is not None:
-            for topic, data in zip(topics.OUTPUT_TOPICS, encoded):
+            for topic, data in zip(self._encoder.topics, encoded):
                 w.write(topic, topics.JOINT_STATE, t_ns, data)
             if clock is not None:
                 w.write(topics.CLOCK_TOPIC, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
