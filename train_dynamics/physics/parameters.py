@@ -148,6 +148,15 @@ _PARAMS = [
     ParamSpec('on_input_timeout', 'hold', STRING,
               'On a stale input: "hold" the last value or apply an "emergency" brake.',
               choices=('hold', 'emergency'), dynamic=True, structural=False),
+    # Run metrics (issue 13, physics/metrics.py): a crossing is a WARN in /diagnostics.
+    ParamSpec('coupler_force_limit', 0.0, DOUBLE,
+              'Coupler force limit on abs(F) [N]: each excursion beyond it is a limit crossing '
+              '(coupler, value, time) in the run metrics; 0 = off.',
+              min=0.0, max=1.0e9, dynamic=True, structural=False),
+    ParamSpec('jerk_limit', 0.0, DOUBLE,
+              'Jerk limit [m/s^3] on abs(jerk) of each vehicle, evaluated over 1 s windows '
+              '(EN 12299 practice): each excursion is a limit crossing; 0 = off.',
+              min=0.0, max=1000.0, dynamic=True, structural=False),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
