@@ -89,9 +89,8 @@ def cmd_report(args: argparse.Namespace) -> int:
             overrides[name] = value
     metrics = report_metrics(hist, cfg, **overrides)
     result = metrics.result()
-    model = ', '.join(f'{k} {hist.info[k]}' for k in ('model_type', 'scale_factor',
-                                                       'integration_step', 'generator')
-                      if k in hist.info)
+    keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
+    model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
     source = {'bag': str(args.bag), 'parameters': origin, 'model': model,
               'notes': list(hist.notes)}
     try:

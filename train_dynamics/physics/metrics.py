@@ -262,8 +262,8 @@ class RunMetrics:
             if rows.any():
                 x, v = b['x'][:k][rows], b['v'][:k][rows]
                 b['y'][:k][rows], b['ydot'][:k][rows] = x[:, :-1] - x[:, 1:], v[:, :-1] - v[:, 1:]
-            self._process(*(np.nan_to_num(b[n][:k]) for n in ('t', 'y', 'ydot', 'f', 'x',
-                                                                'v', 'fb')))
+            names = ('t', 'y', 'ydot', 'f', 'x', 'v', 'fb')
+            self._process(*(np.nan_to_num(b[n][:k]) for n in names))
 
     # -- the update ------------------------------------------------------------------------
     def _process(self, t, y, ydot, f, x, v, fb) -> None:
@@ -357,7 +357,7 @@ class RunMetrics:
         """Return the train-level metrics (:data:`FLAT_KEYS`), SI units, None if undefined."""
         self.flush()
         if self._last is None:
-            return {k: None for k in FLAT_KEYS} | {'samples': 0, 'stopped': False}
+            return dict.fromkeys(FLAT_KEYS) | {'samples': 0, 'stopped': False}
         jt, jc = int(np.argmax(self.tension.value)), int(np.argmax(self.compression.value))
         jd, jj = int(np.argmax(self.decel.value)), int(np.argmax(self.jerk.value))
         elastic = None
