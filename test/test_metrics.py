@@ -130,6 +130,15 @@ def test_coupler_extremes_blocking_impacts_and_crossings_by_hand():
     assert dict(values)['limit_crossings'] == '3'
 
 
+def test_a_limit_set_live_acts_from_the_next_sample_on():
+    t, y, yd, f, x, v, fb = coupler_history()
+    m = RunMetrics(2)
+    m.add_block(t[:10], y[:10], yd[:10], f[:10], x[:10], v[:10], fb[:10])
+    m.set_limits(coupler_force_limit=500.0)
+    m.add_block(t[10:], y[10:], yd[10:], f[10:], x[10:], v[10:], fb[10:])
+    assert [e['value'] for e in m.crossings()] == [600.0, -820.0]   # not the -900 at 0.6 s
+
+
 def test_no_strokes_never_block_and_no_slack_no_impacts():
     r = feed(RunMetrics(2), *coupler_history())
     c = r['couplers'][0]

@@ -337,6 +337,15 @@ class RunMetrics:
             if rest.size:
                 self.stop_time, self.stop_x = float(t[rest[0]]), float(x[rest[0], 0])
 
+    def set_limits(self, coupler_force_limit: float | None = None,
+                   jerk_limit: float | None = None) -> None:
+        """Change the limits [N], [m/s^3] (0 = off) from the next sample on (live change)."""
+        self.flush()
+        if coupler_force_limit is not None:
+            self.force_crossings.limit = float(coupler_force_limit)
+        if jerk_limit is not None:
+            self.jerk_crossings.limit = float(jerk_limit)
+
     # -- results ---------------------------------------------------------------------------
     def result(self) -> dict[str, Any]:
         """Return every metric as a JSON-ready dict: ``train``, ``couplers``, ``vehicles``."""
