@@ -190,6 +190,15 @@ _PARAMS = [
     ParamSpec('main_reservoir_pressure', 900000.0, DOUBLE,
               'Pneumatic: main-reservoir pressure feeding the brake valve of the driver, gauge '
               '[Pa].', low=1.0e5, high=2.0e6),
+    # Run metrics (issue 13, physics/metrics.py): a crossing is a WARN in /diagnostics.
+    ParamSpec('coupler_force_limit', 0.0, DOUBLE,
+              'Coupler force limit on abs(F) [N]: each excursion beyond it is a limit crossing '
+              '(coupler, value, time) in the run metrics; 0 = off.',
+              low=0.0, high=1.0e9, dynamic=True),
+    ParamSpec('jerk_limit', 0.0, DOUBLE,
+              'Jerk limit [m/s^3] on abs(jerk) of each vehicle, evaluated over 1 s windows '
+              '(EN 12299 practice): each excursion is a limit crossing; 0 = off.',
+              low=0.0, high=1000.0, dynamic=True),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
