@@ -182,7 +182,7 @@ def parse_schedule(entries: Any, settings: Mapping[str, Any] | None = None) -> l
             raise ValueError(
                 f'schedule[{k}] {item!r}: time {time_text!r} is not a number') from None
         if not math.isfinite(t) or not 0.0 <= t <= MAX_SCHEDULE_TIME:
-            raise ValueError(f'schedule[{k}] {item!r}: time must be >= 0 and <= '
+            raise ValueError(f'schedule[{k}] {item!r}: time must be finite, >= 0 and <= '
                              f'{MAX_SCHEDULE_TIME:g} s')
         if out and not t > out[-1].time:
             raise ValueError(f'schedule[{k}] {item!r}: times must strictly increase '

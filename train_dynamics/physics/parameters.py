@@ -308,6 +308,8 @@ def input_rejection(absolute: float) -> tuple[str, str] | None:
 MAX_SIMULATOR_MEMORY = 1 << 30
 #: [bytes] upper estimate of the simulator's arrays per coach (state, workspace, constants)
 SIMULATOR_BYTES_PER_COACH = 8 * 64
+#: [bytes] the simulator's arrays whatever the train (cylinder tables, scalars)
+SIMULATOR_FIXED_BYTES = 1 << 16
 #: [bytes] MCAP record and index overhead per message (opcode, length, channel, sequence,
 #: two times; message-index entry)
 BAG_BYTES_PER_MESSAGE = 48
@@ -325,7 +327,7 @@ def delay_line_length(n_coaches: int, coach_length: float, speed: float, h: floa
 def simulator_memory(n_coaches: int, coach_length: float, speed: float, h: float) -> int:
     """Return an upper estimate [bytes] of the simulator's arrays."""
     return (8 * delay_line_length(n_coaches, coach_length, speed, h)
-            + SIMULATOR_BYTES_PER_COACH * n_coaches)
+            + SIMULATOR_BYTES_PER_COACH * n_coaches + SIMULATOR_FIXED_BYTES)
 
 
 def _joint_state_bytes(joints: int, name_len: int) -> int:

@@ -62,11 +62,14 @@ def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
                                      rel_topic, msg))
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
-    if any(rejected.values()):
-        counts = ', '.join(f'{c} {reason}' for reason, c in rejected.items() if c)
-        warn(f'input bag: {sum(rejected.values())} message(s) rejected as sim_node rejects '
-             f'them ({counts}; absolute pressure must be finite, >= 0 and <= '
-             f'{topics.MAX_ABSOLUTE_PRESSURE:g} Pa)')
+    bad = rejected['non_finite'] + rejected['negative']
+    if bad:
+        warn(f'input bag: {bad} message(s) with a non-finite or negative absolute pressure '
+             'rejected (as sim_node rejects them)')
+    if rejected['too_high']:
+        warn(f'input bag: {rejected["too_high"]} message(s) with an absolute pressure above '
+             f'{topics.MAX_ABSOLUTE_PRESSURE:g} Pa rejected (too_high, as sim_node rejects '
+             'them)')
     if not events:
         raise InputBagError(f'input bag {path}: no usable input message for brake_input {mode}')
     events.sort(key=lambda e: e.t_ns)           # stable: bag order for equal times
