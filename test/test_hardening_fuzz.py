@@ -13,12 +13,11 @@ import math
 from hypothesis import event, given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
-import yaml
-
 from train_dynamics.cli import offline as cli
 from train_dynamics.physics import runner
 from train_dynamics.physics.brake_valve import BrakeValveModel
 from train_dynamics.physics.parameters import ConfigError, PARAMETERS, SimConfig
+import yaml
 
 #: drawn as given (structural, costly or covered elsewhere)
 FIXED = {'num_coaches', 'masses', 'integration_step', 'publish_rate', 'record_bag',

@@ -57,7 +57,7 @@ def test_simulate_memory_is_independent_of_duration(tmp_path):
 
 
 def _full_zoom(t, velocity, width, duration):
-    """The zoom window as compare chose it from the full history (before issue 15)."""
+    """Return the zoom window as compare chose it from the full history (before issue 15)."""
     best, where, coupler = -1, duration / 2, 0
     for j in range(velocity.shape[1]):
         s = np.sign(velocity[:, j])

@@ -1,7 +1,8 @@
 """
-Issue 15, the nodes: items 2 (live set + reset), 3 (failed start), 6/7 (parameter files),
-9 (valve schedule), 10 (recorder bounded in bytes), 11 (wrong-type publisher), 12 (timers at
-shutdown).
+Issue 15, the nodes: no traceback, no leftovers, bounded recorder, complete diagnostics.
+
+Items 2 (live set + reset), 3 (failed start), 6/7 (parameter files), 9 (valve schedule),
+10 (recorder bounded in bytes), 11 (wrong-type publisher), 12 (timers at shutdown).
 """
 from __future__ import annotations
 
@@ -148,6 +149,7 @@ class SlowRecorder:
 
 
 class Log:
+
     def error(self, text):
         pass
 
@@ -213,6 +215,7 @@ def test_wrong_type_publisher_on_an_input_topic_is_reported_in_diagnostics(harne
 
 # -- item 12: timers at shutdown ----------------------------------------------------------------
 class FakeContext:
+
     def __init__(self) -> None:
         self.up = True
 
@@ -221,6 +224,7 @@ class FakeContext:
 
 
 class FakeNode:
+
     def __init__(self) -> None:
         self.context = FakeContext()
 
@@ -230,7 +234,7 @@ def test_timer_callbacks_are_quiet_when_the_context_goes_down_under_them():
 
     def callback():
         node.context.up = False             # a signal shuts the context down meanwhile
-        raise RuntimeError('publisher\'s context is invalid')
+        raise RuntimeError("publisher's context is invalid")
 
     assert ros_executor.shutdown_safe(node, callback)() is None
 

@@ -18,8 +18,8 @@ from train_dynamics.physics import runner
 from train_dynamics.physics.brake_valve import BrakeValveModel, MAX_SCHEDULE_TIME
 from train_dynamics.physics.parameters import (ConfigError, input_rejection,
                                                MAX_SIMULATOR_MEMORY, output_disk, PARAMETERS,
-                                               SIMULATOR_FIXED_BYTES,
-                                               simulator_memory, SimConfig, validate_value)
+                                               SimConfig, SIMULATOR_FIXED_BYTES,
+                                               simulator_memory, validate_value)
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import BagRecorder, read_topics
 from train_dynamics.recording.cdr import encode_fluid_pressure
@@ -139,8 +139,8 @@ def test_schedule_time_1e300_is_one_line_exit_2_offline(tmp_path, capsys):
 
 
 @pytest.mark.parametrize('where', ['/proc/train_dynamics_test_out', 'file/sub'])
-def test_plot_and_compare_into_an_unwritable_directory_are_one_line_exit_2(tmp_path, capsys,
-                                                                         where):
+def test_plot_and_compare_into_an_unwritable_directory_are_one_line_exit_2(
+        tmp_path, capsys, where):
     (tmp_path / 'file').write_text('x')
     out = where if where.startswith('/') else tmp_path / where
     code, err = run_cli(capsys, 'plot', '/work/baseline/paper60' if Path(
@@ -247,8 +247,8 @@ def test_a_typo_in_the_only_section_is_an_error_offline(tmp_path, capsys):
     assert "'train_dynamic'" in err[0] and 'train_dynamics' in err[0]
 
 
-def test_an_unknown_section_beside_the_nodes_is_a_warning_naming_the_known_ones(tmp_path,
-                                                                              capsys):
+def test_an_unknown_section_beside_the_nodes_is_a_warning_naming_the_known_ones(
+        tmp_path, capsys):
     p = params_file(tmp_path / 'p.yaml', raw=CFG.read_text()
                     + 'train_dynamic:\n  ros__parameters:\n    num_coaches: 4\n')
     code, err = run_cli(capsys, 'simulate', '--params', p, '--duration', 0.2, '--output',
@@ -258,8 +258,8 @@ def test_an_unknown_section_beside_the_nodes_is_a_warning_naming_the_known_ones(
     assert 'train_dynamics, brake_valve, /**' in err[0]
 
 
-def test_wildcard_section_applies_to_both_nodes_and_other_nodes_keys_are_ignored(tmp_path,
-                                                                                capsys):
+def test_wildcard_section_applies_to_both_nodes_and_other_nodes_keys_are_ignored(
+        tmp_path, capsys):
     p = params_file(tmp_path / 'p.yaml', raw=(
         '/**:\n  ros__parameters:\n    use_sim_time: false\n    num_coaches: 4\n'
         '    schedule: ["0.3:emergency"]\n    publish_clock: false\n'))

@@ -1,15 +1,16 @@
 """
 ``train-dynamics compare``: the paper's comparison of the coupler friction models.
 
-The same scenario (parameter file, brake input as for ``simulate``) with the sign model at
-several integration steps and the tanh model at several scale factors u, sampled on the
-runner's output grid (:func:`train_dynamics.physics.runner.iter_output_steps`) at
-``--sample-rate``, at most once per integration step, and summarised as they run
-(:class:`train_dynamics.recording.summary.RunSummary`: memory independent of the duration;
-curves min/max-decimated beyond 20000 samples per run; the zoom at full rate; a sign run whose
-own densest window is not the chosen one is run again up to its end). Writes one figure per quantity and a zoom on the window where the sign
-model chatters most (:func:`train_dynamics.recording.plots.plot_comparison`), and prints a
-table: max / min coupler force and sign changes of ydot per second of every run.
+The same scenario (parameter file, brake input as for ``simulate``) with the sign model at several
+integration steps and the tanh model at several scale factors u, sampled on the runner's output
+grid (:func:`train_dynamics.physics.runner.iter_output_steps`) at ``--sample-rate``, at most once
+per integration step, and summarised as they run
+(:class:`train_dynamics.recording.summary.RunSummary`: memory independent of the duration; curves
+min/max-decimated beyond 20000 samples per run; the zoom at full rate; a sign run whose own densest
+window is not the chosen one is run again up to its end). Writes one figure per quantity and a zoom
+on the window where the sign model chatters most
+(:func:`train_dynamics.recording.plots.plot_comparison`), and prints a table: max / min coupler
+force and sign changes of ydot per second of every run.
 """
 from __future__ import annotations
 

@@ -164,8 +164,8 @@ def parse_schedule(entries: Any, settings: Mapping[str, Any] | None = None) -> l
     """
     Parse ``["0.0:release", "1.0:emergency", ...]`` into :class:`ScheduleEntry` items.
 
-    Times [s] must be in [0, :data:`MAX_SCHEDULE_TIME`] and strictly increasing; positions valid for ``settings``
-    (defaults if None). Raises ``ValueError`` naming the bad entry.
+    Times [s] must be in [0, :data:`MAX_SCHEDULE_TIME`] and strictly increasing; positions
+    valid for ``settings`` (defaults if None). Raises ``ValueError`` naming the bad entry.
     """
     settings = validate_settings(settings or {})
     if isinstance(entries, (str, bytes)) or not isinstance(entries, Iterable):

@@ -20,9 +20,8 @@ import math
 import re
 from typing import Any, Callable, Mapping
 
-import yaml
-
 from train_dynamics import topics
+import yaml
 
 # Kinds of value, named after the ROS 2 parameter types they map to.
 DOUBLE = 'double'
@@ -438,7 +437,8 @@ class SimConfig:
             raise ConfigError(f'masses: a train needs at least 2 coaches, got {len(self.masses)}')
         _check_output_grid(float(v['publish_rate']), float(v['integration_step']))
         memory = simulator_memory(self.n_coaches, float(v['coach_length']),
-                                  float(v['brake_propagation_speed']), float(v['integration_step']))
+                                  float(v['brake_propagation_speed']),
+                                  float(v['integration_step']))
         if memory > MAX_SIMULATOR_MEMORY:
             raise ConfigError(
                 f'the simulator would need {fmt_bytes(memory)} (limit '

@@ -11,22 +11,22 @@ both connect:
 
 A message takes effect at the next integration step (zero-order hold). Rejected and counted per
 reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning naming the topic):
-``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute
-pressure > :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of another
-``brake_input``), ``unknown_coach`` (``coach_<i>`` with i outside 1..N), ``malformed`` (not
-deserialisable); the first three by the rule the offline replay applies too
-(:func:`train_dynamics.physics.parameters.input_rejection`). Publishers of another message
-type on an input topic (never received: DDS does not match them) are found by the graph scan
-and reported as ``wrong_type`` in ``/diagnostics``. The head topic and the per-coach topics of the active mode are subscribed from
-the start; topics of the other modes and of coaches that do not exist are found by a graph scan
-every :data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to count and reject their messages:
-keeping 2N idle subscriptions would slow rclpy's executor for long trains).
+``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute pressure
+> :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of another ``brake_input``),
+``unknown_coach`` (``coach_<i>`` with i outside 1..N), ``malformed`` (not deserialisable); the
+first three by the rule the offline replay applies too
+(:func:`train_dynamics.physics.parameters.input_rejection`). Publishers of another message type on
+an input topic (never received: DDS does not match them) are found by the graph scan and reported
+as ``wrong_type`` in ``/diagnostics``. The head topic and the per-coach topics of the active mode
+are subscribed from the start; topics of the other modes and of coaches that do not exist are found
+by a graph scan every :data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to count and reject
+their messages: keeping 2N idle subscriptions would slow rclpy's executor for long trains).
 
-Stale inputs: ``input_timeout`` > 0 s (wall) without a brake input (any coach of a per-coach
-mode) is reported in ``/diagnostics``; ``on_input_timeout`` ``hold`` keeps the last values,
-``emergency`` applies the fail-safe (head pipe vented / all pipe pressures 0 gauge / all
-cylinders at ``max_cylinder_pressure``) until every input is fresh again. The fail-safe
-pressures are recorded with ``frame_id`` ``train_dynamics/input_timeout``.
+Stale inputs: ``input_timeout`` > 0 s (wall) without a brake input (any coach of a per-coach mode)
+is reported in ``/diagnostics``; ``on_input_timeout`` ``hold`` keeps the last values, ``emergency``
+applies the fail-safe (head pipe vented / all pipe pressures 0 gauge / all cylinders at
+``max_cylinder_pressure``) until every input is fresh again. The fail-safe pressures are recorded
+with ``frame_id`` ``train_dynamics/input_timeout``.
 """
 from __future__ import annotations
 
