@@ -16,7 +16,9 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 import functools
 import os
+import signal
 import sys
+import threading
 from typing import Any, Callable, Mapping
 
 import rclpy
@@ -169,8 +171,25 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
         print(f'{prog}: error: {exit_on.what}: {text}', file=sys.stderr)
         code = exit_on.code
     finally:
-        _shut_down(executor, node)
+        # a SIGINT that arrives (or is still pending) while the bag is being finished would
+        # raise KeyboardInterrupt in the middle of it: we are stopping already
+        previous = _ignore_sigint()
+        try:
+            _shut_down(executor, node)
+        finally:
+            if previous is not None:
+                signal.signal(signal.SIGINT, previous)
     return code
+
+
+def _ignore_sigint():
+    """Ignore SIGINT (main thread only); return the previous handler, or None."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    try:
+        return signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except (ValueError, OSError):
+        return None
 
 
 def _shut_down(executor: Executor | None, node: Node | None) -> None:
