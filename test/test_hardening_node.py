@@ -242,6 +242,15 @@ def test_timer_callbacks_are_quiet_when_the_context_goes_down_under_them():
         raise RuntimeError('a real bug')
 
     node.context.up = True
+    assert ros_executor.shutdown_safe(node, callback)() is None
+
+    def later():
+        threading.Timer(0.05, lambda: setattr(node.context, 'up', False)).start()
+        raise RuntimeError('Failed to publish log message to rosout')   # before ok() is False
+
+    node.context.up = True
+    assert ros_executor.shutdown_safe(node, later)() is None
+    node.context.up = True
     with pytest.raises(RuntimeError, match='real bug'):
         ros_executor.shutdown_safe(node, failing)()
 

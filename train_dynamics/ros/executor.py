@@ -2,9 +2,9 @@
 The executor and the ``main`` of both nodes: start, spin, and a clean shutdown on any path.
 
 :func:`run_node` is the try/finally around a node that ``sim_node`` and ``brake_valve``
-share (the shape of ros2/demos' ``demo_nodes_py``): SIGINT/SIGTERM (rclpy's signal handlers
-shut the context down) end it with status 0; the exceptions a node declares (invalid
-parameters, ...) print one line ``<prog>: error: ...`` and end it with their status; anything
+share (the shape of ros2/demos' ``demo_nodes_py``): SIGINT/SIGTERM end it with status 0 (they
+stop the spin loop; the node is destroyed and rclpy shut down in order); the exceptions a node
+declares (invalid parameters, ...) print one line ``<prog>: error: ...`` and end it with their status; anything
 else is a crash, unless a signal shut the context down under a callback (then it is a clean
 stop too). A missing or malformed ``--params-file`` is one line and status 2 before rclpy
 starts; timer callbacks wrapped in :func:`shutdown_safe` stay quiet when a signal shuts the
@@ -19,11 +19,13 @@ import os
 import signal
 import sys
 import threading
+import time
 from typing import Any, Callable, Mapping
 
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 
 from train_dynamics.physics.parameters import (ConfigError, node_sections, read_param_sections,
                                                ROS_BUILTIN_PARAMETERS, unknown_sections,
@@ -35,6 +37,7 @@ except ImportError:   # pragma: no cover - older rclpy
     EventsExecutor = None
 
 EXIT_BAD_PARAMETERS = 2
+SHUTDOWN_GRACE = 0.5  # [s wall] how long a failed timer callback waits for a shutdown to show
 SPIN_PERIOD = 0.1     # [s wall] longest spin_once between two checks of ``node.finished``
 
 
@@ -121,10 +124,25 @@ def shutdown_safe(node: Node, callback: Callable[..., Any]) -> Callable[..., Any
         try:
             return callback(*args)
         except Exception:
-            if not node.context.ok():
+            if _shutting_down(node.context):
                 return None
             raise
     return call
+
+
+def _shutting_down(context: Any, wait: float = SHUTDOWN_GRACE) -> bool:
+    """
+    Return True if ``context`` is shut down, or goes down within ``wait`` [s wall].
+
+    rclpy's signal handler shuts the context down from another thread: the rosout publisher
+    and the node's publishers are invalid a moment before ``context.ok()`` turns False.
+    """
+    end = time.monotonic() + wait
+    while context.ok():
+        if time.monotonic() >= end:
+            return False
+        time.sleep(0.005)
+    return True
 
 
 def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = None, *,
@@ -143,12 +161,19 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
         status = check_params_files(prog, argv, node_name, specs or {})
         if status:
             return status
+    main_thread = threading.current_thread() is threading.main_thread()
     try:
-        rclpy.init(args=args)
+        # In the main thread SIGINT/SIGTERM only ask the loop below to stop (_stop_on_signals):
+        # rclpy's own handlers shut the context down under running callbacks, and the
+        # KeyboardInterrupt they chain to is raised inside a timer callback, where the
+        # executor reports it as a FATAL exception (issue 15, item 12).
+        rclpy.init(args=args,
+                   signal_handler_options=SignalHandlerOptions.NO if main_thread else None)
     except Exception as exc:  # noqa: BLE001 - RCLError: bad --ros-args
         text = ' '.join(str(exc).split(', at ')[0].split())
         print(f'{prog}: error: cannot start: {text}', file=sys.stderr)
         return EXIT_BAD_PARAMETERS
+    stop, previous = _stop_on_signals() if main_thread else (threading.Event(), {})
     node = None
     executor = None
     code = 0
@@ -156,7 +181,7 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
         node = create()
         executor = executor_factory()
         executor.add_node(node)
-        while not getattr(node, 'finished', False):
+        while not getattr(node, 'finished', False) and not stop.is_set():
             executor.spin_once(timeout_sec=SPIN_PERIOD)
         code = getattr(node, 'exit_code', 0)
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -173,13 +198,29 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
     finally:
         # a SIGINT that arrives (or is still pending) while the bag is being finished would
         # raise KeyboardInterrupt in the middle of it: we are stopping already
-        previous = _ignore_sigint()
+        _ignore_sigint()
         try:
             _shut_down(executor, node)
         finally:
-            if previous is not None:
-                signal.signal(signal.SIGINT, previous)
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
     return code
+
+
+def _stop_on_signals() -> tuple[threading.Event, dict[int, Any]]:
+    """
+    Make SIGINT and SIGTERM set the returned event (a second one: KeyboardInterrupt).
+
+    Return the event and the previous handlers. Main thread only.
+    """
+    stop = threading.Event()
+
+    def handler(signum: int, frame: Any) -> None:
+        if stop.is_set():
+            raise KeyboardInterrupt
+        stop.set()
+
+    return stop, {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
 
 
 def _ignore_sigint():
