@@ -4,9 +4,9 @@ The executor and the ``main`` of both nodes: start, spin, and a clean shutdown o
 :func:`run_node` is the try/finally around a node that ``sim_node`` and ``brake_valve``
 share (the shape of ros2/demos' ``demo_nodes_py``): SIGINT/SIGTERM end it with status 0 (they
 stop the spin loop; the node is destroyed and rclpy shut down in order); the exceptions a node
-declares (invalid parameters, ...) print one line ``<prog>: error: ...`` and end it with their status; anything
-else is a crash, unless a signal shut the context down under a callback (then it is a clean
-stop too). A missing or malformed ``--params-file`` is one line and status 2 before rclpy
+declares (invalid parameters, ...) print one line ``<prog>: error: ...`` and end it with their
+status; anything else is a crash, unless the context went down under a callback (then it is a
+clean stop too). A missing or malformed ``--params-file`` is one line and status 2 before rclpy
 starts; timer callbacks wrapped in :func:`shutdown_safe` stay quiet when a signal shuts the
 context down under them.
 """
