@@ -24,6 +24,7 @@ sys.path.insert(0, HERE)
 sys.path.insert(1, os.path.dirname(HERE))
 
 import core  # noqa: E402
+from memory import MEMORY_BEGIN, MEMORY_END, MEMORY_MD  # noqa: E402  (memory.py's section)
 from soak import SOAK_BEGIN, SOAK_END, SOAK_MD as SOAK  # noqa: E402  (soak.py owns its section)
 import sweep as sweepbench  # noqa: E402  (sweep.py owns its section)
 
@@ -229,6 +230,15 @@ def soak_section() -> str:
     return f'{SOAK_BEGIN}\n{body}\n{SOAK_END}'
 
 
+def memory_section() -> str:
+    """Return the memory section (bench/memory.py owns it; run by main unless --no-memory)."""
+    try:
+        return MEMORY_MD.read_text().strip()
+    except OSError:
+        return (f'{MEMORY_BEGIN}\n## Memory of the offline commands (bench/memory.py)\n\n'
+                f'Not run yet on this machine.\n{MEMORY_END}')
+
+
 def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None) -> str:
     import node as nodebench
     parts = ['# Benchmark results (`make bench`)', '',
@@ -316,7 +326,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
                             f'60 s run: {best / a:.2f} / {best / b:.2f} (run '
                             f"{node_res.get('attempt', 1)}; a run below {core.SLOW_HOST:g} is "
                             'done once more, keeping the run at the higher host speed).']
-    parts += [soak_section(), '', sweepbench.sweep_section(), '']
+    parts += [soak_section(), '', sweepbench.sweep_section(), '', memory_section(), '']
     return '\n'.join(parts)
 
 
@@ -325,6 +335,7 @@ def main(argv=None) -> int:
     ap.add_argument('--no-core', action='store_true')
     ap.add_argument('--no-node', action='store_true')
     ap.add_argument('--no-sweep', action='store_true', help='skip bench/sweep.py')
+    ap.add_argument('--no-memory', action='store_true')
     ap.add_argument('--ref-max-n', type=int, default=100)
     ap.add_argument('--no-write', action='store_true')
     ap.add_argument('--no-pneumatic', action='store_true', help='skip bench/pneumatic.py')
@@ -383,6 +394,10 @@ def main(argv=None) -> int:
             sweepbench.run_and_write(log=log, write=not args.no_write)
         except Exception as exc:  # noqa: BLE001 - report and keep the other results
             log(f'sweep benchmark failed: {exc}')
+    if not args.no_memory:
+        import memory
+        text = memory.section(memory.run([60.0, 600.0], log=log))
+        memory.MEMORY_MD.write_text(f'{MEMORY_BEGIN}\n{text}\n{MEMORY_END}\n')
     load['after'] = os.getloadavg()[0]
     load['others_cores'] = meter.others_cores()
     text = render(mach, load, core_res, node_res)

@@ -1,13 +1,16 @@
 """
 ``train-dynamics compare``: the paper's comparison of the coupler friction models.
 
-The same scenario (parameter file, brake input as for ``simulate``) with the sign model at
-several integration steps and the tanh model at several scale factors u, run in memory
-(:class:`train_dynamics.recording.sinks.ArraySink`) and sampled on the runner's output grid
-(:func:`train_dynamics.physics.runner.iter_output_steps`) at ``--sample-rate``, at most once
-per integration step. Writes one figure per quantity and a zoom on the window where the sign
-model chatters most (:func:`train_dynamics.recording.plots.plot_comparison`), and prints a
-table: max / min coupler force and sign changes of ydot per second of every run.
+The same scenario (parameter file, brake input as for ``simulate``) with the sign model at several
+integration steps and the tanh model at several scale factors u, sampled on the runner's output
+grid (:func:`train_dynamics.physics.runner.iter_output_steps`) at ``--sample-rate``, at most once
+per integration step, and summarised as they run
+(:class:`train_dynamics.recording.summary.RunSummary`: memory independent of the duration; curves
+min/max-decimated beyond 20000 samples per run; the zoom at full rate; a sign run whose own densest
+window is not the chosen one is run again up to its end). Writes one figure per quantity and a zoom
+on the window where the sign model chatters most
+(:func:`train_dynamics.recording.plots.plot_comparison`), and prints a table: max / min coupler
+force and sign changes of ydot per second of every run.
 """
 from __future__ import annotations
 
@@ -16,19 +19,19 @@ import math
 from pathlib import Path
 import time
 
-import numpy as np
-
-from train_dynamics.cli.errors import CliError, EXIT_ERROR, EXIT_OK, warn
+from train_dynamics.cli.errors import CliError, EXIT_OK, warn
+from train_dynamics.cli.output import output_dir, remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
-from train_dynamics.physics.parameters import ConfigError, SimConfig
-from train_dynamics.physics.runner import BrakeInputs, output_steps, run_simulation
-from train_dynamics.recording.history import History, sign_changes_per_second
+from train_dynamics.physics.parameters import ConfigError, PARAMETERS, SimConfig
+from train_dynamics.physics.runner import BrakeInputs, iter_output_steps, run_simulation
 from train_dynamics.recording.plots import plot_comparison
-from train_dynamics.recording.sinks import ArraySink
+from train_dynamics.recording.summary import densest, RunSummary, Window, zoom_window
 
 #: width of a run's label in the table and the progress bar
 LABEL_WIDTH = 34
+#: [s] the zoom figure's window
+ZOOM_WIDTH = 0.2
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -65,26 +68,56 @@ def cmd_compare(args: argparse.Namespace) -> int:
     h0 = float(base.integration_step)
     steps = _parse_floats(args.steps, '--steps') if args.steps else [h0, h0 / 10.0]
     variants = _variants(base, steps, us)
-    runs, table = [], []
+    created = output_dir(args.output)
+    try:
+        return _compare(args, base, inputs, variants, duration, steps)
+    except BaseException:
+        remove_created(created)
+        raise
+
+
+def _compare(args: argparse.Namespace, base: SimConfig, inputs: BrakeInputs,
+             variants: list[tuple[str, SimConfig]], duration: float, steps: list[float]) -> int:
+    """Run every variant streaming (:class:`RunSummary`), then draw and print."""
+    h0 = float(base.integration_step)
+    default = zoom_window(duration / 2, 0, duration, ZOOM_WIDTH)
+    summaries, walls = [], []
+    window = None
     for label, cfg in variants:
-        hist, wall = _run(label, cfg, duration, inputs, args)
+        is_sign = label.startswith('sign')
+        if not is_sign and window is None:          # the sign runs (first) are done
+            window = _chosen_window(summaries, default)
+        summary, wall = _run(label, cfg, duration, inputs, args, track=is_sign,
+                             capture=default if window is None else window)
+        summaries.append(summary)
+        walls.append(wall)
+    if window is None:
+        window = _chosen_window(summaries, default)
+    runs, zooms, table, decimated = [], [], [], False
+    for (label, cfg), summary, wall in zip(variants, summaries, walls):
+        hist, dec = summary.history(label)
+        decimated |= dec
         runs.append((label, hist))
-        c = hist.couplers
-        changes = sign_changes_per_second(c.t, c.velocity, tol=0.0)
-        for j, name in enumerate(c.names):
-            table.append((label, name, float(np.nanmax(c.effort[:, j])) * 1e-3,
-                          float(np.nanmin(c.effort[:, j])) * 1e-3, changes[j], wall))
+        data = summary.zoom_data(window)
+        if data is None:                             # another run's window: run it again
+            again, _ = _run(f'{label} (zoom)', cfg, window.t1, inputs, args, capture=window)
+            data = again.zoom_data(window)
+        zooms.append(data)
+        table += [(label, name, fmax * 1e-3, fmin * 1e-3, ch, wall)
+                  for name, fmax, fmin, ch in summary.table()]
     sampling = ('curves sampled at every integration step'
                 if 1.0 / args.sample_rate <= min(steps + [h0]) * (1 + 1e-9) else
                 f'curves sampled every {_fmt_step(1.0 / args.sample_rate)} (or step)')
+    if decimated:
+        sampling += ', drawn as min/max envelopes'
     title = (f'{base.n_coaches} coaches, {Path(args.params).name}, brake input: '
              f'{inputs.source}; {sampling}')
     out = Path(args.output)
     try:
-        paths = plot_comparison(runs, out, title=title, zoom=_zoom_window(runs, duration))
+        paths = plot_comparison(runs, out, title=title, zoom=(window.t0, window.t1, window.j),
+                                zoom_data=zooms)
     except OSError as exc:
-        raise CliError(f'cannot write figures to {out}: {exc.strerror or exc}',
-                       EXIT_ERROR) from None
+        raise CliError(f'cannot write figures to {out}: {exc.strerror or exc}') from None
     _print_table(table)
     if not args.quiet:
         for p in paths:
@@ -92,11 +125,20 @@ def cmd_compare(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
+def _chosen_window(summaries: list[RunSummary], default: Window) -> Window:
+    """Return the zoom window: where a sign run flips ydot most (first wins), or ``default``."""
+    found = densest(summaries)
+    if found is None:
+        return default
+    return summaries[found[0]].best_window()
+
+
 def _variants(base: SimConfig, steps: list[float], us: list[float]
               ) -> list[tuple[str, SimConfig]]:
     """Return (label, parameters) of every run: sign at each step, tanh at each u."""
     h0 = float(base.integration_step)
-    changes = [(f'sign, h = {_fmt_step(h)}', {'model_type': 'sign', 'integration_step': h})
+    changes = [(f'sign, h = {_fmt_step(h)}', {'model_type': 'sign', 'integration_step': h,
+                                              'publish_rate': _grid_rate(base, h)})
                for h in steps]
     changes += [(f'tanh, u = {u:g} s/m, h = {_fmt_step(h0)}',
                  {'model_type': 'tanh', 'scale_factor': u}) for u in us]
@@ -109,19 +151,35 @@ def _variants(base: SimConfig, steps: list[float], us: list[float]
     return variants
 
 
+def _grid_rate(base: SimConfig, h: float) -> float:
+    """
+    Return a publish_rate [Hz] on the grid of step ``h`` [s] (the file's when it is).
+
+    compare samples at ``--sample-rate``, not at publish_rate; this only keeps the validator's
+    exact-grid rule (1 / publish_rate a whole number of steps) for steps given by --steps.
+    """
+    rate = float(base.publish_rate)
+    k = max(1, round(1.0 / (rate * h)), math.ceil(1.0 / (PARAMETERS['publish_rate'].high * h)))
+    return rate if abs(1.0 / (rate * h) - k) <= 1e-9 * k else 1.0 / (k * h)
+
+
 def _run(label: str, cfg: SimConfig, duration: float, inputs: BrakeInputs,
-         args: argparse.Namespace) -> tuple[History, float]:
-    """Run one variant in memory; return its history and its wall time [s]."""
+         args: argparse.Namespace, *, track: bool = False,
+         capture: Window | None = None) -> tuple[RunSummary, float]:
+    """Run one variant, summarised as it goes; return its summary and wall time [s]."""
     h = float(cfg.integration_step)
-    sink = ArraySink()
+    rate = min(args.sample_rate, 1.0 / h)
+    summary = RunSummary(cfg.n_coaches, duration, math.floor(duration * rate + 1e-9) + 1,
+                         1.0 / rate, width=ZOOM_WIDTH, track=track, capture=capture)
     t0 = time.monotonic()
-    sim = run_simulation(cfg, duration, inputs.for_step(h), on_sample=sink.sample,
-                         sample_steps=output_steps(duration, min(args.sample_rate, 1.0 / h), h),
+    sim = run_simulation(cfg, duration, inputs.for_step(h), on_sample=summary.sample,
+                         sample_steps=iter_output_steps(duration, rate, h),
                          progress=progress_bar(f'{label:<{LABEL_WIDTH}}', duration, args.quiet))
+    summary.finish()
     wall = time.monotonic() - t0
     if sim.fault is not None:
         warn(f'{label}: simulation fault: {sim.fault}')
-    return sink.history(sim, label), wall
+    return summary, wall
 
 
 def _print_table(table: list[tuple]) -> None:
@@ -146,28 +204,3 @@ def _parse_floats(text: str, what: str) -> list[float]:
 
 def _fmt_step(h: float) -> str:
     return f'{h * 1e3:g} ms'
-
-
-def _zoom_window(runs: list[tuple[str, History]], duration: float,
-                 width: float = 0.2) -> tuple[float, float, int]:
-    """Return (t0, t1, coupler index): the ``width`` [s] where a sign run flips ydot most."""
-    best, where, coupler = -1, duration / 2, 0
-    for label, hist in runs:
-        if not label.startswith('sign'):
-            continue
-        c = hist.couplers
-        for j in range(c.velocity.shape[1]):
-            s = np.sign(c.velocity[:, j])
-            keep = s != 0
-            ts, s = c.t[keep], s[keep]
-            tf = ts[1:][s[1:] != s[:-1]]
-            if tf.size == 0:
-                continue
-            counts = np.searchsorted(tf, tf + width) - np.arange(tf.size)
-            k = int(np.argmax(counts))
-            if counts[k] > best:
-                span = tf[k:k + counts[k]]
-                best, where, coupler = int(counts[k]), float(span[0] + span[-1]) / 2, j
-    half = min(width, duration) / 2
-    t0 = min(max(0.0, where - half), max(0.0, duration - 2 * half))
-    return t0, t0 + 2 * half, coupler

@@ -9,7 +9,8 @@ from __future__ import annotations
 import argparse
 from pathlib import Path
 
-from train_dynamics.cli.errors import CliError, EXIT_ERROR, EXIT_OK
+from train_dynamics.cli.errors import CliError, EXIT_OK
+from train_dynamics.cli.output import output_dir, remove_created
 from train_dynamics.recording.bags import BagError
 from train_dynamics.recording.plots import plot_bag, PlotError
 
@@ -32,13 +33,19 @@ def cmd_plot(args: argparse.Namespace) -> int:
     """Run ``plot``; return the exit status."""
     if not Path(args.bag).exists():
         raise CliError(f'bag not found: {args.bag}')
+    created = output_dir(args.output)
     try:
         paths = plot_bag(args.bag, args.output, namespace=args.namespace, title=args.title)
     except (BagError, PlotError) as exc:
+        remove_created(created)
         raise CliError(str(exc)) from None
     except OSError as exc:
-        raise CliError(f'cannot write figures to {args.output}: {exc.strerror or exc}',
-                       EXIT_ERROR) from None
+        remove_created(created)
+        raise CliError(f'cannot write figures to {args.output}: {exc.strerror or exc}'
+                       ) from None
+    except BaseException:
+        remove_created(created)
+        raise
     if not args.quiet:
         for p in paths:
             print(p)

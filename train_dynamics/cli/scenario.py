@@ -19,9 +19,9 @@ from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.cli.errors import CliError, warn
-from train_dynamics.physics.brake_valve import BrakeValveModel
-from train_dynamics.physics.parameters import (ConfigError, load_param_file, read_param_file,
-                                               SimConfig)
+from train_dynamics.physics.brake_valve import BrakeValveModel, VALVE_PARAMETERS
+from train_dynamics.physics.parameters import (ConfigError, load_param_file, node_sections,
+                                               read_param_sections, SimConfig)
 from train_dynamics.physics.runner import BrakeInputs
 from train_dynamics.recording.inputs import InputBagError, read_input_bag
 
@@ -34,7 +34,7 @@ def load_config(path: str) -> SimConfig:
     if not Path(path).is_file():
         raise CliError(f'parameter file not found: {path}')
     try:
-        return load_param_file(path)
+        return load_param_file(path, warn=warn)
     except ConfigError as exc:
         raise CliError(str(exc)) from None
 
@@ -69,9 +69,12 @@ def valve_from_param_file(path: str, cfg: Any) -> BrakeValveModel:
     released valve leaves the distributors released.
     """
     try:
-        params = dict(read_param_file(path, topics.VALVE_NODE_NAME))
+        wildcard, own = node_sections(read_param_sections(path), topics.VALVE_NODE_NAME)
     except ConfigError as exc:
         raise CliError(str(exc)) from None
+    # as rclpy: '/**' keys the valve does not declare are not its concern
+    params = {k: v for k, v in wildcard.items() if k in VALVE_PARAMETERS}
+    params.update(own)
     if 'schedule' not in params and 'position' not in params:
         params['schedule'] = list(DEFAULT_VALVE_SCHEDULE)
     params.setdefault('pipe_nominal_pressure', float(cfg.pipe_nominal_pressure))

@@ -8,22 +8,30 @@ and the brake input it used (``brake_pipe/pressure`` absolute, or the input bag'
 re-stamped with their simulation time); :class:`train_dynamics.recording.sinks.BagSink`
 writes them. Its ``metadata.yaml`` ``custom_data`` records the model, step and input. Same
 inputs -> byte-identical bag. Nothing is left under the output path unless the command wrote
-a complete bag (it writes a hidden sibling directory and renames it at the end).
+a complete bag (it writes a hidden sibling directory and renames it at the end). The bag's size
+is estimated before the run (:func:`train_dynamics.physics.parameters.output_disk`): more
+than the free space is refused, more than :data:`LARGE_BAG` needs ``--allow-large``. Memory
+does not grow with the duration (the samples stream to the bag).
 """
 from __future__ import annotations
 
 import argparse
 from pathlib import Path
+import shutil
 
 from train_dynamics import topics
 from train_dynamics.cli.errors import CliError, error, EXIT_FAULT, EXIT_OK, PROG
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
-from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.parameters import fmt_bytes, output_disk, SimConfig
 from train_dynamics.physics.runner import BrakeInputs, run_simulation
 from train_dynamics.recording.bags import BagError, BagRecorder
 from train_dynamics.recording.outputs import run_metadata
 from train_dynamics.recording.sinks import BagSink
+
+#: [bytes] a bag estimated larger than this needs ``--allow-large`` (10 GB: ~2.5 h of the
+#: paper's 3 coaches, ~20 min of 100 coaches at 100 Hz)
+LARGE_BAG = 10 ** 10
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -41,6 +49,9 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     s.add_argument('--output', required=True, metavar='BAG', help='new rosbag2 directory')
     s.add_argument('--namespace', default='', metavar='NS',
                    help='read the input topics under this namespace (e.g. /train1)')
+    s.add_argument('--allow-large', action='store_true',
+                   help=f'write a bag estimated larger than {fmt_bytes(LARGE_BAG)} (never more '
+                   'than the free space)')
     s.add_argument('-q', '--quiet', action='store_true', help='no progress bar, no summary')
     s.set_defaults(func=cmd_simulate)
 
@@ -56,6 +67,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         raise CliError(f'{parent} is not a directory')
     cfg = load_config(args.params)
     inputs = brake_inputs(args, cfg)
+    _check_disk(cfg, duration, inputs, parent, args.allow_large)
     created, rec = _open_recorder(out, parent)
     try:
         for key, value in _model_info(cfg, inputs, duration).items():
@@ -79,6 +91,25 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         print(f'wrote {out} ({cfg.n_coaches} coaches, {cfg.model_type}, {duration:g} s, '
               f'input: {inputs.source})')
     return EXIT_OK
+
+
+def _check_disk(cfg: SimConfig, duration: float, inputs: BrakeInputs, parent: Path,
+                allow_large: bool) -> None:
+    """Refuse a run whose bag would not fit, or exceed :data:`LARGE_BAG` unconfirmed."""
+    need = output_disk(cfg, duration) + sum(len(e.msg.header.frame_id) + 80
+                                            for e in inputs.events)
+    where = parent
+    while not where.exists():
+        where = where.parent
+    free = shutil.disk_usage(where).free
+    if need > free:
+        raise CliError(f'the bag would need about {fmt_bytes(need)} ({duration:g} s of '
+                       f'{cfg.n_coaches} coaches at {cfg.publish_rate:g} Hz), {where} has '
+                       f'{fmt_bytes(free)} free; shorten --duration or lower publish_rate')
+    if need > LARGE_BAG and not allow_large:
+        raise CliError(f'the bag would need about {fmt_bytes(need)} ({duration:g} s of '
+                       f'{cfg.n_coaches} coaches at {cfg.publish_rate:g} Hz), more than '
+                       f'{fmt_bytes(LARGE_BAG)}: add --allow-large to write it anyway')
 
 
 def _open_recorder(out: Path, parent: Path) -> tuple[list[Path], BagRecorder]:

@@ -36,8 +36,11 @@ from typing import Any, Iterable, Mapping
 
 from train_dynamics.physics.parameters import (
     ATMOSPHERIC_PRESSURE, DOUBLE, FULL_SERVICE_PRESSURE, INTEGER, ParamSpec,
-    PIPE_NOMINAL_PRESSURE, read_param_file, ROS_BUILTIN_PARAMETERS, STRING, STRING_ARRAY,
-    validate_value)
+    PIPE_NOMINAL_PRESSURE, read_param_file, ROS_BUILTIN_PARAMETERS, SIM_NODE_PARAMETERS, STRING,
+    STRING_ARRAY, validate_value)
+
+#: [s] latest schedule time: the longest run (``sim_node``'s ``duration`` bound, ~32 years)
+MAX_SCHEDULE_TIME = SIM_NODE_PARAMETERS['duration'].high
 
 #: The valve model's parameters (gauge pressures [Pa], rates [Pa/s]); all change live.
 VALVE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
@@ -46,8 +49,9 @@ VALVE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'or emergency. Setting it moves the handle now and cancels the rest of the '
               'schedule.', dynamic=True),
     ParamSpec('schedule', [], STRING_ARRAY,
-              'Handle schedule, "TIME:POSITION" strings, TIME [s] strictly increasing, counted '
-              'from node start (or from the moment the schedule is set live).', dynamic=True),
+              'Handle schedule, "TIME:POSITION" strings, TIME [s] strictly increasing, <= 1e9, '
+              'counted from node start (or from the moment the schedule is set live).',
+              dynamic=True),
     ParamSpec('pipe_nominal_pressure', PIPE_NOMINAL_PRESSURE, DOUBLE,
               'Brake-pipe running pressure (release position), gauge [Pa].',
               low=1.0e5, high=1.0e6, dynamic=True),
@@ -160,8 +164,8 @@ def parse_schedule(entries: Any, settings: Mapping[str, Any] | None = None) -> l
     """
     Parse ``["0.0:release", "1.0:emergency", ...]`` into :class:`ScheduleEntry` items.
 
-    Times [s] must be finite, >= 0 and strictly increasing; positions valid for ``settings``
-    (defaults if None). Raises ``ValueError`` naming the bad entry.
+    Times [s] must be in [0, :data:`MAX_SCHEDULE_TIME`] and strictly increasing; positions
+    valid for ``settings`` (defaults if None). Raises ``ValueError`` naming the bad entry.
     """
     settings = validate_settings(settings or {})
     if isinstance(entries, (str, bytes)) or not isinstance(entries, Iterable):
@@ -177,8 +181,9 @@ def parse_schedule(entries: Any, settings: Mapping[str, Any] | None = None) -> l
         except ValueError:
             raise ValueError(
                 f'schedule[{k}] {item!r}: time {time_text!r} is not a number') from None
-        if not math.isfinite(t) or t < 0.0:
-            raise ValueError(f'schedule[{k}] {item!r}: time must be finite and >= 0')
+        if not math.isfinite(t) or not 0.0 <= t <= MAX_SCHEDULE_TIME:
+            raise ValueError(f'schedule[{k}] {item!r}: time must be finite, >= 0 and <= '
+                             f'{MAX_SCHEDULE_TIME:g} s')
         if out and not t > out[-1].time:
             raise ValueError(f'schedule[{k}] {item!r}: times must strictly increase '
                              f'({t:g} after {out[-1].time:g})')

@@ -18,8 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 import math
 import re
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping
 
+from train_dynamics import topics
 import yaml
 
 # Kinds of value, named after the ROS 2 parameter types they map to.
@@ -82,47 +83,54 @@ _PARAMS = [
               low=0.0, high=1.0e7, low_exclusive=True, dynamic=True),
     ParamSpec('num_coaches', 3, INTEGER, 'Number of coaches N >= 2 (ignored when masses is set).',
               low=2, high=100000),
-    ParamSpec('coach_mass', 45000.0, DOUBLE, 'Mass of every coach m_i [kg], unless masses is set.',
-              low=0.0, high=1.0e7, low_exclusive=True),
+    ParamSpec('coach_mass', 45000.0, DOUBLE,
+              'Mass of every coach m_i [kg], unless masses is set. Bounds: a track trolley '
+              '(~0.5 t) to a loaded heavy-load wagon (~800 t).', low=500.0, high=1.0e6),
     ParamSpec('masses', [], DOUBLE_ARRAY,
               'Per-coach masses [kg], front to rear; non-empty overrides num_coaches and '
-              'coach_mass.',
-              low=0.0, high=1.0e7, low_exclusive=True),
-    ParamSpec('coach_length', 25.0, DOUBLE, 'Coach length [m]: brake-pipe length per coach.',
-              low=0.0, high=1000.0, low_exclusive=True),
-    ParamSpec('buffer_stiffness', 2.8e6, DOUBLE, 'Buffer stiffness k_e [N/m] (paper eq. 2).',
-              low=0.0, high=1.0e12, low_exclusive=True),
+              'coach_mass. Bounds as coach_mass.', low=500.0, high=1.0e6),
+    ParamSpec('coach_length', 25.0, DOUBLE,
+              'Coach length [m]: brake-pipe length per coach. Bounds: a trolley (1 m) to '
+              'twice the longest rail vehicles (~50 m).', low=1.0, high=100.0),
+    ParamSpec('buffer_stiffness', 2.8e6, DOUBLE,
+              'Buffer stiffness k_e [N/m] (paper eq. 2). Real buffers: 0.5-50 MN/m; the '
+              'bounds allow two decades either side.', low=1.0e4, high=1.0e10),
     ParamSpec('buffer_friction', 1.4e6, DOUBLE,
               'Buffer friction constant k_f [N/m] (paper eq. 2), 0 <= k_f < k_e.',
-              low=0.0, high=1.0e12),
+              low=0.0, high=1.0e10),
     ParamSpec('draw_gear_stiffness', 5.46e6, DOUBLE,
-              'Draw-gear stiffness k_ec [N/m] (paper eq. 3).',
-              low=0.0, high=1.0e12, low_exclusive=True),
+              'Draw-gear stiffness k_ec [N/m] (paper eq. 3). Bounds as buffer_stiffness.',
+              low=1.0e4, high=1.0e10),
     ParamSpec('draw_gear_friction', 2.43e6, DOUBLE,
               'Draw-gear friction constant k_fc [N/m] (paper eq. 3), 0 <= k_fc < k_ec.',
-              low=0.0, high=1.0e12),
+              low=0.0, high=1.0e10),
     ParamSpec('adhesion_coefficient', 0.1, DOUBLE,
               'Wheel-rail adhesion coefficient mu_a (paper eqs. 12-13): full braking force '
               'is mu_a*m*g per coach.', low=0.0, high=1.0, low_exclusive=True),
-    ParamSpec('gravity', 9.81, DOUBLE, 'Gravitational acceleration g [m/s^2].',
-              low=0.0, high=100.0, low_exclusive=True),
+    ParamSpec('gravity', 9.81, DOUBLE,
+              'Gravitational acceleration g [m/s^2]. Bounds: the Moon (1.6) to Jupiter '
+              '(24.8), rounded.', low=1.0, high=30.0),
     ParamSpec('max_cylinder_pressure', 380000.0, DOUBLE,
-              'Maximum brake-cylinder pressure p_max, gauge [Pa] (paper eq. 13).',
-              low=0.0, high=2.0e6, low_exclusive=True),
+              'Maximum brake-cylinder pressure p_max, gauge [Pa] (paper eq. 13). Bounds: '
+              '0.1 bar to the 20 bar input limit.', low=1.0e4, high=2.0e6),
     ParamSpec('initial_speed', 44.444, DOUBLE, 'Initial speed of every coach v_i(0) [m/s].',
               low=0.0, high=200.0),
     ParamSpec('brake_input', 'pipe_head', STRING,
               'Which input drives the brakes: pipe_head, pipe_per_coach or cylinder_per_coach.',
               choices=('pipe_head', 'pipe_per_coach', 'cylinder_per_coach')),
     ParamSpec('brake_propagation_speed', 250.0, DOUBLE,
-              'Brake-wave propagation speed along the pipe [m/s].',
-              low=0.0, high=1.0e5, low_exclusive=True),
+              'Brake-wave propagation speed along the pipe [m/s]. Bounds: the slowest '
+              'pneumatic brakes (~50 m/s; UIC asks >= 250) to an electro-pneumatic signal '
+              '(1e5: all coaches at once). Sizes the delay line (see the memory limit).',
+              low=50.0, high=1.0e5),
     ParamSpec('integration_step', 2.0e-3, DOUBLE,
               'Fixed integrator step [s] (ROS2, L-stable Rosenbrock): 2 ms keeps the peak '
               'coupler force within 0.35 % of a tight reference at u = 1e3 for 3 to 1000 '
               "coaches (0.07 % on the paper's 3); 5 ms is ~2x faster, within 0.7 %.",
               low=1.0e-6, high=0.05),
-    ParamSpec('publish_rate', 100.0, DOUBLE, 'Output rate [Hz] in simulation time.',
+    ParamSpec('publish_rate', 100.0, DOUBLE,
+              'Output rate [Hz] in simulation time; 1 / publish_rate must be a whole number '
+              'of integration steps (outputs on an exact grid).',
               low=0.0, high=10000.0, low_exclusive=True),
     ParamSpec('real_time_factor', 1.0, DOUBLE,
               'Simulation seconds per wall second; 0 = as fast as possible.',
@@ -298,6 +306,104 @@ def _check_range(spec: ParamSpec, value: float, label: str) -> None:
         raise ConfigError(f'{label}: must be <= {spec.high:g}, got {value:g}')
 
 
+# -- brake-input messages: the rejection rules of sim_node and of the offline replay ------------
+
+#: why a brake-input pressure is not used (``sim_node`` counts them per reason)
+INPUT_VALUE_REASONS = ('non_finite', 'negative', 'too_high')
+
+
+def input_rejection(absolute: float) -> tuple[str, str] | None:
+    """
+    Return (reason, detail) if a brake-input ABSOLUTE pressure [Pa] is rejected, else None.
+
+    The one rule for ``sim_node`` and the offline replay: ``non_finite`` (NaN, +-inf),
+    ``negative`` (< 0), ``too_high`` (> :data:`train_dynamics.topics.MAX_ABSOLUTE_PRESSURE`).
+    """
+    p = float(absolute)
+    if not math.isfinite(p):
+        return 'non_finite', f'pressure {p}'
+    if p < 0.0:
+        return 'negative', f'absolute pressure {p:g} Pa < 0'
+    if p > topics.MAX_ABSOLUTE_PRESSURE:
+        return 'too_high', (f'absolute pressure {p:g} Pa > '
+                            f'{topics.MAX_ABSOLUTE_PRESSURE:g} Pa')
+    return None
+
+
+# -- what a run costs: memory of the simulator, disk of its outputs ---------------------------
+
+#: [bytes] largest simulator state a configuration may need (delay line + per-coach arrays)
+MAX_SIMULATOR_MEMORY = 1 << 30
+#: [bytes] upper estimate of the simulator's arrays per coach (state, workspace, constants)
+SIMULATOR_BYTES_PER_COACH = 8 * 64
+#: [bytes] the simulator's arrays whatever the train (cylinder tables, scalars)
+SIMULATOR_FIXED_BYTES = 1 << 16
+#: [bytes] MCAP record and index overhead per message (opcode, length, channel, sequence,
+#: two times; message-index entry)
+BAG_BYTES_PER_MESSAGE = 48
+#: relative tolerance of ``1 / (publish_rate * integration_step)`` being a whole number
+GRID_TOLERANCE = 1e-9
+#: [bytes] a recorded head brake-pipe pressure (FluidPressure) per output instant
+HEAD_INPUT_BYTES = 40 + BAG_BYTES_PER_MESSAGE
+
+
+def delay_line_length(n_coaches: int, coach_length: float, speed: float, h: float) -> int:
+    """Return the samples of the brake-pipe delay line: (N-1) L / c / h + 2 (train.py)."""
+    return int(math.floor((n_coaches - 1) * coach_length / speed / h)) + 2
+
+
+def simulator_memory(n_coaches: int, coach_length: float, speed: float, h: float) -> int:
+    """Return an upper estimate [bytes] of the simulator's arrays."""
+    return (8 * delay_line_length(n_coaches, coach_length, speed, h)
+            + SIMULATOR_BYTES_PER_COACH * n_coaches + SIMULATOR_FIXED_BYTES)
+
+
+def _joint_state_bytes(joints: int, name_len: int) -> int:
+    """Return the CDR size [bytes] of a JointState of ``joints`` names of ~``name_len``."""
+    name = 4 + (name_len + 1 + 3) // 4 * 4
+    return 32 + joints * name + 3 * (8 + 8 * joints)
+
+
+def output_bytes_per_sample(n_coaches: int) -> int:
+    """Return the bag bytes of one output instant: couplers, coaches, brake_cylinders."""
+    digits = len(str(n_coaches))
+    msgs = (_joint_state_bytes(n_coaches - 1, 8 + digits)
+            + 2 * _joint_state_bytes(n_coaches, 6 + digits))
+    return msgs + 3 * BAG_BYTES_PER_MESSAGE
+
+
+def output_disk(cfg: 'SimConfig', duration: float) -> int:
+    """Return an estimate [bytes] of the bag of the outputs of ``duration`` [s] of ``cfg``."""
+    samples = math.floor(duration * float(cfg.publish_rate) + 1e-9) + 1
+    return int(samples * (output_bytes_per_sample(cfg.n_coaches) + HEAD_INPUT_BYTES))
+
+
+def fmt_bytes(n: float) -> str:
+    """Return ``n`` bytes in words: '3.8 MB', '64 TB'."""
+    for unit in ('B', 'kB', 'MB', 'GB', 'TB', 'PB'):
+        if abs(n) < 1000.0 or unit == 'PB':
+            return f'{n:.3g} {unit}'
+        n /= 1000.0
+    raise AssertionError
+
+
+def _check_output_grid(rate: float, h: float) -> None:
+    """Raise unless 1 / ``rate`` [Hz] is a whole number of steps ``h`` [s] (exact grid)."""
+    ratio = 1.0 / (rate * h)
+    steps = round(ratio)
+    if steps >= 1 and abs(ratio - steps) <= GRID_TOLERANCE * steps:
+        return
+    up = max(1, math.ceil(ratio - GRID_TOLERANCE * ratio))
+    rates = sorted({1.0 / (k * h) for k in (max(1, math.floor(ratio)), up)
+                    if 1.0 / (k * h) <= PARAMETERS['publish_rate'].high})
+    hint = ' or '.join(f'{r:.9g}' for r in rates)
+    raise ConfigError(
+        f'publish_rate {rate:g} Hz and integration_step {h:g} s: an output period of '
+        f'{ratio:.6g} steps; outputs must land on whole steps, so 1 / publish_rate must be a '
+        f'whole number of integration steps: use publish_rate {hint or "<= 1 / step"} Hz, or '
+        f'integration_step {1.0 / (rate * up):.9g} s')
+
+
 @dataclass
 class SimConfig:
     """All parameters, validated as a whole. Build with :meth:`from_dict`."""
@@ -358,6 +464,16 @@ class SimConfig:
         v = self.values
         if self.masses and len(self.masses) < 2:
             raise ConfigError(f'masses: a train needs at least 2 coaches, got {len(self.masses)}')
+        _check_output_grid(float(v['publish_rate']), float(v['integration_step']))
+        memory = simulator_memory(self.n_coaches, float(v['coach_length']),
+                                  float(v['brake_propagation_speed']),
+                                  float(v['integration_step']))
+        if memory > MAX_SIMULATOR_MEMORY:
+            raise ConfigError(
+                f'the simulator would need {fmt_bytes(memory)} (limit '
+                f'{fmt_bytes(MAX_SIMULATOR_MEMORY)}): the brake-pipe delay line holds '
+                '(num_coaches - 1) * coach_length / brake_propagation_speed / integration_step '
+                'samples; raise brake_propagation_speed or integration_step, or shorten the train')
         if not v['buffer_friction'] < v['buffer_stiffness']:
             raise ConfigError('buffer_friction must be < buffer_stiffness (k_f < k_e), or the '
                               'buffer force would change sign on unloading')
@@ -415,6 +531,76 @@ _RosParamLoader.add_implicit_resolver(
 ROS_BUILTIN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
 
 
+#: node names whose sections a parameter file of this package may hold ('/**': every node)
+KNOWN_NODE_NAMES = (topics.NODE_NAME, topics.VALVE_NODE_NAME)
+WILDCARD = '/**'
+
+
+def section_node(key: str) -> str:
+    """Return the node name of a parameter-file section: '/ns/node' -> 'node'."""
+    return key.rstrip('/').split('/')[-1]
+
+
+def read_param_sections(path: str) -> dict[str, dict[str, Any]]:
+    """
+    Return ``{section: ros__parameters}`` of a ROS 2 parameter file, in file order.
+
+    Raises :class:`ConfigError` (one line) for a missing, unreadable or malformed file: what
+    rclpy would refuse with an ``RCLError``.
+    """
+    try:
+        with open(path, encoding='utf-8') as fh:
+            doc = yaml.load(fh, Loader=_RosParamLoader)
+    except FileNotFoundError:
+        raise ConfigError(f'parameter file not found: {path}') from None
+    except IsADirectoryError:
+        raise ConfigError(f'parameter file {path} is a directory') from None
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise ConfigError(' '.join(f'cannot read parameter file {path}: {exc}'.split())
+                          ) from None
+    if doc is None:
+        return {}
+    if not isinstance(doc, dict):
+        raise ConfigError(f'{path}: not a ROS 2 parameter file (top level is not a mapping)')
+    sections: dict[str, dict[str, Any]] = {}
+    for key, section in doc.items():
+        if not isinstance(key, str):
+            raise ConfigError(f'{path}: section name {key!r} is not a node name')
+        if not isinstance(section, dict) or 'ros__parameters' not in section:
+            raise ConfigError(f'{path}: section {key!r} has no ros__parameters')
+        params = section['ros__parameters'] or {}
+        if not isinstance(params, dict):
+            raise ConfigError(f'{path}: {key}.ros__parameters is not a mapping')
+        sections[key] = params
+    return sections
+
+
+def unknown_sections(sections: Mapping[str, Any],
+                     known: tuple[str, ...] = KNOWN_NODE_NAMES) -> list[str]:
+    """Return the sections that apply to none of the ``known`` nodes (e.g. a typo)."""
+    return [k for k in sections if k != WILDCARD and section_node(k) not in known]
+
+
+def unknown_sections_message(path: str, unknown: list[str]) -> str:
+    """Return the one-line warning about sections for no node of this package."""
+    return (f'{path}: section(s) {", ".join(repr(k) for k in unknown)} match no node of this '
+            f'package and are ignored (known: {", ".join(KNOWN_NODE_NAMES)}, {WILDCARD})')
+
+
+def node_sections(sections: Mapping[str, dict[str, Any]], node_name: str
+                  ) -> tuple[dict[str, Any], dict[str, Any]]:
+    """
+    Return (the ``/**`` parameters, the node's own) of ``sections`` for ``node_name``.
+
+    Own: the sections ``node``, ``/node`` and ``/ns/node``, later ones winning.
+    """
+    own: dict[str, Any] = {}
+    for key, params in sections.items():
+        if key != WILDCARD and section_node(key) == node_name:
+            own.update(params)
+    return dict(sections.get(WILDCARD, {})), own
+
+
 def read_param_file(path: str, node_name: str = 'train_dynamics') -> dict[str, Any]:
     """
     Read the ``ros__parameters`` of ``node_name`` from a ROS 2 parameter file.
@@ -423,37 +609,33 @@ def read_param_file(path: str, node_name: str = 'train_dynamics') -> dict[str, A
     wildcard (more specific sections win). Returns ``{}`` when the node has no section.
     Raises :class:`ConfigError` for a missing or malformed file.
     """
-    try:
-        with open(path, encoding='utf-8') as fh:
-            doc = yaml.load(fh, Loader=_RosParamLoader)
-    except FileNotFoundError:
-        raise ConfigError(f'parameter file not found: {path}') from None
-    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise ConfigError(f'cannot read parameter file {path}: {exc}'.splitlines()[0]) from None
-    if doc is None:
-        return {}
-    if not isinstance(doc, dict):
-        raise ConfigError(f'{path}: not a ROS 2 parameter file (top level is not a mapping)')
-    merged: dict[str, Any] = {}
-    keys = ['/**'] + [k for k in doc
-                      if isinstance(k, str) and k.rstrip('/').split('/')[-1] == node_name]
-    for key in keys:
-        section = doc.get(key)
-        if section is None:
-            continue
-        if not isinstance(section, dict) or 'ros__parameters' not in section:
-            raise ConfigError(f'{path}: section {key!r} has no ros__parameters')
-        params = section['ros__parameters'] or {}
-        if not isinstance(params, dict):
-            raise ConfigError(f'{path}: {key}.ros__parameters is not a mapping')
-        merged.update(params)
-    return merged
+    wildcard, own = node_sections(read_param_sections(path), node_name)
+    return {**wildcard, **own}
 
 
-def load_param_file(path: str) -> SimConfig:
-    """Read the simulator configuration from a ROS 2 parameter file (``train_dynamics``)."""
-    params = {k: v for k, v in read_param_file(path, 'train_dynamics').items()
-              if k not in ROS_BUILTIN_PARAMETERS}
+def load_param_file(path: str, warn: Callable[[str], None] | None = None) -> SimConfig:
+    """
+    Read the simulator configuration from a ROS 2 parameter file (``train_dynamics``).
+
+    As rclpy does for the node: keys of the ``/**`` section that the simulator does not
+    declare are ignored (they may be the brake valve's). Unlike rclpy, an unknown key of the
+    node's own section is an error, and so is a file whose only sections match no node of
+    this package (a typo such as ``train_dynamic:``); other unknown sections are reported
+    through ``warn``.
+    """
+    sections = read_param_sections(path)
+    unknown = unknown_sections(sections)
+    wildcard, own = node_sections(sections, topics.NODE_NAME)
+    if unknown:
+        if len(unknown) == len(sections):
+            raise ConfigError(
+                f'{path}: no section for {topics.NODE_NAME}, only '
+                f'{", ".join(repr(k) for k in unknown)} (known: {", ".join(KNOWN_NODE_NAMES)}, '
+                f'{WILDCARD}); a typo?')
+        if warn is not None:
+            warn(unknown_sections_message(path, unknown))
+    params = {k: v for k, v in wildcard.items() if k in PARAMETERS}
+    params.update({k: v for k, v in own.items() if k not in ROS_BUILTIN_PARAMETERS})
     try:
         return SimConfig.from_dict(params)
     except ConfigError as exc:

@@ -14,10 +14,15 @@ from __future__ import annotations
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field, replace
 import math
+import time
 from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.physics.train import TrainSimulator
+
+
+#: [s wall] period of the ``progress`` callback of :func:`run_simulation`
+PROGRESS_PERIOD = 0.1
 
 
 @dataclass(frozen=True)
@@ -128,7 +133,8 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
 
     ``on_sample`` is called at every output step (default: ``publish_rate``), after the
     inputs due at that step were applied; ``on_input`` for every input event applied;
-    ``progress`` with the fraction done (after each 0.2 % of the run or more; 1.0 at the end).
+    ``progress`` with the fraction done (every :data:`PROGRESS_PERIOD` s of wall time, whatever
+    the duration; 1.0 at the end).
     """
     sim = TrainSimulator(cfg)
     h = sim.h
@@ -147,7 +153,7 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
     ie = 0
     k = 0
     head: float | None = None
-    last_progress = -1.0
+    last_progress = time.monotonic()
     while True:
         while ie < len(events) and events[ie].step <= k:
             setter(events[ie])
@@ -171,9 +177,11 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
         if sim.fault is not None or done != nxt - k:
             break
         k = nxt
-        if progress is not None and (k - last_progress) * h >= 0.002 * duration:
-            progress(k / k_end if k_end else 1.0)
-            last_progress = k
+        if progress is not None:
+            now = time.monotonic()
+            if now - last_progress >= PROGRESS_PERIOD:
+                progress(k / k_end if k_end else 1.0)
+                last_progress = now
     if progress is not None:
         progress(1.0)
     return sim

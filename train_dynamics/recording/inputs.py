@@ -6,17 +6,19 @@ Brake inputs read from a rosbag2: the events that drive an offline run.
 [Pa]; a leading '/' and a namespace prefix are accepted) from an MCAP or sqlite3 bag. A
 message takes effect at its bag time relative to the bag's first message, at the first
 integration step starting at or after that time
-(:func:`train_dynamics.physics.runner.step_of`), and holds until the next one.
+(:func:`train_dynamics.physics.runner.step_of`), and holds until the next one. Messages are
+rejected by the node's rule (:func:`train_dynamics.physics.parameters.input_rejection`:
+non-finite, negative or above 20 bar absolute), with a warning counting them per reason.
 """
 from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 import logging
-import math
 from pathlib import Path
 from typing import Any
 
 from train_dynamics import topics
+from train_dynamics.physics.parameters import input_rejection, INPUT_VALUE_REASONS
 from train_dynamics.physics.runner import BrakeInputs, InputEvent, step_of
 from train_dynamics.recording.bags import bag_info, BagError, BagInfo, read_topics
 
@@ -46,12 +48,13 @@ def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
     atm = float(cfg.atmospheric_pressure)
     h = float(cfg.integration_step)
     events: list[InputEvent] = []
-    rejected = 0
+    rejected = dict.fromkeys(INPUT_VALUE_REASONS, 0)
     try:
         for topic, t_ns, msg in read_topics(path, list(selected)):
             p = float(msg.fluid_pressure)
-            if not math.isfinite(p) or p < 0.0:
-                rejected += 1
+            why = input_rejection(p)
+            if why is not None:
+                rejected[why[0]] += 1
                 continue
             rel_ns = t_ns - info.start_ns
             rel_topic = topic[len(ns) + 1:] if ns else topic
@@ -59,9 +62,14 @@ def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
                                      rel_topic, msg))
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
-    if rejected:
-        warn(f'input bag: {rejected} message(s) with a non-finite or negative absolute '
-             'pressure rejected')
+    bad = rejected['non_finite'] + rejected['negative']
+    if bad:
+        warn(f'input bag: {bad} message(s) with a non-finite or negative absolute pressure '
+             'rejected (as sim_node rejects them)')
+    if rejected['too_high']:
+        warn(f'input bag: {rejected["too_high"]} message(s) with an absolute pressure above '
+             f'{topics.MAX_ABSOLUTE_PRESSURE:g} Pa rejected (too_high, as sim_node rejects '
+             'them)')
     if not events:
         raise InputBagError(f'input bag {path}: no usable input message for brake_input {mode}')
     events.sort(key=lambda e: e.t_ns)           # stable: bag order for equal times

@@ -42,6 +42,10 @@ SIZE_PX = {k: (int(round(w * DPI)), int(round(h * DPI))) for k, (w, h) in FIGSIZ
 MAX_LEGEND_ENTRIES = 10          # more curves than this: colour map + colour bar instead
 
 
+#: the zoom of one compare run: t [s], ydot [m/s], F [N] of one coupler in the window
+ZoomData = tuple[np.ndarray, np.ndarray, np.ndarray]
+
+
 class PlotError(Exception):
     """Nothing to plot (e.g. no ``couplers`` topic); the message is one line."""
 
@@ -261,12 +265,15 @@ def plot_bag(bag: str | os.PathLike, outdir: str | os.PathLike, *, namespace: st
 
 def plot_comparison(runs: Sequence[tuple[str, History]], outdir: str | os.PathLike, *,
                     title: str = '', zoom: tuple[float, float, int] | None = None,
-                    prefix: str = 'compare') -> list[Path]:
+                    prefix: str = 'compare', zoom_data: Sequence[ZoomData] | None = None
+                    ) -> list[Path]:
     """
     Write the ``compare`` figures: one per quantity, one panel per run (shared axes).
 
     Also ``<prefix>_zoom.png``: relative velocity and force of coupler ``j`` (0-based) of every
-    run overlaid on the window ``zoom = (t0, t1, j)`` [s], where the sign model chatters.
+    run overlaid on the window ``zoom = (t0, t1, j)`` [s], where the sign model chatters;
+    from ``zoom_data`` (per run: t [s], ydot [m/s], F [N] of that coupler in the window) when
+    given, else from the runs' histories.
     """
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -275,7 +282,10 @@ def plot_comparison(runs: Sequence[tuple[str, History]], outdir: str | os.PathLi
     paths = [_save(_compare_figure(runs, quantity, title), out / f'{prefix}_{quantity[0]}.png')
              for quantity in COUPLER_QUANTITIES]
     if zoom is not None:
-        paths.append(_save(_zoom_figure(runs, zoom, title), out / f'{prefix}_zoom.png'))
+        if zoom_data is None:
+            zoom_data = [_window_of(hist, zoom) for _, hist in runs]
+        paths.append(_save(_zoom_figure([label for label, _ in runs], zoom_data, zoom, title),
+                           out / f'{prefix}_zoom.png'))
     return paths
 
 
@@ -308,26 +318,32 @@ def _compare_figure(runs: Sequence[tuple[str, History]], quantity: tuple, title:
     return fig
 
 
-def _zoom_figure(runs: Sequence[tuple[str, History]], zoom: tuple[float, float, int],
-                 title: str):
+def _window_of(hist: History, zoom: tuple[float, float, int]) -> ZoomData:
+    """Return t, ydot, F of coupler ``zoom[2]`` of ``hist`` in ``zoom[0]`` .. ``zoom[1]``."""
+    t0, t1, jc = zoom
+    c = hist.couplers
+    sel = (c.t >= t0) & (c.t <= t1)
+    return c.t[sel], c.velocity[sel, jc], c.effort[sel, jc]
+
+
+def _zoom_figure(run_labels: Sequence[str], data: Sequence[ZoomData],
+                 zoom: tuple[float, float, int], title: str):
     """Return the zoom figure: ydot and F of one coupler of every run on a short window."""
     t0, t1, jc = zoom
     fig = _new_figure('zoom')
     axes = fig.subplots(2, 1, sharex=True)
-    colors, _ = _colors(len(runs))
+    colors, _ = _colors(len(run_labels))
     labels = {'velocity': f'relative velocity $\\dot{{y}}_{{{jc + 1}}}$ [m/s]',
               'force': f'coupler force F$_{{{jc + 1}}}$ [kN]'}
     for ax, (key, fld, scale, _, _) in zip(axes, COUPLER_QUANTITIES[1:]):
         _style(ax)
         sign_vals = []
-        for k, (label, hist) in enumerate(runs):
-            c = hist.couplers
-            sel = (c.t >= t0) & (c.t <= t1)
-            vals = getattr(c, fld)[sel, jc] * scale
+        for k, (label, (t, ydot, force)) in enumerate(zip(run_labels, data)):
+            vals = (ydot if fld == 'velocity' else force) * scale
             is_sign = label.startswith('sign')
             if is_sign:
                 sign_vals.append(vals)
-            ax.plot(c.t[sel], vals, color=colors[k], linewidth=0.9 if is_sign else 1.6,
+            ax.plot(t, vals, color=colors[k], linewidth=0.9 if is_sign else 1.6,
                     label=label, zorder=(10 - k) if is_sign else 3,
                     drawstyle='steps-post' if is_sign else 'default')
         if key == 'velocity' and sign_vals:

@@ -11,24 +11,26 @@ both connect:
 
 A message takes effect at the next integration step (zero-order hold). Rejected and counted per
 reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning naming the topic):
-``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute
-pressure > :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of another
-``brake_input``), ``unknown_coach`` (``coach_<i>`` with i outside 1..N), ``malformed`` (not
-deserialisable). The head topic and the per-coach topics of the active mode are subscribed from
-the start; topics of the other modes and of coaches that do not exist are found by a graph scan
-every :data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to count and reject their messages:
-keeping 2N idle subscriptions would slow rclpy's executor for long trains).
+``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute pressure
+> :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of another ``brake_input``),
+``unknown_coach`` (``coach_<i>`` with i outside 1..N), ``malformed`` (not deserialisable); the
+first three by the rule the offline replay applies too
+(:func:`train_dynamics.physics.parameters.input_rejection`). Publishers of another message type on
+an input topic (never received: DDS does not match them) are found by the graph scan and reported
+as ``wrong_type`` in ``/diagnostics``. The head topic and the per-coach topics of the active mode
+are subscribed from the start; topics of the other modes and of coaches that do not exist are found
+by a graph scan every :data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to count and reject
+their messages: keeping 2N idle subscriptions would slow rclpy's executor for long trains).
 
-Stale inputs: ``input_timeout`` > 0 s (wall) without a brake input (any coach of a per-coach
-mode) is reported in ``/diagnostics``; ``on_input_timeout`` ``hold`` keeps the last values,
-``emergency`` applies the fail-safe (head pipe vented / all pipe pressures 0 gauge / all
-cylinders at ``max_cylinder_pressure``) until every input is fresh again. The fail-safe
-pressures are recorded with ``frame_id`` ``train_dynamics/input_timeout``.
+Stale inputs: ``input_timeout`` > 0 s (wall) without a brake input (any coach of a per-coach mode)
+is reported in ``/diagnostics``; ``on_input_timeout`` ``hold`` keeps the last values, ``emergency``
+applies the fail-safe (head pipe vented / all pipe pressures 0 gauge / all cylinders at
+``max_cylinder_pressure``) until every input is fresh again. The fail-safe pressures are recorded
+with ``frame_id`` ``train_dynamics/input_timeout``.
 """
 from __future__ import annotations
 
 import functools
-import math
 import threading
 import time
 from typing import Any, Callable
@@ -40,7 +42,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure
 
 from train_dynamics import topics
-from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.parameters import input_rejection, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
 from train_dynamics.ros.outputs import stamp
@@ -79,12 +81,9 @@ def absolute_pressure(data: bytes) -> float:
     except Exception as exc:  # noqa: BLE001
         raise Rejected('malformed', f'cannot deserialise: {exc}') from None
     p = msg.fluid_pressure
-    if not math.isfinite(p):
-        raise Rejected('non_finite', f'pressure {p}')
-    if p < 0.0:
-        raise Rejected('negative', f'absolute pressure {p:g} Pa < 0')
-    if p > MAX_ABSOLUTE_PRESSURE:
-        raise Rejected('too_high', f'absolute pressure {p:g} Pa > {MAX_ABSOLUTE_PRESSURE:g} Pa')
+    why = input_rejection(p)       # the offline replay applies the same rule
+    if why is not None:
+        raise Rejected(*why)
     return p
 
 
@@ -157,6 +156,7 @@ class BrakeInputs:
         self.accepted = 0
         self.rejected = dict.fromkeys(REJECT_REASONS, 0)
         self.last_rejected = ''
+        self.wrong_type: dict[str, list[str]] = {}     # input topic -> wrong publisher types
         # input lock
         self._in_lock = threading.Lock()
         self._buffer: InputBuffer | None = None
@@ -235,6 +235,7 @@ class BrakeInputs:
             found = node.get_topic_names_and_types()
         except Exception:  # noqa: BLE001 - shutting down
             return
+        self.wrong_type = self._wrong_type(found, ns)
         for name, types in found:
             if name in self._subs or not name.startswith(ns) or \
                     topics.FLUID_PRESSURE not in types:
@@ -249,6 +250,26 @@ class BrakeInputs:
                 i = int(m.group(1))
                 self._subscribe(name, (rel, family if 1 <= i <= n else None, None))
                 break
+
+    def _wrong_type(self, found: list[tuple[str, list[str]]], ns: str) -> dict[str, list[str]]:
+        """Return input topic -> the types of its publishers that are not FluidPressure."""
+        out: dict[str, list[str]] = {}
+        for name, types in found:
+            if not name.startswith(ns) or all(t == topics.FLUID_PRESSURE for t in types):
+                continue
+            rel = name[len(ns):]
+            if not any(p.fullmatch(rel) for p in topics.INPUT_TOPIC_PATTERNS.values()):
+                continue
+            wrong = [info.topic_type for info in self._node.get_publishers_info_by_topic(name)
+                     if info.topic_type != topics.FLUID_PRESSURE]
+            if wrong:
+                out[name] = wrong
+                if self._throttle(('wrong_type', name), time.monotonic()) is not None:
+                    self._log.warning(f'{len(wrong)} publisher(s) on input topic {name} of '
+                                      f'type {", ".join(sorted(set(wrong)))}, not '
+                                      f'{topics.FLUID_PRESSURE}: their messages are never '
+                                      'received')
+        return out
 
     # -- messages (subscription callbacks, executor thread) --------------------------------
     def _on_input(self, rel: str, resolved: str, family: str | None, index: int | None,

@@ -30,7 +30,7 @@ from train_dynamics.physics.brake_valve import (BrakeValveModel, check_live_chan
                                                 validate_position, validate_settings,
                                                 VALVE_NODE_PARAMETERS, VALVE_PARAMETERS)
 from train_dynamics.ros import parameters as ros_parameters
-from train_dynamics.ros.executor import ExitOn, run_node
+from train_dynamics.ros.executor import ExitOn, run_node, shutdown_safe
 
 __all__ = ['BrakeValveNode', 'BrakeValveModel', 'main', 'OUTPUT_QOS', 'TOPIC']
 
@@ -60,7 +60,7 @@ class BrakeValveNode(Node):
         self._t0 = self.get_clock().now()
         self._last_position = self.model.position
         self._pub = self.create_publisher(FluidPressure, TOPIC, OUTPUT_QOS)
-        self._timer = self.create_timer(1.0 / self._rate, self._on_timer)
+        self._timer = self.create_timer(1.0 / self._rate, shutdown_safe(self, self._on_timer))
         ros_parameters.watch_parameters(self, SPECS, self._check_parameters,
                                         self._apply_parameters,
                                         skip=lambda: self._internal_set)
@@ -112,7 +112,8 @@ class BrakeValveNode(Node):
         if 'publish_rate' in changes and changes['publish_rate'] != self._rate:
             self._rate = float(changes['publish_rate'])
             self.destroy_timer(self._timer)
-            self._timer = self.create_timer(1.0 / self._rate, self._on_timer)
+            self._timer = self.create_timer(1.0 / self._rate,
+                                            shutdown_safe(self, self._on_timer))
 
     def _sync_position_parameter(self) -> None:
         """Make the `position` parameter show the handle (after a schedule step)."""
@@ -163,7 +164,8 @@ class BrakeValveNode(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Run ``ros2 run train_dynamics brake_valve``; SIGINT/SIGTERM stop it cleanly."""
-    return run_node('brake_valve', BrakeValveNode, args,
+    return run_node('brake_valve', BrakeValveNode, args, node_name=topics.VALVE_NODE_NAME,
+                    specs=SPECS,
                     exits=(ExitOn((ValueError, ParameterException), 'invalid parameters', 2),),
                     executor_factory=SingleThreadedExecutor)
 

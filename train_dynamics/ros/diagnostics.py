@@ -4,14 +4,15 @@
 - ``train_dynamics: simulation``: real-time factor and the achieved one, sim time, steps, lag,
   integrator health, pending parameter changes, recording;
 - ``train_dynamics: brake input``: input age, staleness, emergency, accepted and rejected
-  counts per reason.
+  counts per reason, publishers of a wrong message type on an input topic (``wrong_type``:
+  their number; ``wrong_type_topics``: which, with their types; WARN).
 
 The node fills a :class:`SimulationReport` and an :class:`InputReport` under the simulation
 lock; building the message needs no lock.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
@@ -46,6 +47,7 @@ class SimulationReport:
     recording: str = ''         # bag path, '' when not recording
     recorded: int = 0
     backlog: int = 0
+    backlog_bytes: int = 0
     record_error: str | None = None
 
 
@@ -63,6 +65,7 @@ class InputReport:
     accepted: int
     rejected: dict[str, int]
     last_rejected: str
+    wrong_type: dict[str, list[str]] = field(default_factory=dict)   # topic -> publisher types
 
 
 def _level_message(r: SimulationReport) -> tuple[bytes, str]:
@@ -95,7 +98,7 @@ def simulation_status(r: SimulationReport, hardware_id: str) -> DiagnosticStatus
         'publish_rate': f'{r.rate:g}', 'duration': f'{r.duration:g}',
         'finished': str(r.finished).lower(), 'pending_changes': r.pending,
         'recording': r.recording, 'recorded_messages': str(r.recorded),
-        'record_backlog': str(r.backlog),
+        'record_backlog': str(r.backlog), 'record_backlog_bytes': str(r.backlog_bytes),
     }
     return DiagnosticStatus(level=level, name=SIMULATION, message=message,
                             hardware_id=hardware_id,
@@ -111,6 +114,10 @@ def input_status(r: InputReport, hardware_id: str) -> DiagnosticStatus:
     elif r.stale:
         level = DiagnosticStatus.WARN
         message = f'stale (> {r.timeout:g} s): holding the last values ({r.stale_names})'
+    elif r.wrong_type:
+        level = DiagnosticStatus.WARN
+        message = (f'{_wrong_type_count(r)} publisher(s) of the wrong type on input topics: '
+                   f'{_wrong_type_list(r)}')
     elif rejected:
         level = DiagnosticStatus.WARN
         message = f'{rejected} input message(s) rejected (last: {r.last_rejected})'
@@ -123,9 +130,21 @@ def input_status(r: InputReport, hardware_id: str) -> DiagnosticStatus:
           'accepted': str(r.accepted), 'rejected_total': str(rejected)}
     kv.update({f'rejected_{reason}': str(c) for reason, c in r.rejected.items()})
     kv['last_rejected'] = r.last_rejected
+    kv['wrong_type'] = str(_wrong_type_count(r))
+    kv['wrong_type_topics'] = _wrong_type_list(r)
     return DiagnosticStatus(level=level, name=BRAKE_INPUT, message=message,
                             hardware_id=hardware_id,
                             values=[KeyValue(key=k, value=v) for k, v in kv.items()])
+
+
+def _wrong_type_count(r: InputReport) -> int:
+    return sum(len(types) for types in r.wrong_type.values())
+
+
+def _wrong_type_list(r: InputReport) -> str:
+    """Return 'topic (type, ...), ...' of the input topics with wrong-type publishers."""
+    return ', '.join(f'{topic} ({", ".join(sorted(set(types)))})'
+                     for topic, types in sorted(r.wrong_type.items()))
 
 
 def diagnostic_array(sim: SimulationReport, inputs: InputReport, hardware_id: str,

@@ -2,27 +2,42 @@
 The executor and the ``main`` of both nodes: start, spin, and a clean shutdown on any path.
 
 :func:`run_node` is the try/finally around a node that ``sim_node`` and ``brake_valve``
-share (the shape of ros2/demos' ``demo_nodes_py``): SIGINT/SIGTERM (rclpy's signal handlers
-shut the context down) end it with status 0; the exceptions a node declares (invalid
-parameters, ...) print one line and end it with their status; anything else is a crash,
-unless a signal shut the context down under a callback (then it is a clean stop too).
+share (the shape of ros2/demos' ``demo_nodes_py``): SIGINT/SIGTERM end it with status 0 (they
+stop the spin loop; the node is destroyed and rclpy shut down in order); the exceptions a node
+declares (invalid parameters, ...) print one line ``<prog>: error: ...`` and end it with their
+status; anything else is a crash, unless the context went down under a callback (then it is a
+clean stop too). A missing or malformed ``--params-file`` is one line and status 2 before rclpy
+starts; timer callbacks wrapped in :func:`shutdown_safe` stay quiet when a signal shuts the
+context down under them.
 """
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+import functools
 import os
+import signal
 import sys
-from typing import Callable
+import threading
+import time
+from typing import Any, Callable, Mapping
 
 import rclpy
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
+
+from train_dynamics.physics.parameters import (ConfigError, node_sections, read_param_sections,
+                                               ROS_BUILTIN_PARAMETERS, unknown_sections,
+                                               unknown_sections_message)
 
 try:   # rclpy >= 7 (Jazzy); the single-threaded executor otherwise
     from rclpy.experimental import EventsExecutor
 except ImportError:   # pragma: no cover - older rclpy
     EventsExecutor = None
 
+EXIT_BAD_PARAMETERS = 2
+SHUTDOWN_GRACE = 0.5  # [s wall] how long a failed timer callback waits for a shutdown to show
 SPIN_PERIOD = 0.1     # [s wall] longest spin_once between two checks of ``node.finished``
 
 
@@ -54,15 +69,111 @@ class ExitOn:
     code: int
 
 
+def params_files(args: Sequence[str]) -> list[str]:
+    """Return the ``--params-file`` paths among the ``--ros-args`` of ``args``."""
+    out, inside = [], False
+    for k, arg in enumerate(args):
+        if arg == '--ros-args':
+            inside = True
+        elif arg == '--':
+            inside = False
+        elif inside and arg == '--params-file' and k + 1 < len(args):
+            out.append(args[k + 1])
+    return out
+
+
+def check_params_files(prog: str, args: Sequence[str], node_name: str,
+                       specs: Mapping[str, Any]) -> int:
+    """
+    Check the ``--params-file`` files before rclpy reads them; return 0 or the exit status 2.
+
+    A missing or malformed file: one line ``<prog>: error: ...`` (rclpy would raise an
+    ``RCLError`` traceback). Sections for no node of this package (a typo) and keys of the
+    node's own section that it does not declare (rclpy ignores both): a warning each.
+    """
+    for path in params_files(args):
+        try:
+            sections = read_param_sections(path)
+        except ConfigError as exc:
+            print(f'{prog}: error: {exc}', file=sys.stderr)
+            return EXIT_BAD_PARAMETERS
+        unknown = unknown_sections(sections)
+        if unknown:
+            print(f'{prog}: warning: {unknown_sections_message(path, unknown)}',
+                  file=sys.stderr)
+        _, own = node_sections(sections, node_name)
+        extra = sorted(k for k in own if k not in specs and k not in ROS_BUILTIN_PARAMETERS)
+        if extra:
+            print(f'{prog}: warning: {path}: {node_name} has no parameter(s) '
+                  f'{", ".join(extra)}; ignored', file=sys.stderr)
+    return 0
+
+
+def shutdown_safe(node: Node, callback: Callable[..., Any]) -> Callable[..., Any]:
+    """
+    Return ``callback`` (a timer's) made quiet when the context is shut down under it.
+
+    SIGINT/SIGTERM shut the context down from the signal handler, possibly while a timer
+    callback runs; what it calls then raises (publish, clock, graph queries), and the
+    executor would report ``Exception in 'timers' callback``. Not a failure: the node stops.
+    """
+    @functools.wraps(callback)
+    def call(*args: Any) -> Any:
+        if not node.context.ok():
+            return None
+        try:
+            return callback(*args)
+        except Exception:
+            if _shutting_down(node.context):
+                return None
+            raise
+    return call
+
+
+def _shutting_down(context: Any, wait: float = SHUTDOWN_GRACE) -> bool:
+    """
+    Return True if ``context`` is shut down, or goes down within ``wait`` [s wall].
+
+    rclpy's signal handler shuts the context down from another thread: the rosout publisher
+    and the node's publishers are invalid a moment before ``context.ok()`` turns False.
+    """
+    end = time.monotonic() + wait
+    while context.ok():
+        if time.monotonic() >= end:
+            return False
+        time.sleep(0.005)
+    return True
+
+
 def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = None, *,
              exits: tuple[ExitOn, ...] = (),
-             executor_factory: Callable[[], Executor] = make_executor) -> int:
+             executor_factory: Callable[[], Executor] = make_executor,
+             node_name: str = '', specs: Mapping[str, Any] | None = None) -> int:
     """
     Create the node, spin it until it is ``finished`` or shut down; return the exit status.
 
     A node may have ``finished`` (bool: stop spinning) and ``exit_code`` (int) attributes.
+    ``node_name`` and ``specs`` (its parameters): check the ``--params-file`` files first
+    (:func:`check_params_files`).
     """
-    rclpy.init(args=args)
+    argv = list(sys.argv if args is None else args)
+    if node_name:
+        status = check_params_files(prog, argv, node_name, specs or {})
+        if status:
+            return status
+    main_thread = threading.current_thread() is threading.main_thread()
+    try:
+        # In the main thread SIGINT/SIGTERM only ask the loop below to stop (_stop_on_signals):
+        # rclpy's own handlers shut the context down under running callbacks, and the
+        # KeyboardInterrupt they chain to is raised inside a timer callback, where the
+        # executor reports it as a FATAL exception (issue 15, item 12).
+        rclpy.init(args=args,
+                   signal_handler_options=SignalHandlerOptions.NO if main_thread else None)
+    except Exception as exc:  # noqa: BLE001 - RCLError: bad --ros-args
+        text = ' '.join(str(exc).split(', at ')[0].split())
+        print(f'{prog}: error: cannot start: {text}', file=sys.stderr)
+        return EXIT_BAD_PARAMETERS
+    stop, previous = _stop_on_signals() if main_thread else (threading.Event(), {})
     node = None
     executor = None
     code = 0
@@ -70,7 +181,7 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
         node = create()
         executor = executor_factory()
         executor.add_node(node)
-        while not getattr(node, 'finished', False):
+        while not getattr(node, 'finished', False) and not stop.is_set():
             executor.spin_once(timeout_sec=SPIN_PERIOD)
         code = getattr(node, 'exit_code', 0)
     except (KeyboardInterrupt, ExternalShutdownException):
@@ -81,11 +192,45 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
         exit_on = next((e for e in exits if isinstance(exc, e.errors)), None)
         if exit_on is None:
             raise
-        print(f'{prog}: {exit_on.what}: {exc}', file=sys.stderr)
+        text = ' '.join(str(exc).split())
+        print(f'{prog}: error: {exit_on.what}: {text}', file=sys.stderr)
         code = exit_on.code
     finally:
-        _shut_down(executor, node)
+        # a SIGINT that arrives (or is still pending) while the bag is being finished would
+        # raise KeyboardInterrupt in the middle of it: we are stopping already
+        _ignore_sigint()
+        try:
+            _shut_down(executor, node)
+        finally:
+            for signum, handler in previous.items():
+                signal.signal(signum, handler)
     return code
+
+
+def _stop_on_signals() -> tuple[threading.Event, dict[int, Any]]:
+    """
+    Make SIGINT and SIGTERM set the returned event (a second one: KeyboardInterrupt).
+
+    Return the event and the previous handlers. Main thread only.
+    """
+    stop = threading.Event()
+
+    def handler(signum: int, frame: Any) -> None:
+        if stop.is_set():
+            raise KeyboardInterrupt
+        stop.set()
+
+    return stop, {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+
+
+def _ignore_sigint():
+    """Ignore SIGINT (main thread only); return the previous handler, or None."""
+    if threading.current_thread() is not threading.main_thread():
+        return None
+    try:
+        return signal.signal(signal.SIGINT, signal.SIG_IGN)
+    except (ValueError, OSError):
+        return None
 
 
 def _shut_down(executor: Executor | None, node: Node | None) -> None:

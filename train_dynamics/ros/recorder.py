@@ -11,8 +11,9 @@ from t = 0).
 """
 from __future__ import annotations
 
+from collections import deque
 from pathlib import Path
-import queue
+import shutil
 import threading
 import time
 from typing import Any
@@ -24,6 +25,9 @@ from train_dynamics.recording.outputs import output_topics, parameters_json, run
 
 #: messages queued for the bag writer before the simulation waits (the disk cannot keep up)
 MAX_RECORD_BACKLOG = 20000
+#: [bytes] queued for the bag writer before the simulation waits: 64 MiB, ~1 s of the outputs
+#: of 20000 coaches at 100 Hz (~0.8 MB per output instant)
+MAX_RECORD_BACKLOG_BYTES = 64 << 20
 
 
 def check_bag_path(path: str) -> None:
@@ -65,7 +69,13 @@ class BagWriter:
     Threads: :meth:`write` is called by whoever records (the simulation thread, the executor
     thread for diagnostics; both under the simulation lock); everything else in here belongs
     to the writer thread. ``written`` and ``error`` are written by the writer thread only and
-    read by others for the diagnostics (a stale read is harmless).
+    read by others for the diagnostics (a stale read is harmless). The queue (``_items``,
+    ``_bytes``, ``_stop``) is guarded by ``_cond``.
+
+    The backlog is bounded in BYTES (:data:`MAX_RECORD_BACKLOG_BYTES`) and in messages
+    (:data:`MAX_RECORD_BACKLOG`): when the disk cannot keep up, :meth:`write` waits (the
+    simulation falls behind and says so in ``/diagnostics``) rather than the queue eating the
+    memory; a single message larger than the bound is still queued when the queue is empty.
     """
 
     def __init__(self, recorder: BagRecorder, logger: Any, flush_period: float) -> None:
@@ -75,28 +85,54 @@ class BagWriter:
         self.error: str | None = None
         self._logger = logger
         self._flush_period = float(flush_period)
-        # Bounded: when the disk cannot keep up, the simulation waits (and says it is behind)
-        # rather than the queue eating the memory.
-        self._q: queue.Queue = queue.Queue(maxsize=MAX_RECORD_BACKLOG)
+        self._cond = threading.Condition()
+        self._items: deque[tuple[str, str, int, bytes]] = deque()
+        self._bytes = 0
+        self._stop = False
+        self._discard = False
         self._known: set[str] = set()
         self._thread = threading.Thread(target=self._run, name='train_dynamics_bag',
                                         daemon=True)
         self._thread.start()
 
     def write(self, topic: str, msgtype: str, t_ns: int, data: bytes) -> None:
-        """Queue raw CDR bytes."""
-        self._q.put((topic, msgtype, t_ns, data))
+        """Queue raw CDR bytes; wait while the backlog is full (the writer catches up)."""
+        size = len(data)
+        with self._cond:
+            while self._items and not self._stop and self._thread.is_alive() and (
+                    self._bytes + size > MAX_RECORD_BACKLOG_BYTES
+                    or len(self._items) >= MAX_RECORD_BACKLOG):
+                self._cond.wait(0.5)
+            self._items.append((topic, msgtype, t_ns, data))
+            self._bytes += size
+            self._cond.notify_all()
 
     @property
     def backlog(self) -> int:
         """Return the number of messages queued, not yet written."""
-        return self._q.qsize()
+        return len(self._items)
+
+    @property
+    def backlog_bytes(self) -> int:
+        """Return the bytes queued, not yet written."""
+        return self._bytes
 
     def close(self, timeout: float | None = 30.0) -> None:
         """Write what is queued, finish the bag (idempotent)."""
+        with self._cond:
+            self._stop = True
+            self._cond.notify_all()
         if self._thread.is_alive():
-            self._q.put(None)
             self._thread.join(timeout)
+
+    def discard(self) -> None:
+        """Stop without writing what is queued and remove the bag (a run that never started)."""
+        with self._cond:
+            self._discard = True
+            self._items.clear()
+            self._bytes = 0
+        self.close()
+        shutil.rmtree(self.path, ignore_errors=True)
 
     def _fail(self, exc: Exception, more: str = '') -> None:
         self.error = f'{type(exc).__name__}: {exc}'.splitlines()[0]
@@ -110,18 +146,27 @@ class BagWriter:
         self.recorder.write(topic, t_ns, data)
         self.written += 1
 
+    def _next(self) -> tuple[tuple[str, str, int, bytes] | None, bool]:
+        """Return (the next item or None after 0.5 s idle, whether to stop)."""
+        with self._cond:
+            if not self._items and not self._stop:
+                self._cond.wait(0.5)
+            if not self._items:
+                return None, self._stop
+            item = self._items.popleft()
+            self._bytes -= len(item[3])
+            self._cond.notify_all()
+            return item, False
+
     def _run(self) -> None:
         last_flush = time.monotonic()
         unflushed = False
         try:
             while True:
-                try:
-                    item = self._q.get(timeout=0.5)
-                except queue.Empty:
-                    item = ()
-                if item is None:
+                item, stop = self._next()
+                if stop:
                     break
-                if item and self.error is None:
+                if item is not None and self.error is None:
                     try:
                         self._store(item)
                         unflushed = True
@@ -136,6 +181,9 @@ class BagWriter:
                     last_flush, unflushed = now, False
         finally:
             try:
-                self.recorder.close()
+                if self._discard:
+                    self.recorder.abort()
+                else:
+                    self.recorder.close()
             except Exception as exc:  # noqa: BLE001
                 self._logger.error(f'closing the bag {self.path} failed: {exc}')

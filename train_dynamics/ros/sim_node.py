@@ -63,7 +63,7 @@ from train_dynamics.ros import parameters as ros_parameters
 from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INPUT_QOS,
                                              MAX_ABSOLUTE_PRESSURE, REJECT_REASONS)
 from train_dynamics.ros.diagnostics import diagnostic_array, InputReport, SimulationReport
-from train_dynamics.ros.executor import ExitOn, make_executor, run_node
+from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
 from train_dynamics.ros.outputs import OUTPUT_QOS, Outputs
 from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
@@ -109,12 +109,21 @@ class SimNode(Node):
         self._pub_diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
                                                OUTPUT_QOS)
         self._reset_srv = self.create_service(Trigger, '~/reset', self._on_reset)
-        with self._lock.held():
-            self._start(cfg, self._open_bag(cfg, first=True), first=True)
-        ros_parameters.watch_parameters(self, SPECS, self._check_parameters,
-                                        self._apply_parameters)
-        self._diag_timer = self.create_timer(DIAGNOSTICS_PERIOD, self._publish_diagnostics)
-        self._scan_timer = self.create_timer(GRAPH_SCAN_PERIOD, self._inputs.scan_graph)
+        writer = self._open_bag(cfg, first=True)
+        try:
+            with self._lock.held():
+                self._start(cfg, writer, first=True)
+            ros_parameters.watch_parameters(self, SPECS, self._check_parameters,
+                                            self._apply_parameters)
+            self._diag_timer = self.create_timer(
+                DIAGNOSTICS_PERIOD, shutdown_safe(self, self._publish_diagnostics))
+            self._scan_timer = self.create_timer(
+                GRAPH_SCAN_PERIOD, shutdown_safe(self, self._inputs.scan_graph))
+        except BaseException:
+            if writer is not None:       # a failed start leaves no bag behind
+                self._outputs.take_writer()
+                writer.discard()
+            raise
         self._pacer.start_thread()
 
     # -- parameters ------------------------------------------------------------------------
@@ -174,11 +183,11 @@ class SimNode(Node):
     # -- start / reset ---------------------------------------------------------------------
     def _start(self, cfg: SimConfig, writer: BagWriter | None, first: bool = False) -> None:
         """(Re)build the run for ``cfg`` at t = 0; the caller holds the simulation lock."""
-        self._cfg = cfg
         # Warm-up on a throw-away copy: loads the compiled kernels (numba cache) now, not in
-        # the first real-time step.
+        # the first real-time step; what cannot run fails here, before anything changed.
         TrainSimulator(cfg).advance(1)
         sim = TrainSimulator(cfg)
+        self._cfg = cfg
         self._outputs.start(sim.n, cfg.publish_rate, sim.h, cfg.publish_clock, writer,
                             has_reservoirs(cfg))
         self._inputs.start(cfg, sim.n, recording=writer is not None)
@@ -210,6 +219,7 @@ class SimNode(Node):
         log = self.get_logger()
         try:
             cfg = SimConfig.from_dict(self._parameter_values())
+            TrainSimulator(cfg).advance(1)     # what cannot run fails before anything changed
             self._resets += 1
             writer = self._open_bag(cfg, first=False)
         except Exception as exc:  # noqa: BLE001 - e.g. the new bag cannot be created
@@ -262,6 +272,7 @@ class SimNode(Node):
         if writer is not None:
             report.recording, report.recorded = str(writer.path), writer.written
             report.backlog, report.record_error = writer.backlog, writer.error
+            report.backlog_bytes = writer.backlog_bytes
         return report
 
     def _input_report(self, now: float) -> InputReport:
@@ -271,7 +282,8 @@ class SimNode(Node):
             mode=self._cfg.brake_input, timeout=inputs.timeout, on_timeout=inputs.on_timeout,
             max_age=inputs.max_age(now), stale=inputs.stale, emergency=inputs.emergency,
             stale_names=', '.join(inputs.stale_names), accepted=inputs.accepted,
-            rejected=dict(inputs.rejected), last_rejected=inputs.last_rejected)
+            rejected=dict(inputs.rejected), last_rejected=inputs.last_rejected,
+            wrong_type={k: list(v) for k, v in inputs.wrong_type.items()})
 
     # -- public, read-only -----------------------------------------------------------------
     @property
@@ -328,7 +340,7 @@ def main(args: list[str] | None = None) -> int:
     errors.
     """
     sys.setswitchinterval(0.0005)     # the simulation thread gets the GIL back quickly
-    return run_node('sim_node', SimNode, args, exits=(
+    return run_node('sim_node', SimNode, args, node_name=NODE_NAME, specs=SPECS, exits=(
         ExitOn((ConfigError, ParameterException, FileExistsError, ValueError),
                'invalid parameters', 2),
         ExitOn((BagError, OSError), 'cannot record', 1)))
