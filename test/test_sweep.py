@@ -119,7 +119,7 @@ def dask_cluster(n_workers=2):
 @pytest.mark.parametrize('doc, message', [
     ({'grid': {'model_type': ['sign']}}, 'duration [s] is required'),
     ({'duration': 5, 'grid': {'no_such': [1.0]}}, "unknown parameter 'no_such'"),
-    ({'duration': 5, 'grid': {'coach_mass': [-1.0]}}, 'coach_mass: must be > 0'),
+    ({'duration': 5, 'grid': {'coach_mass': [-1.0]}}, 'coach_mass: must be >= 500'),
     ({'duration': 5, 'grid': {'model_type': ['cosh']}}, "'cosh' is not one of"),
     ({'duration': 5, 'lhs': {'samples': 4, 'ranges': {'coach_mass': [5e4, 4e4]}}},
      'must be < max'),
