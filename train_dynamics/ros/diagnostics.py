@@ -3,6 +3,10 @@
 
 - ``train_dynamics: simulation``: real-time factor and the achieved one, sim time, steps, lag,
   integrator health, pending parameter changes, recording;
+- ``train_dynamics: run metrics``: the running maxima of the run metrics
+  (:class:`train_dynamics.physics.metrics.RunMetrics`: largest tension and compression with
+  coupler and time, deceleration, jerk, blocking, impacts), WARN with the worst crossing
+  (coupler or vehicle, value, time) once ``coupler_force_limit`` or ``jerk_limit`` is crossed;
 - ``train_dynamics: brake input``: input age, staleness, emergency, accepted and rejected
   counts per reason, publishers of a wrong message type on an input topic (``wrong_type``:
   their number; ``wrong_type_topics``: which, with their types; WARN).
@@ -21,6 +25,8 @@ from train_dynamics.topics import NODE_NAME
 
 SIMULATION = f'{NODE_NAME}: simulation'
 BRAKE_INPUT = f'{NODE_NAME}: brake input'
+RUN_METRICS = f'{NODE_NAME}: run metrics'
+_LEVELS = {'OK': DiagnosticStatus.OK, 'WARN': DiagnosticStatus.WARN}
 
 
 @dataclass
@@ -147,10 +153,21 @@ def _wrong_type_list(r: InputReport) -> str:
                      for topic, types in sorted(r.wrong_type.items()))
 
 
+def metrics_status(metrics: tuple[str, str, list[tuple[str, str]]],
+                   hardware_id: str) -> DiagnosticStatus:
+    """Build the run-metrics status from ``RunMetrics.diagnostic()`` (level, message, values)."""
+    level, message, values = metrics
+    return DiagnosticStatus(level=_LEVELS[level], name=RUN_METRICS, message=message,
+                            hardware_id=hardware_id,
+                            values=[KeyValue(key=k, value=v) for k, v in values])
+
+
 def diagnostic_array(sim: SimulationReport, inputs: InputReport, hardware_id: str,
-                     stamp: Time) -> DiagnosticArray:
-    """Build the DiagnosticArray of both statuses."""
-    msg = DiagnosticArray(status=[simulation_status(sim, hardware_id),
-                                  input_status(inputs, hardware_id)])
+                     stamp: Time, metrics: tuple | None = None) -> DiagnosticArray:
+    """Build the DiagnosticArray: simulation, brake input and (when given) run metrics."""
+    statuses = [simulation_status(sim, hardware_id), input_status(inputs, hardware_id)]
+    if metrics is not None:
+        statuses.append(metrics_status(metrics, hardware_id))
+    msg = DiagnosticArray(status=statuses)
     msg.header.stamp = stamp
     return msg

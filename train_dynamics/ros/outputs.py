@@ -26,6 +26,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from train_dynamics import topics
+from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.runner import output_step
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
@@ -64,14 +65,18 @@ class Outputs:
         self._h = 0.0
         self._index = 0                 # number of the next output, t = index / rate
         self._encoder: OutputEncoder | None = None
+        self.metrics: RunMetrics | None = None     # the run's metrics, fed every output
 
     def start(self, n: int, rate: float, h: float, publish_clock: bool,
-              writer: BagWriter | None, reservoirs: bool = False) -> None:
+              writer: BagWriter | None, reservoirs: bool = False,
+              metrics: RunMetrics | None = None) -> None:
         """
         Begin a run of ``n`` coaches at t = 0: outputs at ``rate`` [Hz] on steps ``h``.
 
-        ``reservoirs``: also publish ``brake_reservoirs`` (pneumatic brake).
+        ``reservoirs``: also publish ``brake_reservoirs`` (pneumatic brake); ``metrics``:
+        the run metrics, fed with every published sample (as the offline command does).
         """
+        self.metrics = metrics
         self._encoder = OutputEncoder(n, reservoirs)
         self.rate = float(rate)
         self._h = h
@@ -106,6 +111,9 @@ class Outputs:
         encoded = self._encoder.encode(t_ns, sim)
         for pub, data in zip(self._pubs, encoded):
             pub.publish(data)
+        if self.metrics is not None:
+            self.metrics.add(sim.t, sim.y, sim.ydot, sim.coupler_force, sim.x, sim.v,
+                             sim.brake_force)
         clock = None
         if self.publish_clock:
             clock = Clock(clock=stamp(t_ns))

@@ -54,6 +54,7 @@ from rclpy.serialization import serialize_message
 from std_srvs.srv import Trigger
 
 from train_dynamics import topics
+from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.parameters import (ConfigError, PARAMETERS, SIM_NODE_PARAMETERS,
                                                SimConfig)
 from train_dynamics.physics.train import TrainSimulator
@@ -150,9 +151,11 @@ class SimNode(Node):
                     f't = {self._pacer.sim.t:.3f} s: coupler model {cfg.model_type}, '
                     f'scale_factor {cfg.scale_factor:g} s/m')
             for name in ('real_time_factor', 'publish_clock', 'input_timeout',
-                         'on_input_timeout'):
+                         'on_input_timeout', 'coupler_force_limit', 'jerk_limit'):
                 if name in changes:
                     cfg.values[name] = changes[name]
+            if self._outputs.metrics is not None:
+                self._outputs.metrics.set_limits(cfg.coupler_force_limit, cfg.jerk_limit)
             if 'real_time_factor' in changes:
                 self._pacer.set_real_time_factor(cfg.real_time_factor)
             self._outputs.publish_clock = cfg.publish_clock
@@ -189,7 +192,7 @@ class SimNode(Node):
         sim = TrainSimulator(cfg)
         self._cfg = cfg
         self._outputs.start(sim.n, cfg.publish_rate, sim.h, cfg.publish_clock, writer,
-                            has_reservoirs(cfg))
+                            has_reservoirs(cfg), RunMetrics.for_run(cfg, sim))
         self._inputs.start(cfg, sim.n, recording=writer is not None)
         self._pacer.start(sim, cfg.real_time_factor)
         rtf, duration = cfg.real_time_factor, self._pacer.duration
@@ -248,8 +251,10 @@ class SimNode(Node):
             now = time.monotonic()
             sim_report = self._simulation_report(now, pending)
             in_report = self._input_report(now)
+            metrics = self._outputs.metrics
+            run_metrics = None if metrics is None else metrics.diagnostic()
         msg = diagnostic_array(sim_report, in_report, self.get_fully_qualified_name(),
-                               self.get_clock().now().to_msg())
+                               self.get_clock().now().to_msg(), run_metrics)
         try:
             self._pub_diag.publish(msg)
         except Exception:  # noqa: BLE001 - shutting down
