@@ -148,6 +148,78 @@ _PARAMS = [
     ParamSpec('on_input_timeout', 'hold', STRING,
               'On a stale input: "hold" the last value or apply an "emergency" brake.',
               choices=('hold', 'emergency'), dynamic=True, structural=False),
+    # Real trains (issue 11): consist, coupler travel, resistance, track, traction. Each
+    # vehicle field of a consist (physics/consist.py) is also a parameter of the same name
+    # (mass -> coach_mass, length -> coach_length): the value of the uniform train and the
+    # default of a vehicle type that leaves it out. Defaults are the paper's idealisation.
+    ParamSpec('consist_file', '', STRING,
+              'YAML consist (vehicle_types, vehicles front to rear); empty = the uniform train '
+              'of num_coaches/masses. Relative: to the parameter file, then config/.'),
+    ParamSpec('rotating_mass_factor', 0.0, DOUBLE,
+              'Rotating-mass allowance: the inertia of a vehicle is m (1 + factor).',
+              min=0.0, max=2.0),
+    ParamSpec('davis_a', 0.0, DOUBLE, 'Running resistance (Davis) constant term A [N].',
+              min=0.0, max=1.0e6),
+    ParamSpec('davis_b', 0.0, DOUBLE, 'Running resistance (Davis) B |v| term [N s/m].',
+              min=0.0, max=1.0e6),
+    ParamSpec('davis_c', 0.0, DOUBLE, 'Running resistance (Davis) C v^2 term [N s^2/m^2].',
+              min=0.0, max=1.0e5),
+    ParamSpec('buffer_stroke', 0.105, DOUBLE,
+              'Buffer stroke S_c [m] before blocking (UIC 526-1: 105 mm).',
+              min=0.0, max=10.0, min_exclusive=True),
+    ParamSpec('draw_gear_stroke', 0.06, DOUBLE,
+              'Draw-gear spring travel S_t [m] before blocking (UIC 520 draw gear, typical).',
+              min=0.0, max=10.0, min_exclusive=True),
+    ParamSpec('buffer_slack', 0.0, DOUBLE,
+              'Free play g_c [m] before the buffers take load (0: tight screw coupling).',
+              min=0.0, max=1.0),
+    ParamSpec('draw_gear_slack', 0.0, DOUBLE,
+              'Free play g_t [m] before the draw gear takes load (0: tight coupling).',
+              min=0.0, max=1.0),
+    ParamSpec('blocked_stiffness', 1.0e8, DOUBLE,
+              'Stiffness K_b [N/m] once a buffer or draw gear is at the end of its stroke '
+              '(vehicle underframe, ~1e8 N/m).', min=0.0, max=1.0e12, min_exclusive=True),
+    ParamSpec('max_tractive_force', 0.0, DOUBLE,
+              'Locomotive: starting tractive effort [N] (0: not a traction unit).',
+              min=0.0, max=1.0e7),
+    ParamSpec('max_power', 0.0, DOUBLE, 'Locomotive: power at the wheel rim in traction [W].',
+              min=0.0, max=1.0e8),
+    ParamSpec('max_dynamic_brake_force', 0.0, DOUBLE,
+              'Locomotive: maximum dynamic (electric) braking force [N].', min=0.0, max=1.0e7),
+    ParamSpec('max_dynamic_brake_power', 0.0, DOUBLE,
+              'Locomotive: maximum dynamic braking power [W].', min=0.0, max=1.0e8),
+    ParamSpec('traction_build_up_time', 4.0, DOUBLE,
+              'Locomotive: time [s] for the tractive/dynamic-brake force to go from 0 to the '
+              'full command (rate limit); 0 = immediate.', min=0.0, max=600.0),
+    ParamSpec('traction_adhesion', 0.33, DOUBLE,
+              'Locomotive: wheel-rail adhesion at standstill for traction and dynamic braking; '
+              'falls with speed as Curtius-Kniffler.', min=0.0, max=1.0, min_exclusive=True),
+    ParamSpec('dynamic_brake_fade_speed', 1.4, DOUBLE,
+              'Locomotive: below this speed [m/s] the dynamic braking force fades linearly '
+              'to 0.', min=0.0, max=50.0, min_exclusive=True),
+    ParamSpec('initial_position', 0.0, DOUBLE,
+              'Position along the track [m] of the front of vehicle 1 at t = 0.',
+              min=-1.0e7, max=1.0e7),
+    ParamSpec('track_gradient_positions', [], DOUBLE_ARRAY,
+              'Track positions [m] (increasing) where a gradient starts; 0 before the first.',
+              min=-1.0e7, max=1.0e7),
+    ParamSpec('track_gradients', [], DOUBLE_ARRAY,
+              'Gradient [per mille, > 0 uphill] from each track_gradient_positions entry on.',
+              min=-100.0, max=100.0),
+    ParamSpec('track_curve_starts', [], DOUBLE_ARRAY, 'Track positions [m] where curves start.',
+              min=-1.0e7, max=1.0e7),
+    ParamSpec('track_curve_ends', [], DOUBLE_ARRAY, 'Track positions [m] where curves end.',
+              min=-1.0e7, max=1.0e7),
+    ParamSpec('track_curve_radii', [], DOUBLE_ARRAY,
+              'Curve radii [m]; Roeckl resistance 650/(R-55) per mille (R >= 300 m), '
+              '500/(R-30) below.', min=100.0, max=1.0e6),
+    ParamSpec('traction_schedule_times', [], DOUBLE_ARRAY,
+              'Offline runs without a traction bag: times [s] (increasing) from which every '
+              'locomotive holds the matching traction_schedule_commands entry.',
+              min=0.0, max=1.0e7),
+    ParamSpec('traction_schedule_commands', [], DOUBLE_ARRAY,
+              'Traction command in [-1, 1] (> 0 traction, < 0 dynamic brake) from each '
+              'traction_schedule_times entry on.', min=-1.0, max=1.0),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
