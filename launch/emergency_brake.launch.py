@@ -1,4 +1,5 @@
-"""The paper's emergency braking: sim_node + brake_valve with config/paper_3coach.yaml.
+"""
+The paper's emergency braking: sim_node + brake_valve with config/paper_3coach.yaml.
 
     ros2 launch train_dynamics emergency_brake.launch.py
     ros2 launch train_dynamics emergency_brake.launch.py params_file:=/path/to/file.yaml \
@@ -28,9 +29,10 @@ def generate_launch_description():
         DeclareLaunchArgument('record_bag', default_value='',
                               description='sim_node records a rosbag2 (MCAP) here when set'),
         Node(package='train_dynamics', executable='sim_node', name='train_dynamics',
-             output='screen', parameters=[params_file,
-                                         {'record_bag': ParameterValue(record_bag, value_type=str),
-                                          'publish_clock': True, 'wait_for_input': 30.0}]),
+             output='screen',
+             parameters=[params_file,
+                         {'record_bag': ParameterValue(record_bag, value_type=str),
+                          'publish_clock': True, 'wait_for_input': 30.0}]),
         Node(package='train_dynamics', executable='brake_valve', name='brake_valve',
              output='screen', parameters=[params_file, {'use_sim_time': True}]),
     ])

@@ -1,4 +1,5 @@
-"""Shared test setup: a private, loopback-only ROS 2 domain per test session.
+"""
+Shared test setup: a private, loopback-only ROS 2 domain per test session.
 
 Before anything imports rclpy this sets, for this process and every subprocess it starts:
 
@@ -15,6 +16,12 @@ Fixtures for tests with real rclpy (DDS on loopback, in-process):
   ``rclpy.try_shutdown()`` after it; yields the context. Create nodes and executors as usual.
 - ``spin_until``: ``spin_until(executor_or_node, predicate, timeout=5.0) -> bool`` spins until
   ``predicate()`` is true or ``timeout`` seconds (wall) pass.
+- ``harness``: a :class:`sim_node_helpers.Harness` (nodes under test, a probe node, the
+  executor), closed after the test.
+- ``contract_defaults``: the product contract's parameter names and defaults.
+
+Shared test code lives in helper modules without the ``test_`` prefix (``physics_helpers``,
+``sim_node_helpers``); test modules never import from each other.
 """
 from __future__ import annotations
 
@@ -55,6 +62,16 @@ os.environ.setdefault('MPLBACKEND', 'Agg')
 
 import pytest  # noqa: E402
 
+#: the product contract's parameter defaults (shared/interface.md), written once
+CONTRACT_DEFAULTS = {
+    'model_type': 'tanh', 'num_coaches': 3, 'coach_mass': 45000.0, 'masses': [],
+    'coach_length': 25.0, 'buffer_stiffness': 2.8e6, 'buffer_friction': 1.4e6,
+    'draw_gear_stiffness': 5.46e6, 'draw_gear_friction': 2.43e6, 'gravity': 9.81,
+    'max_cylinder_pressure': 380000.0, 'initial_speed': 44.444, 'brake_input': 'pipe_head',
+    'brake_propagation_speed': 250.0, 'publish_rate': 100.0, 'real_time_factor': 1.0,
+    'publish_clock': False, 'record_bag': '',
+}
+
 
 def pytest_report_header(config):
     return (f"ROS_DOMAIN_ID={os.environ['ROS_DOMAIN_ID']} "
@@ -62,8 +79,14 @@ def pytest_report_header(config):
 
 
 @pytest.fixture
+def contract_defaults():
+    """Return the contract's parameter defaults: {name: default}."""
+    return dict(CONTRACT_DEFAULTS)
+
+
+@pytest.fixture
 def rclpy_context():
-    """rclpy initialised (default context) for one test; shut down afterwards."""
+    """Initialise rclpy (default context) for one test; shut it down afterwards."""
     import rclpy
 
     rclpy.init()
@@ -91,14 +114,15 @@ def _spin_until(spinner, predicate, timeout: float = 5.0, step: float = 0.02) ->
 
 @pytest.fixture
 def spin_until():
-    """``spin_until(executor_or_node, predicate, timeout=5.0) -> bool``."""
+    """Return the spin helper: ``f(executor_or_node, predicate, timeout=5.0) -> bool``."""
     return _spin_until
 
 
 @pytest.fixture
 def harness(rclpy_context):
-    """A sim_node test harness (test_sim_node_support.Harness), closed after the test."""
-    from test_sim_node_support import Harness
+    """Yield a sim_node test harness: ``sim_node_helpers.Harness``, closed after the test."""
+    # imported here: only the tests with real rclpy load it (and rclpy)
+    from sim_node_helpers import Harness
 
     h = Harness()
     try:

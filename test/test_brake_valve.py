@@ -2,16 +2,19 @@
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import time
-from pathlib import Path
 
 import pytest
 
-from train_dynamics.physics.brake_valve import (DEFAULTS, BrakeValveModel, parse_schedule,
-                                              target_pressure, validate_settings)
+from train_dynamics.physics.brake_valve import (BrakeValveModel, parse_schedule,
+                                                target_pressure, validate_settings,
+                                                VALVE_PARAMETERS)
+
+DEFAULTS = {name: spec.default for name, spec in VALVE_PARAMETERS.items()}
 
 ATM = 101325.0
 NOMINAL = 500000.0
@@ -124,7 +127,8 @@ def test_release_recharges_at_release_rate():
     m = BrakeValveModel(schedule=['0:full_service', '10:release'])
     assert m.pressure_at(10.0) == pytest.approx(FULL)
     assert m.pressure_at(11.0) == pytest.approx(FULL + DEFAULTS['release_rate'])
-    assert m.pressure_at(10.0 + (NOMINAL - FULL) / DEFAULTS['release_rate']) == pytest.approx(NOMINAL)
+    t_full = 10.0 + (NOMINAL - FULL) / DEFAULTS['release_rate']
+    assert m.pressure_at(t_full) == pytest.approx(NOMINAL)
     assert m.pressure_at(30.0) == NOMINAL                    # no overcharge
 
 
@@ -280,6 +284,17 @@ def test_node_live_position_change_and_invalid_values(rclpy_context, spin_until)
         assert valve.model.position == 'release'
         assert len(valve.model.pending) == 1                             # schedule untouched
 
+        # the set callbacks only validate; the post-set callback moves the handle
+        for callback in valve._on_set_parameters_callbacks:   # rclpy's list of set callbacks
+            assert callback([Parameter('position', value='emergency')]).successful
+        assert valve.model.position == 'release' and len(valve.model.pending) == 1
+        # one description format: the descriptors come from the ParamSpec tables
+        d = valve.describe_parameter('service_steps')
+        assert (d.integer_range[0].from_value, d.integer_range[0].to_value) == (1, 50)
+        d = valve.describe_parameter('publish_rate')
+        assert d.floating_point_range[0].from_value == 0.1 and '<= 1000' in \
+            d.additional_constraints
+
         # a live position change takes effect immediately and cancels the schedule
         n0 = len(received)
         result = valve.set_parameters([Parameter('position', value='full_service')])[0]
@@ -292,10 +307,11 @@ def test_node_live_position_change_and_invalid_values(rclpy_context, spin_until)
                           timeout=10.0)
         assert received[-1].fluid_pressure == pytest.approx(FULL + ATM)
 
-        # atmospheric_pressure and publish_rate live
+        # atmospheric_pressure and publish_rate live (an integer for a double is converted)
         result = valve.set_parameters([Parameter('atmospheric_pressure', value=100000.0),
-                                       Parameter('publish_rate', value=100.0)])[0]
+                                       Parameter('publish_rate', value=100)])[0]
         assert result.successful, result.reason
+        assert valve.get_parameter('publish_rate').value == 100.0
         n1 = len(received)
         assert spin_until(ex, lambda: len(received) > n1 + 3, timeout=5.0)
         assert received[-1].fluid_pressure == pytest.approx(FULL + 100000.0)
@@ -347,8 +363,8 @@ def test_node_schedule_runs_on_sim_time(rclpy_context, spin_until):
 def test_executable_stops_cleanly_on_sigterm_and_rejects_bad_startup_parameters():
     env = dict(os.environ)
     env['PYTHONPATH'] = str(REPO) + os.pathsep + env.get('PYTHONPATH', '')
-    proc = subprocess.Popen([sys.executable, '-m', 'train_dynamics.ros.brake_valve_node', '--ros-args',
-                             '-p', 'publish_rate:=20.0'], env=env, cwd=str(REPO),
+    proc = subprocess.Popen([sys.executable, '-m', 'train_dynamics.ros.brake_valve_node',
+                             '--ros-args', '-p', 'publish_rate:=20.0'], env=env, cwd=str(REPO),
                             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
     try:
         deadline = time.monotonic() + 30.0
@@ -369,8 +385,8 @@ def test_executable_stops_cleanly_on_sigterm_and_rejects_bad_startup_parameters(
             proc.wait()
         proc.stdout.close()
 
-    bad = subprocess.run([sys.executable, '-m', 'train_dynamics.ros.brake_valve_node', '--ros-args',
-                          '-p', 'position:=bogus'], env=env, cwd=str(REPO),
+    bad = subprocess.run([sys.executable, '-m', 'train_dynamics.ros.brake_valve_node',
+                          '--ros-args', '-p', 'position:=bogus'], env=env, cwd=str(REPO),
                          capture_output=True, text=True, timeout=60)
     assert bad.returncode == 2
     assert 'bogus' in bad.stderr

@@ -1,5 +1,8 @@
-"""The ROS 2 workspace path: ``colcon build`` of the package in a fresh workspace, then
-``source install/setup.bash`` and start the installed executables where ``ros2 run`` looks
+"""
+The ROS 2 workspace path: build with colcon, run what ``ros2 run`` runs.
+
+``colcon build`` of the package in a fresh workspace, then ``source install/setup.bash`` and
+start the installed executables where ``ros2 run`` looks
 (``get_package_prefix('train_dynamics')/lib/train_dynamics/<exe>``).
 
 Uses the colcon of the running virtual environment (requirements.txt pins it). The installed
@@ -10,12 +13,11 @@ SIGTERM and expects a clean exit.
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import shutil
 import signal
 import subprocess
 import sys
-import time
-from pathlib import Path
 
 import pytest
 
@@ -38,7 +40,7 @@ def _copy_package(dest: Path) -> None:
 
 
 def _sourced_env(ws: Path, base_env: dict) -> dict:
-    """The environment after ``source install/setup.bash`` in ``ws``."""
+    """Return the environment after ``source install/setup.bash`` in ``ws``."""
     out = subprocess.run(['bash', '-c', 'source install/setup.bash && env -0'], cwd=ws,
                          env=base_env, capture_output=True, timeout=60)
     assert out.returncode == 0, out.stderr.decode(errors='replace')
@@ -63,7 +65,7 @@ def _stop(proc: subprocess.Popen, sig: int, timeout: float = 20.0) -> int:
 
 @pytest.fixture(scope='module')
 def workspace(tmp_path_factory):
-    """A colcon workspace with the package built and installed (module-wide: built once)."""
+    """Build the package in a colcon workspace, once per module."""
     if shutil.which('bash') is None:
         pytest.skip('bash is needed to source install/setup.bash')
     venv_bin = Path(sys.executable).parent

@@ -4,28 +4,21 @@ from pathlib import Path
 
 import pytest
 
-from train_dynamics.physics.parameters import (PARAMETERS, ConfigError, SimConfig, load_param_file,
-                                   validate_value)
+from train_dynamics.physics.parameters import (ConfigError, load_param_file, markdown_table,
+                                               PARAMETERS, SimConfig, validate_value)
 
-CONTRACT_DEFAULTS = {
-    'model_type': 'tanh', 'num_coaches': 3, 'coach_mass': 45000.0, 'masses': [],
-    'coach_length': 25.0, 'buffer_stiffness': 2.8e6, 'buffer_friction': 1.4e6,
-    'draw_gear_stiffness': 5.46e6, 'draw_gear_friction': 2.43e6, 'gravity': 9.81,
-    'max_cylinder_pressure': 380000.0, 'initial_speed': 44.444, 'brake_input': 'pipe_head',
-    'brake_propagation_speed': 250.0, 'publish_rate': 100.0, 'real_time_factor': 1.0,
-    'publish_clock': False, 'record_bag': '',
-}
+REPO = Path(__file__).resolve().parents[1]
 
 
-def test_contract_names_and_defaults():
-    for name, default in CONTRACT_DEFAULTS.items():
+def test_contract_names_and_defaults(contract_defaults):
+    for name, default in contract_defaults.items():
         assert PARAMETERS[name].default == default, name
     for name in ('scale_factor', 'adhesion_coefficient', 'integration_step'):
         assert name in PARAMETERS
 
 
 def test_paper_parameter_file_loads_with_scientific_notation(tmp_path):
-    cfg = load_param_file(str(Path(__file__).resolve().parents[1] / 'config' / 'paper_3coach.yaml'))
+    cfg = load_param_file(str(REPO / 'config' / 'paper_3coach.yaml'))
     assert cfg.buffer_stiffness == 2.8e6 and isinstance(cfg.buffer_stiffness, float)
     assert cfg.n_coaches == 3 and cfg.initial_speed == pytest.approx(160 / 3.6, rel=1e-4)
     f = tmp_path / 'p.yaml'
@@ -82,8 +75,6 @@ def test_cylinder_tables_checked():
 
 
 def test_readme_parameter_table_is_current():
-    """The README's table is generated from PARAMETERS (python -m train_dynamics.physics.parameters)."""
-    from train_dynamics.physics.parameters import markdown_table
-
-    readme = (Path(__file__).resolve().parents[1] / 'README.md').read_text(encoding='utf-8')
+    """Check the README's table: python -m train_dynamics.physics.parameters generates it."""
+    readme = (REPO / 'README.md').read_text(encoding='utf-8')
     assert markdown_table() in readme, 'regenerate: python -m train_dynamics.physics.parameters'

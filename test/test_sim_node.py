@@ -1,4 +1,5 @@
-"""sim_node with real rclpy, in-process, DDS on loopback (issue 3).
+"""
+sim_node with real rclpy, in-process, DDS on loopback (issue 3).
 
 Parameters (contract names, defaults, descriptors, rejection of invalid values), the node's
 output against the physics core run offline on the same inputs, brake_valve -> sim_node over
@@ -11,12 +12,9 @@ import math
 import numpy as np
 import pytest
 
-from test_sim_node_support import (diag_values, first_time, fluid, joint_arrays,
-                                   stamp_s)
+from sim_node_helpers import diag_values, first_time, fluid, joint_arrays, stamp_s
 
 ATM = 101325.0
-
-from test_config import CONTRACT_DEFAULTS  # noqa: E402  the contract's defaults, once
 CONTRACT_ONLY_NAMED = ('scale_factor', 'adhesion_coefficient', 'integration_step')
 
 
@@ -29,17 +27,17 @@ def _invalid_values(spec):
     bad: list = []
     if k == DOUBLE:
         bad += ['text', True, [1.0], nan, inf, -inf]
-        if spec.min is not None:
-            bad.append(float(spec.min) if spec.min_exclusive
-                       else float(spec.min) - max(1.0, abs(spec.min)))
-        if spec.max is not None:
-            bad.append(float(spec.max) * 2 + 1.0)
+        if spec.low is not None:
+            bad.append(float(spec.low) if spec.low_exclusive
+                       else float(spec.low) - max(1.0, abs(spec.low)))
+        if spec.high is not None:
+            bad.append(float(spec.high) * 2 + 1.0)
     elif k == INTEGER:
         bad += [2.5, 'text', True, [3]]
-        if spec.min is not None:
-            bad.append(int(spec.min) - 1)
-        if spec.max is not None:
-            bad.append(int(spec.max) + 1)
+        if spec.low is not None:
+            bad.append(int(spec.low) - 1)
+        if spec.high is not None:
+            bad.append(int(spec.high) + 1)
     elif k == STRING:
         bad += [3, 1.5, True, ['a']]
         if spec.choices:
@@ -48,22 +46,22 @@ def _invalid_values(spec):
         bad += ['true', 1, 0.0]
     elif k == DOUBLE_ARRAY:
         bad += ['text', 1.0, [nan, 1.0], [1.0, inf], ['a', 'b'], [True, False]]
-        if spec.min is not None:
-            m = float(spec.min)
-            bad.append([m if spec.min_exclusive else m - max(1.0, abs(m)), 1.0])
-        if spec.max is not None:
-            bad.append([float(spec.max) * 2 + 1.0])
+        if spec.low is not None:
+            m = float(spec.low)
+            bad.append([m if spec.low_exclusive else m - max(1.0, abs(m)), 1.0])
+        if spec.high is not None:
+            bad.append([float(spec.high) * 2 + 1.0])
     return bad
 
 
-def test_parameters_declared_with_contract_defaults_and_descriptors(harness):
+def test_parameters_declared_with_contract_defaults_and_descriptors(harness, contract_defaults):
     from rcl_interfaces.msg import ParameterType
 
     from train_dynamics.physics.parameters import DOUBLE, DOUBLE_ARRAY, INTEGER, PARAMETERS
 
     node = harness.start()
     assert node.get_name() == 'train_dynamics'
-    for name, value in CONTRACT_DEFAULTS.items():
+    for name, value in contract_defaults.items():
         got = node.get_parameter(name).value
         assert (list(got) if isinstance(value, list) else got) == value, name
     for name in CONTRACT_ONLY_NAMED:
@@ -76,12 +74,12 @@ def test_parameters_declared_with_contract_defaults_and_descriptors(harness):
         assert d.description and not d.read_only, name
         if spec.kind in types:
             assert d.type == types[spec.kind], name
-        if spec.kind == DOUBLE and spec.min is not None and spec.max is not None:
+        if spec.kind == DOUBLE and spec.low is not None and spec.high is not None:
             (r,) = d.floating_point_range
-            assert (r.from_value, r.to_value) == (spec.min, spec.max), name
-        if spec.kind == INTEGER and spec.min is not None:
+            assert (r.from_value, r.to_value) == (spec.low, spec.high), name
+        if spec.kind == INTEGER and spec.low is not None:
             (r,) = d.integer_range
-            assert (r.from_value, r.to_value) == (spec.min, spec.max), name
+            assert (r.from_value, r.to_value) == (spec.low, spec.high), name
         if spec.choices:
             assert all(c in d.additional_constraints for c in spec.choices), name
     assert node.has_parameter('duration')
@@ -100,7 +98,7 @@ def test_every_kind_of_invalid_parameter_is_rejected_and_changes_nothing(harness
     node = harness.start(real_time_factor=5.0)
     assert harness.wait(lambda: node.sim_time > 0.2, 10.0)
     before = {n: node.get_parameter(n).value for n in PARAMETERS}
-    model_before = (node._sim.model_type, node._sim.u)
+    model_before = (node.simulator.model_type, node.simulator.u)
     cases = [(name, v) for name, spec in PARAMETERS.items() for v in _invalid_values(spec)]
     # Whole-configuration checks (each value valid on its own).
     cases += [('masses', [45000.0]), ('buffer_friction', 2.8e6), ('draw_gear_friction', 6.0e6),
@@ -127,15 +125,15 @@ def test_every_kind_of_invalid_parameter_is_rejected_and_changes_nothing(harness
         got = node.get_parameter(name).value
         assert (list(got) if isinstance(before[name], list) else got) == \
             (list(before[name]) if isinstance(before[name], list) else before[name]), name
-    assert (node._sim.model_type, node._sim.u) == model_before
-    assert node._pending_changes() == ''
+    assert (node.simulator.model_type, node.simulator.u) == model_before
+    assert node.pending_changes() == ''
     assert node.sim_time > t0 and node.fault is None
 
     # An empty array that breaks a pair: valid pair first, then emptying one side.
     res = node.set_parameters_atomically([Parameter('cylinder_fill_time', value=[0.0, 2.0]),
                                           Parameter('cylinder_fill_fraction', value=[0.0, 1.0])])
     assert res.successful                # accepted as pending (rclpy drops a success reason)
-    assert 'cylinder_fill_time: [] -> [0, 2]' in node._pending_changes()
+    assert 'cylinder_fill_time: [] -> [0, 2]' in node.pending_changes()
     (res,) = node.set_parameters([Parameter('cylinder_fill_fraction', value=[])])
     assert not res.successful and 'same length' in res.reason
 
@@ -148,11 +146,11 @@ def test_every_kind_of_invalid_parameter_is_rejected_and_changes_nothing(harness
     assert not results[0].successful
     results = harness.set_remote('train_dynamics', {'scale_factor': 'fast'})
     assert not results[0].successful
-    assert node._sim.u == model_before[1]
+    assert node.simulator.u == model_before[1]
     # Valid live values are taken (an integer for a double is converted).
     results = harness.set_remote('train_dynamics', {'model_type': 'sign', 'scale_factor': 200})
     assert all(r.successful for r in results)
-    assert node._sim.model_type == 'sign' and node._sim.u == 200.0
+    assert node.simulator.model_type == 'sign' and node.simulator.u == 200.0
     assert node.get_parameter('scale_factor').value == 200.0
 
 
@@ -176,16 +174,20 @@ def _offline_replay(cfg, inputs, outputs):
 
 
 def test_cylinder_inputs_over_topics_match_the_core_run_offline(harness, tmp_path):
-    """cylinder_per_coach from a test publisher: the node's couplers == TrainSimulator replayed
-    on the inputs as recorded (bag time = the step at which each one took effect)."""
+    """
+    Match the node's couplers with TrainSimulator replayed on the recorded inputs.
+
+    cylinder_per_coach from a test publisher: the node's couplers == TrainSimulator replayed
+    on the inputs as recorded (bag time = the step at which each one took effect).
+    """
     from sensor_msgs.msg import JointState
 
     from train_dynamics.recording.bags import read_topics
     from train_dynamics.physics.parameters import SimConfig
 
     bag = tmp_path / 'run'
-    params = dict(brake_input='cylinder_per_coach', real_time_factor=2.0, duration=4.0,
-                  record_bag=str(bag))
+    params = {'brake_input': 'cylinder_per_coach', 'real_time_factor': 2.0, 'duration': 4.0,
+              'record_bag': str(bag)}
     node = harness.start(**params)
     couplers = harness.collect(JointState, 'couplers')
     # Coach 2 through a best-effort publisher: both kinds connect.
@@ -235,8 +237,12 @@ def test_cylinder_inputs_over_topics_match_the_core_run_offline(harness, tmp_pat
 
 
 def test_brake_valve_emergency_over_topics(harness):
-    """brake_valve (emergency at t = 1 s on /clock) -> sim_node: brakes apply coach after coach
-    (25 m / 250 m/s = 0.1 s apart) and the couplers stay in compression while braking."""
+    """
+    Brake the train through brake_valve -> sim_node over topics.
+
+    brake_valve (emergency at t = 1 s on /clock) -> sim_node: brakes apply coach after coach
+    (25 m / 250 m/s = 0.1 s apart) and the couplers stay in compression while braking.
+    """
     from rclpy.parameter import Parameter
     from sensor_msgs.msg import JointState
 
@@ -265,8 +271,12 @@ def test_brake_valve_emergency_over_topics(harness):
 
 
 def test_live_model_switches_take_effect_with_continuous_state(harness):
-    """scale_factor and model_type change while running: the published coupler forces follow
-    the new law from the switch on, and x, v, y do not jump."""
+    """
+    Switch scale_factor and model_type while running.
+
+    The published coupler forces follow the new law from the switch on, and x, v, y do not
+    jump.
+    """
     from sensor_msgs.msg import JointState
 
     from train_dynamics.physics import couplers as C
@@ -384,3 +394,42 @@ def test_wait_for_input_holds_t0_until_a_publisher_connects(harness):
     harness.probe.destroy_publisher(pub)
     node = harness.start(wait_for_input=0.5, real_time_factor=2.0)
     assert harness.wait(lambda: node.sim_time > 0.2, 5.0)
+
+
+def test_set_callback_validates_only_and_the_post_set_callback_applies(harness):
+    """ROS 2 parameter design: the set callback has no side effects; post-set applies."""
+    from rcl_interfaces.msg import SetParametersResult
+    from rclpy.parameter import Parameter
+
+    node = harness.start(real_time_factor=2.0)
+    assert harness.wait(lambda: node.sim_time > 0.1, 10.0)
+    live = [Parameter('model_type', value='sign'), Parameter('scale_factor', value=50.0)]
+    for callback in node._on_set_parameters_callbacks:      # rclpy's list of set callbacks
+        assert callback(live).successful
+    assert (node.simulator.model_type, node.simulator.u) == ('tanh', 1000.0)   # untouched
+
+    def veto(params):
+        return SetParametersResult(successful=False, reason='vetoed')
+    node.add_on_set_parameters_callback(veto)
+    assert not node.set_parameters_atomically(live).successful
+    assert (node.simulator.model_type, node.simulator.u) == ('tanh', 1000.0)
+    node.remove_on_set_parameters_callback(veto)
+    assert node.set_parameters_atomically(live).successful
+    assert (node.simulator.model_type, node.simulator.u) == ('sign', 50.0)
+
+
+def test_duration_changes_after_the_end_resume_the_run(harness):
+    from rclpy.parameter import Parameter
+
+    node = harness.start(real_time_factor=0.0, duration=0.5)
+    assert harness.wait(lambda: node.finished, 10.0)
+    assert node.sim_time == pytest.approx(0.5)
+    (res,) = node.set_parameters([Parameter('duration', value=0.8)])
+    assert res.successful and not node.finished
+    assert harness.wait(lambda: node.finished, 10.0)
+    assert node.sim_time == pytest.approx(0.8)
+    (res,) = node.set_parameters([Parameter('duration', value=0.0)])     # 0 = forever
+    assert res.successful and not node.finished
+    assert harness.wait(lambda: node.sim_time > 1.0, 10.0)
+    (res,) = node.set_parameters([Parameter('duration', value=-1.0)])
+    assert not res.successful and 'duration' in res.reason

@@ -1,21 +1,23 @@
-"""sim_node hardening (issue 6), real rclpy and real bags: bad and flooding inputs, stale
-inputs, numerical faults, SIGINT/SIGTERM/SIGKILL during a recorded run, a long free run, rapid
-live model switching."""
+"""
+sim_node hardening (issue 6), real rclpy and real bags.
+
+Bad and flooding inputs, stale inputs, numerical faults, SIGINT/SIGTERM/SIGKILL during a
+recorded run, a long free run, rapid live model switching.
+"""
 from __future__ import annotations
 
 import os
+from pathlib import Path
 import signal
 import subprocess
 import sys
 import threading
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from test_sim_node_support import (all_finite, diag_values, fluid, joint_arrays,
-                                   stamp_s)
+from sim_node_helpers import all_finite, diag_values, fluid, joint_arrays, stamp_s
 
 ATM = 101325.0
 SIM = 'train_dynamics: simulation'
@@ -23,7 +25,7 @@ INPUT = 'train_dynamics: brake input'
 REPO = Path(__file__).resolve().parents[1]
 
 
-FLOODER = r'''
+FLOODER = r"""
 import sys, time, rclpy
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure
@@ -45,7 +47,7 @@ while time.monotonic() < end:
 print(n, flush=True)
 node.destroy_node()
 rclpy.try_shutdown()
-'''
+"""
 
 
 def test_bad_inputs_are_rejected_counted_and_a_flood_does_not_slow_the_node(harness, capfd):
@@ -298,8 +300,11 @@ def _rss_mb() -> float:
 
 
 def test_long_free_run_memory_flat_stamps_monotonic_exact_counts(harness, tmp_path):
-    """Shortened soak (the hour is in bench/soak): 30 coaches as fast as possible for 120 s of
-    simulated time, recorded."""
+    """
+    Run a shortened soak (the hour is in bench/soak).
+
+    30 coaches as fast as possible for 120 s of simulated time, recorded.
+    """
     from train_dynamics.recording.bags import bag_info, read_topics
 
     duration = 120.0
@@ -345,7 +350,7 @@ def test_rapid_live_model_switching_keeps_the_state_continuous(harness):
         assert res.successful
         harness.spin_for(0.005)
     harness.spin_for(0.2)
-    assert (node._sim.model_type, node._sim.u) == (model, u)
+    assert (node.simulator.model_type, node.simulator.u) == (model, u)
     assert node.fault is None
     t, x, v, fb = joint_arrays(coaches)
     assert all_finite(x, v, fb) and np.all(np.diff(t) > 0) and t[-1] > 2.0

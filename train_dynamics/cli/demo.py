@@ -1,4 +1,5 @@
-"""``make run``: the paper's emergency braking through the real ROS 2 nodes.
+"""
+``make run``: the paper's emergency braking through the real ROS 2 nodes.
 
     python -m train_dynamics.cli.demo [--rtf 1.0] [--duration 60] [--out out] [--no-plot]
 
@@ -17,21 +18,24 @@ seconds (60 s: the train stops after about 50 s); the demo then draws the paper'
 from __future__ import annotations
 
 import argparse
+from datetime import datetime
 import os
+from pathlib import Path
 import random
+import selectors
 import signal
 import subprocess
 import sys
+import threading
 import time
-from datetime import datetime
-from pathlib import Path
 
 PARAM_FILE = 'paper_3coach.yaml'
 
 
 def param_file() -> Path:
-    """config/paper_3coach.yaml: from the installed package share, else from the source tree."""
+    """Return config/paper_3coach.yaml: from the installed package share, else the source tree."""
     try:
+        # only a colcon install has an ament index; the source tree works without it
         from ament_index_python.packages import get_package_share_directory
 
         path = Path(get_package_share_directory('train_dynamics')) / 'config' / PARAM_FILE
@@ -62,8 +66,6 @@ def _stop(proc: subprocess.Popen, timeout: float = 10.0) -> int | None:
 
 def _wait_for_line(proc: subprocess.Popen, needle: str, timeout: float) -> bool:
     """Echo the process's stderr until a line contains ``needle``; False on timeout/exit."""
-    import selectors
-
     sel = selectors.DefaultSelector()
     sel.register(proc.stderr, selectors.EVENT_READ)
     end = time.monotonic() + timeout
@@ -86,18 +88,17 @@ def _wait_for_line(proc: subprocess.Popen, needle: str, timeout: float) -> bool:
 
 def _pump(proc: subprocess.Popen) -> None:
     """Forward the rest of a process's stderr (a daemon thread)."""
-    import threading
-
     def run():
         for line in proc.stderr:
             sys.stderr.write(line)
     threading.Thread(target=run, daemon=True).start()
 
 
-def main(argv: list[str] | None = None) -> int:
+def _arguments(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(prog='python -m train_dynamics.cli.demo',
-                                 description='The paper\'s emergency braking through sim_node and '
-                                             'brake_valve (DDS on loopback), recorded and plotted.')
+                                 description="The paper's emergency braking through sim_node "
+                                             'and brake_valve (DDS on loopback), recorded and '
+                                             'plotted.')
     ap.add_argument('--rtf', type=float, default=1.0,
                     help='real_time_factor of sim_node (default 1: real time; 0: as fast as '
                          'possible)')
@@ -110,35 +111,27 @@ def main(argv: list[str] | None = None) -> int:
     args = ap.parse_args(argv)
     if not args.rtf >= 0.0 or not args.duration > 0.0:
         ap.error('--rtf must be >= 0 and --duration > 0')
+    return args
 
-    params = Path(args.params) if args.params else param_file()
-    if not params.is_file():
-        print(f'run_demo: parameter file not found: {params}', file=sys.stderr)
-        return 2
-    run_dir = Path(args.out) / f'run_{datetime.now():%Y%m%d_%H%M%S}'
+
+def _run_dir(out: str) -> Path:
+    """Create and return ``<out>/run_<timestamp>[_k]``."""
+    run_dir = Path(out) / f'run_{datetime.now():%Y%m%d_%H%M%S}'
     k = 1
     while run_dir.exists():
-        run_dir = Path(args.out) / f'run_{datetime.now():%Y%m%d_%H%M%S}_{k}'
+        run_dir = Path(out) / f'run_{datetime.now():%Y%m%d_%H%M%S}_{k}'
         k += 1
     run_dir.mkdir(parents=True)
-    bag = run_dir / 'bag'
-    plots = run_dir / 'plots'
+    return run_dir
 
-    env = dict(os.environ)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'     # never discover beyond this host
-    env.setdefault('ROS_DOMAIN_ID', str(random.randint(70, 100)))
-    env.setdefault('PYTHONUNBUFFERED', '1')
-    print(f'run_demo: ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, discovery on localhost only; '
-          f'parameters {params}', flush=True)
 
-    valve_cmd = _node_cmd('ros.brake_valve_node', ['--params-file', str(params),
-                                          '-p', 'use_sim_time:=true'])
-    sim_cmd = _node_cmd('ros.sim_node', ['--params-file', str(params),
-                                     '-p', f'record_bag:={bag}',
-                                     '-p', f'real_time_factor:={float(args.rtf)!r}',
-                                     '-p', f'duration:={float(args.duration)!r}',
-                                     '-p', 'publish_clock:=true',
-                                     '-p', 'wait_for_input:=30.0'])
+def _run_nodes(valve_cmd: list[str], sim_cmd: list[str], env: dict,
+               args: argparse.Namespace) -> tuple[int, bool, bool]:
+    """
+    Start the valve, then the simulator; wait for the simulator; stop both.
+
+    Return (exit status, interrupted, whether the simulator was started).
+    """
     valve = sim = None
     interrupted = False
     code = 0
@@ -146,7 +139,7 @@ def main(argv: list[str] | None = None) -> int:
         valve = subprocess.Popen(valve_cmd, env=env, stderr=subprocess.PIPE, text=True)
         if not _wait_for_line(valve, 'brake valve:', 60.0):
             print('run_demo: brake_valve did not start', file=sys.stderr)
-            return 1
+            return 1, False, False
         _pump(valve)
         sim = subprocess.Popen(sim_cmd, env=env, stderr=subprocess.PIPE, text=True)
         if not _wait_for_line(sim, 'started:', 60.0):
@@ -168,24 +161,59 @@ def main(argv: list[str] | None = None) -> int:
         for proc in (sim, valve):
             if proc is not None:
                 _stop(proc)
-    if sim is None:
+    return code, interrupted, sim is not None
+
+
+def _plot(bag: Path, plots: Path) -> int:
+    """Draw the paper's figures of ``bag`` into ``plots``; return 1 if that failed."""
+    try:
+        # optional and heavy (matplotlib): only when plotting
+        from train_dynamics.recording.plots import plot_bag
+    except ImportError:
+        print('plots: train_dynamics.recording.plots is not available')
+        return 0
+    try:
+        paths = plot_bag(bag, plots, title='Emergency braking (sim_node + brake_valve)')
+    except Exception as exc:  # noqa: BLE001 - the run itself succeeded
+        print(f'plots: failed: {exc}', file=sys.stderr)
+        return 1
+    print(f'plots: {plots.resolve()}')
+    for p in paths:
+        print(f'       {Path(p).name}')
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the demo; return the exit status (130 after Ctrl-C)."""
+    args = _arguments(argv)
+    params = Path(args.params) if args.params else param_file()
+    if not params.is_file():
+        print(f'run_demo: parameter file not found: {params}', file=sys.stderr)
+        return 2
+    run_dir = _run_dir(args.out)
+    bag = run_dir / 'bag'
+
+    env = dict(os.environ)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'     # never discover beyond this host
+    env.setdefault('ROS_DOMAIN_ID', str(random.randint(70, 100)))
+    env.setdefault('PYTHONUNBUFFERED', '1')
+    print(f'run_demo: ROS_DOMAIN_ID={env["ROS_DOMAIN_ID"]}, discovery on localhost only; '
+          f'parameters {params}', flush=True)
+
+    valve_cmd = _node_cmd('ros.brake_valve_node',
+                          ['--params-file', str(params), '-p', 'use_sim_time:=true'])
+    sim_cmd = _node_cmd('ros.sim_node',
+                        ['--params-file', str(params), '-p', f'record_bag:={bag}',
+                         '-p', f'real_time_factor:={float(args.rtf)!r}',
+                         '-p', f'duration:={float(args.duration)!r}',
+                         '-p', 'publish_clock:=true', '-p', 'wait_for_input:=30.0'])
+    code, interrupted, started = _run_nodes(valve_cmd, sim_cmd, env, args)
+    if not started:
         return code or 1
 
     print(f'\nbag:   {bag.resolve()}')
     if bag.exists() and not args.no_plot:
-        try:
-            from train_dynamics.recording.plots import plot_bag
-        except ImportError:
-            print('plots: train_dynamics.recording.plots is not available')
-        else:
-            try:
-                paths = plot_bag(bag, plots, title='Emergency braking (sim_node + brake_valve)')
-                print(f'plots: {plots.resolve()}')
-                for p in paths:
-                    print(f'       {Path(p).name}')
-            except Exception as exc:  # noqa: BLE001 - the run itself succeeded
-                print(f'plots: failed: {exc}', file=sys.stderr)
-                code = code or 1
+        code = code or _plot(bag, run_dir / 'plots')
     print(f'\nReplay offline: train-dynamics simulate --params {params} --input {bag} '
           f'--duration {args.duration:g} --output {run_dir / "offline"}')
     return 130 if interrupted else code

@@ -1,4 +1,5 @@
-"""The driver's brake valve, without ROS: handle positions, schedule and pressure rates.
+"""
+The driver's brake valve, without ROS: handle positions, schedule and pressure rates.
 
 The valve sets the brake-pipe pressure at the head of the train. Its handle selects a target
 GAUGE pressure [Pa]; the output moves toward that target at a limited rate (a real valve
@@ -29,52 +30,63 @@ parameter file builds the head-pipe pressure when there is no input bag). Never 
 from __future__ import annotations
 
 import copy
-import math
 from dataclasses import dataclass
+import math
 from typing import Any, Iterable, Mapping
 
-#: Defaults of the model parameters (gauge pressures [Pa], rates [Pa/s]).
-DEFAULTS: dict[str, Any] = {
-    'position': 'release',
-    'schedule': [],
-    'pipe_nominal_pressure': 500000.0,   # 5 bar running pressure (UIC)
-    'full_service_pressure': 350000.0,   # 3.5 bar full service (UIC)
-    'first_service_drop': 50000.0,       # 0.5 bar: first stage of a service application
-    'service_steps': 7,                  # graduated steps service_1 .. service_7 (= full service)
-    'service_rate': 27000.0,             # 5 -> 3.5 bar in 5.6 s
-    'emergency_rate': 400000.0,          # 5 -> 0 bar in 1.25 s
-    'release_rate': 50000.0,             # charging 0.5 bar/s: 3.5 -> 5 bar in 3 s
-}
+from train_dynamics.physics.parameters import (
+    ATMOSPHERIC_PRESSURE, DOUBLE, FULL_SERVICE_PRESSURE, INTEGER, ParamSpec,
+    PIPE_NOMINAL_PRESSURE, read_param_file, ROS_BUILTIN_PARAMETERS, STRING, STRING_ARRAY,
+    validate_value)
 
-#: One-line descriptions (with units) of the model parameters, for the node's descriptors.
-DESCRIPTIONS: dict[str, str] = {
-    'position': 'Handle position: release (alias running), service_1..service_N, full_service '
-                'or emergency. Setting it moves the handle now and cancels the rest of the schedule.',
-    'schedule': 'Handle schedule, "TIME:POSITION" strings, TIME [s] strictly increasing, counted '
-                'from node start (or from the moment the schedule is set live).',
-    'pipe_nominal_pressure': 'Brake-pipe running pressure (release position), gauge [Pa].',
-    'full_service_pressure': 'Brake-pipe pressure at full service, gauge [Pa].',
-    'first_service_drop': 'Pipe-pressure drop of the first service step service_1 [Pa].',
-    'service_steps': 'Number N of graduated service positions service_1..service_N; the last '
-                     'one equals full service.',
-    'service_rate': 'Rate at which a service application lowers the pipe pressure [Pa/s].',
-    'emergency_rate': 'Rate at which the emergency position vents the pipe [Pa/s].',
-    'release_rate': 'Rate at which the pipe is recharged toward a higher target [Pa/s].',
-}
+#: The valve model's parameters (gauge pressures [Pa], rates [Pa/s]); all change live.
+VALVE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
+    ParamSpec('position', 'release', STRING,
+              'Handle position: release (alias running), service_1..service_N, full_service '
+              'or emergency. Setting it moves the handle now and cancels the rest of the '
+              'schedule.', dynamic=True),
+    ParamSpec('schedule', [], STRING_ARRAY,
+              'Handle schedule, "TIME:POSITION" strings, TIME [s] strictly increasing, counted '
+              'from node start (or from the moment the schedule is set live).', dynamic=True),
+    ParamSpec('pipe_nominal_pressure', PIPE_NOMINAL_PRESSURE, DOUBLE,
+              'Brake-pipe running pressure (release position), gauge [Pa].',
+              low=1.0e5, high=1.0e6, dynamic=True),
+    ParamSpec('full_service_pressure', FULL_SERVICE_PRESSURE, DOUBLE,
+              'Brake-pipe pressure at full service, gauge [Pa].',
+              low=0.0, high=1.0e6, dynamic=True),
+    ParamSpec('first_service_drop', 50000.0, DOUBLE,        # 0.5 bar: the distributors' 1st stage
+              'Pipe-pressure drop of the first service step service_1 [Pa].',
+              low=1.0e3, high=1.0e6, dynamic=True),
+    ParamSpec('service_steps', 7, INTEGER,                  # service_1 .. service_7 = full
+              'Number N of graduated service positions service_1..service_N; the last '
+              'one equals full service.', low=1, high=50, dynamic=True),
+    ParamSpec('service_rate', 27000.0, DOUBLE,              # 5 -> 3.5 bar in 5.6 s
+              'Rate at which a service application lowers the pipe pressure [Pa/s].',
+              low=1.0, high=1.0e8, dynamic=True),
+    ParamSpec('emergency_rate', 400000.0, DOUBLE,           # 5 -> 0 bar in 1.25 s
+              'Rate at which the emergency position vents the pipe [Pa/s].',
+              low=1.0, high=1.0e8, dynamic=True),
+    ParamSpec('release_rate', 50000.0, DOUBLE,              # 0.5 bar/s: 3.5 -> 5 bar in 3 s
+              'Rate at which the pipe is recharged toward a higher target [Pa/s].',
+              low=1.0, high=1.0e8, dynamic=True),
+]}
 
-#: Inclusive ranges of the numeric model parameters (lower bound exclusive for rates).
-RANGES: dict[str, tuple[float, float]] = {
-    'pipe_nominal_pressure': (1.0e5, 1.0e6),
-    'full_service_pressure': (0.0, 1.0e6),
-    'first_service_drop': (1.0e3, 1.0e6),
-    'service_steps': (1, 50),
-    'service_rate': (1.0, 1.0e8),
-    'emergency_rate': (1.0, 1.0e8),
-    'release_rate': (1.0, 1.0e8),
-}
+#: Parameters of the ``brake_valve`` node beyond the model's (all change live).
+VALVE_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
+    ParamSpec('publish_rate', 50.0, DOUBLE,
+              'Publishing rate of brake_pipe/pressure [Hz] (node clock).',
+              low=0.1, high=1000.0, dynamic=True),
+    ParamSpec('atmospheric_pressure', ATMOSPHERIC_PRESSURE, DOUBLE,
+              'Atmospheric pressure [Pa]: published absolute pressure = gauge + '
+              'atmospheric_pressure.', low=50000.0, high=150000.0, dynamic=True),
+]}
 
+#: The numeric settings of the model (validated together by :func:`validate_settings`).
 SETTING_NAMES = ('pipe_nominal_pressure', 'full_service_pressure', 'first_service_drop',
                  'service_steps', 'service_rate', 'emergency_rate', 'release_rate')
+
+#: Parameters of the ``brake_valve`` node that are not model settings.
+NODE_ONLY_PARAMETERS = frozenset({*VALVE_NODE_PARAMETERS, 'frame_id', *ROS_BUILTIN_PARAMETERS})
 
 
 @dataclass(frozen=True)
@@ -85,42 +97,25 @@ class ScheduleEntry:
     position: str
 
 
-def _number(name: str, value: Any) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ValueError(f'{name}: expected a number, got {type(value).__name__} {value!r}')
-    value = float(value)
-    if not math.isfinite(value):
-        raise ValueError(f'{name}: must be finite, got {value}')
-    lo, hi = RANGES[name]
-    if not lo <= value <= hi:
-        raise ValueError(f'{name}: must be in [{lo:g}, {hi:g}], got {value:g}')
-    return value
-
-
 def validate_settings(settings: Mapping[str, Any]) -> dict[str, Any]:
-    """Check the numeric settings (all of :data:`SETTING_NAMES`) together; return them normalised.
-
-    Raises ``ValueError`` with a one-line reason.
     """
-    out: dict[str, Any] = {}
-    for name in SETTING_NAMES:
-        value = settings.get(name, DEFAULTS[name])
-        if name == 'service_steps':
-            if isinstance(value, bool) or not isinstance(value, int):
-                raise ValueError(f'service_steps: expected an integer, got {value!r}')
-            lo, hi = RANGES[name]
-            if not lo <= value <= hi:
-                raise ValueError(f'service_steps: must be in [{lo}, {hi}], got {value}')
-            out[name] = int(value)
-        else:
-            out[name] = _number(name, value)
+    Check the numeric settings (all of :data:`SETTING_NAMES`) together; return them normalised.
+
+    Missing ones take their defaults. Raises ``ValueError`` with a one-line reason.
+    """
+    out: dict[str, Any] = {
+        name: validate_value(name, settings.get(name, VALVE_PARAMETERS[name].default),
+                             VALVE_PARAMETERS)
+        for name in SETTING_NAMES}
     full_drop = out['pipe_nominal_pressure'] - out['full_service_pressure']
     if not full_drop > 0.0:
         raise ValueError('full_service_pressure must be below pipe_nominal_pressure '
-                         f'({out["full_service_pressure"]:g} >= {out["pipe_nominal_pressure"]:g})')
+                         f'({out["full_service_pressure"]:g} >= '
+                         f'{out["pipe_nominal_pressure"]:g})')
     if not out['first_service_drop'] <= full_drop:
-        raise ValueError(f'first_service_drop ({out["first_service_drop"]:g} Pa) must not exceed '
-                         f'pipe_nominal_pressure - full_service_pressure ({full_drop:g} Pa)')
+        raise ValueError(f'first_service_drop ({out["first_service_drop"]:g} Pa) must not '
+                         'exceed pipe_nominal_pressure - full_service_pressure '
+                         f'({full_drop:g} Pa)')
     return out
 
 
@@ -155,13 +150,15 @@ def target_pressure(position: str, settings: Mapping[str, Any]) -> float:
 def validate_position(position: Any, settings: Mapping[str, Any]) -> str:
     """Return ``position`` if it is a valid handle position, else raise ``ValueError``."""
     if not isinstance(position, str):
-        raise ValueError(f'position: expected a string, got {type(position).__name__} {position!r}')
+        raise ValueError(f'position: expected a string, got {type(position).__name__} '
+                         f'{position!r}')
     target_pressure(position, settings)
     return position
 
 
 def parse_schedule(entries: Any, settings: Mapping[str, Any] | None = None) -> list[ScheduleEntry]:
-    """Parse ``["0.0:release", "1.0:emergency", ...]`` into :class:`ScheduleEntry` items.
+    """
+    Parse ``["0.0:release", "1.0:emergency", ...]`` into :class:`ScheduleEntry` items.
 
     Times [s] must be finite, >= 0 and strictly increasing; positions valid for ``settings``
     (defaults if None). Raises ``ValueError`` naming the bad entry.
@@ -178,7 +175,8 @@ def parse_schedule(entries: Any, settings: Mapping[str, Any] | None = None) -> l
         try:
             t = float(time_text)
         except ValueError:
-            raise ValueError(f'schedule[{k}] {item!r}: time {time_text!r} is not a number') from None
+            raise ValueError(
+                f'schedule[{k}] {item!r}: time {time_text!r} is not a number') from None
         if not math.isfinite(t) or t < 0.0:
             raise ValueError(f'schedule[{k}] {item!r}: time must be finite and >= 0')
         if out and not t > out[-1].time:
@@ -193,7 +191,8 @@ def parse_schedule(entries: Any, settings: Mapping[str, Any] | None = None) -> l
 
 
 class BrakeValveModel:
-    """Driver's brake valve: handle position and schedule -> head brake-pipe pressure (gauge Pa).
+    """
+    Driver's brake valve: handle position and schedule -> head brake-pipe pressure (gauge Pa).
 
     >>> m = BrakeValveModel(schedule=['1.0:emergency'])
     >>> m.advance_to(1.0), m.position          # vented from t = 1 s
@@ -202,7 +201,7 @@ class BrakeValveModel:
     300000.0
     """
 
-    def __init__(self, position: str = DEFAULTS['position'],
+    def __init__(self, position: str = VALVE_PARAMETERS['position'].default,
                  schedule: Iterable[str] | Iterable[ScheduleEntry] = (),
                  **settings: Any) -> None:
         unknown = set(settings) - set(SETTING_NAMES)
@@ -216,7 +215,8 @@ class BrakeValveModel:
     # -- construction ------------------------------------------------------------------
     @classmethod
     def from_params(cls, params: Mapping[str, Any], *, strict: bool = False) -> 'BrakeValveModel':
-        """Build from a ``ros__parameters`` mapping (e.g. the ``brake_valve`` section of a file).
+        """
+        Build from a ``ros__parameters`` mapping (e.g. the ``brake_valve`` section of a file).
 
         Keys of the node that do not concern the model (``publish_rate``,
         ``atmospheric_pressure``, ``use_sim_time``, ...) are ignored; other unknown keys too
@@ -236,8 +236,6 @@ class BrakeValveModel:
     @classmethod
     def from_param_file(cls, path: str, node_name: str = 'brake_valve') -> 'BrakeValveModel':
         """Build from the ``node_name`` section of a ROS 2 parameter file ({} -> defaults)."""
-        from train_dynamics.physics.parameters import read_param_file
-
         try:
             return cls.from_params(read_param_file(path, node_name))
         except ValueError as exc:
@@ -263,13 +261,14 @@ class BrakeValveModel:
 
     @property
     def schedule(self) -> list[ScheduleEntry]:
-        """The schedule as set (times relative to when it was set)."""
+        """Return the schedule as set (times relative to when it was set)."""
         return list(self._entries)
 
     @property
     def pending(self) -> list[ScheduleEntry]:
         """Schedule entries not yet applied, with ABSOLUTE model times [s]."""
-        return [ScheduleEntry(self._origin + e.time, e.position) for e in self._entries[self._next:]]
+        return [ScheduleEntry(self._origin + e.time, e.position)
+                for e in self._entries[self._next:]]
 
     @property
     def target(self) -> float:
@@ -277,7 +276,7 @@ class BrakeValveModel:
         return target_pressure(self.position, self.settings)
 
     def positions(self) -> list[str]:
-        """Valid handle positions with the current ``service_steps``."""
+        """Return the valid handle positions with the current ``service_steps``."""
         return position_names(self.settings['service_steps'])
 
     def target_of(self, position: str) -> float:
@@ -304,7 +303,7 @@ class BrakeValveModel:
         self._apply_due_events()
 
     def update_settings(self, **changes: Any) -> None:
-        """Change numeric settings (validated together; the handle and schedule must stay valid)."""
+        """Change numeric settings (validated together; handle and schedule must stay valid)."""
         merged = dict(self.settings)
         merged.update(changes)
         check_live_change(self, changes)
@@ -324,13 +323,15 @@ class BrakeValveModel:
         target = self.target
         p = self.pressure
         if p > target:
-            rate = self.settings['emergency_rate' if self.position == 'emergency' else 'service_rate']
+            key = 'emergency_rate' if self.position == 'emergency' else 'service_rate'
+            rate = self.settings[key]
             self.pressure = max(target, p - rate * dt)
         elif p < target:
             self.pressure = min(target, p + self.settings['release_rate'] * dt)
 
     def advance_to(self, t: float) -> float:
-        """Run the valve to time ``t`` [s] (>= ``self.t``); return the gauge pressure [Pa].
+        """
+        Run the valve to time ``t`` [s] (>= ``self.t``); return the gauge pressure [Pa].
 
         A ``t`` earlier than ``self.t`` changes nothing (time never runs backwards here; call
         :meth:`reset` to start over).
@@ -358,7 +359,8 @@ class BrakeValveModel:
         return self.advance_to(self.t + dt)
 
     def pressure_at(self, t: float) -> float:
-        """Gauge pressure [Pa] at time ``t`` following the schedule from t = 0.
+        """
+        Gauge pressure [Pa] at time ``t`` following the schedule from t = 0.
 
         Stateless: replays a copy of the valve from :meth:`reset` (live changes made so far are
         part of its initial position/schedule); ``self`` is not modified.
@@ -374,14 +376,10 @@ class BrakeValveModel:
         return [clone.advance_to(t) for t in times]
 
 
-#: Parameters of the ``brake_valve`` node that are not model settings.
-NODE_ONLY_PARAMETERS = frozenset({'publish_rate', 'atmospheric_pressure', 'frame_id',
-                                  'use_sim_time', 'start_type_description_service'})
-
-
 def check_live_change(model: BrakeValveModel, changes: Mapping[str, Any], *,
                       check_pending: bool = True) -> None:
-    """Raise ``ValueError`` if ``changes`` to the settings would make the valve inconsistent.
+    """
+    Raise ``ValueError`` if ``changes`` to the settings would make the valve inconsistent.
 
     The current handle position and every pending schedule entry must stay valid (e.g.
     lowering ``service_steps`` below a position in use is refused).

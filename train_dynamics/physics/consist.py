@@ -32,7 +32,7 @@ import sys
 from typing import Any
 
 import numpy as np
-from train_dynamics.physics.parameters import (_ros_yaml_loader, ConfigError, PARAMETERS,
+from train_dynamics.physics.parameters import (_RosParamLoader, ConfigError, PARAMETERS,
                                                validate_value)
 import yaml
 
@@ -91,7 +91,7 @@ def resolve_path(name: str, base_dir: str | None = None) -> Path:
 def _read_yaml(path: Path) -> Any:
     try:
         with open(path, encoding='utf-8') as fh:
-            return yaml.load(fh, Loader=_ros_yaml_loader())
+            return yaml.load(fh, Loader=_RosParamLoader)
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise ConfigError(f'cannot read {path}: {exc}'.splitlines()[0]) from None
 

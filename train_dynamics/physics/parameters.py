@@ -1,18 +1,26 @@
-"""Simulation parameters: one table shared by ``sim_node`` and the offline command.
+"""
+Parameters: one description format (:class:`ParamSpec`) and one validator for every parameter.
 
-Every parameter of the product contract (``shared/interface.md``) is declared here once,
-with its default, type, unit, range and whether it may change while the simulation runs.
-The node declares its ROS parameters from :data:`PARAMETERS` and validates ``ros2 param
-set`` with :func:`validate_value`; the offline command reads the same ROS 2 parameter file
-with :func:`load_param_file`. Pressures in parameters are GAUGE pressures [Pa].
+The simulator's table :data:`PARAMETERS` (every parameter of the product contract, declared
+once with its default, type, unit, range and whether it may change while the simulation runs)
+is shared by ``sim_node`` and the offline command; :data:`SIM_NODE_PARAMETERS` are the
+node's own (not part of the simulator configuration). The brake valve describes its
+parameters in the same format (:mod:`train_dynamics.physics.brake_valve`). The nodes build
+their ROS parameter descriptors from these tables (``train_dynamics.ros.parameters``) and
+check every value with :func:`validate_value`; the offline command reads the same ROS 2
+parameter file with :func:`load_param_file`. Pressures in parameters are GAUGE pressures [Pa],
+except :data:`ATMOSPHERIC_PRESSURE`.
 
 This module never imports rclpy.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
-from typing import Any
+import math
+import re
+from typing import Any, Mapping
+
+import yaml
 
 # Kinds of value, named after the ROS 2 parameter types they map to.
 DOUBLE = 'double'
@@ -20,22 +28,33 @@ INTEGER = 'integer'
 STRING = 'string'
 BOOL = 'bool'
 DOUBLE_ARRAY = 'double_array'
+STRING_ARRAY = 'string_array'
+ARRAY_KINDS = (DOUBLE_ARRAY, STRING_ARRAY)
+
+# Pressure defaults, written once (used by the simulator and the brake valve).
+ATMOSPHERIC_PRESSURE = 101325.0    # [Pa absolute]: FluidPressure (absolute) = gauge + this
+PIPE_NOMINAL_PRESSURE = 500000.0   # [Pa gauge] brake-pipe running pressure (UIC: 5 bar)
+FULL_SERVICE_PRESSURE = 350000.0   # [Pa gauge] brake pipe at full service (UIC: 3.5 bar)
 
 
 @dataclass(frozen=True)
 class ParamSpec:
-    """Declaration of one parameter: what ``ros2 param describe`` shows."""
+    """
+    Declaration of one parameter: what ``ros2 param describe`` shows.
+
+    ``dynamic``: the value may change while the node runs and acts at once; otherwise it is
+    structural (``sim_node`` keeps it pending until the ``reset`` service).
+    """
 
     name: str
     default: Any
     kind: str
     description: str
-    min: float | None = None          # inclusive unless min_exclusive
-    max: float | None = None
-    min_exclusive: bool = False
+    low: float | None = None          # lower bound, inclusive unless low_exclusive
+    high: float | None = None         # upper bound, inclusive
+    low_exclusive: bool = False
     choices: tuple[str, ...] = ()
-    dynamic: bool = False             # may change while running without a reset
-    structural: bool = True           # takes effect through the `reset` service
+    dynamic: bool = False
 
 
 # Quick-acting passenger (UIC "P") brake: cylinder filling and release characteristics,
@@ -46,7 +65,8 @@ class ParamSpec:
 P_FILL_TIME = [0.0, 0.3, 0.6, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0]
 P_FILL_FRACTION = [0.0, 0.16, 0.28, 0.41, 0.55, 0.66, 0.75, 0.83, 0.90, 0.95, 0.99, 1.0]
 P_RELEASE_TIME = [0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 17.0, 20.0, 24.0, 28.0]
-P_RELEASE_FRACTION = [1.0, 0.768, 0.589, 0.452, 0.347, 0.267, 0.205, 0.157, 0.105, 0.07, 0.03, 0.0]
+P_RELEASE_FRACTION = [1.0, 0.768, 0.589, 0.452, 0.347, 0.267, 0.205, 0.157, 0.105, 0.07, 0.03,
+                      0.0]
 # Goods (UIC "G") brake: the same shapes stretched to 95 % filling in 24 s (UIC: 18-30 s)
 # and release to 0.4 bar in 52 s (UIC: 45-60 s).
 G_FILL_TIME = [round(t * 6.0, 3) for t in P_FILL_TIME]
@@ -56,62 +76,64 @@ _PARAMS = [
     ParamSpec('model_type', 'tanh', STRING,
               'Coupler friction law: "tanh" uses tanh(u*ydot) (paper eqs. 14-16), '
               '"sign" uses sgn(ydot) (paper eqs. 2-3).',
-              choices=('tanh', 'sign'), dynamic=True, structural=False),
+              choices=('tanh', 'sign'), dynamic=True),
     ParamSpec('scale_factor', 1000.0, DOUBLE,
               'u in tanh(u*ydot) [s/m], > 0 (paper eq. 14).',
-              min=0.0, max=1.0e7, min_exclusive=True, dynamic=True, structural=False),
+              low=0.0, high=1.0e7, low_exclusive=True, dynamic=True),
     ParamSpec('num_coaches', 3, INTEGER, 'Number of coaches N >= 2 (ignored when masses is set).',
-              min=2, max=100000),
+              low=2, high=100000),
     ParamSpec('coach_mass', 45000.0, DOUBLE, 'Mass of every coach m_i [kg], unless masses is set.',
-              min=0.0, max=1.0e7, min_exclusive=True),
+              low=0.0, high=1.0e7, low_exclusive=True),
     ParamSpec('masses', [], DOUBLE_ARRAY,
-              'Per-coach masses [kg], front to rear; non-empty overrides num_coaches and coach_mass.',
-              min=0.0, max=1.0e7, min_exclusive=True),
+              'Per-coach masses [kg], front to rear; non-empty overrides num_coaches and '
+              'coach_mass.',
+              low=0.0, high=1.0e7, low_exclusive=True),
     ParamSpec('coach_length', 25.0, DOUBLE, 'Coach length [m]: brake-pipe length per coach.',
-              min=0.0, max=1000.0, min_exclusive=True),
+              low=0.0, high=1000.0, low_exclusive=True),
     ParamSpec('buffer_stiffness', 2.8e6, DOUBLE, 'Buffer stiffness k_e [N/m] (paper eq. 2).',
-              min=0.0, max=1.0e12, min_exclusive=True),
+              low=0.0, high=1.0e12, low_exclusive=True),
     ParamSpec('buffer_friction', 1.4e6, DOUBLE,
               'Buffer friction constant k_f [N/m] (paper eq. 2), 0 <= k_f < k_e.',
-              min=0.0, max=1.0e12),
-    ParamSpec('draw_gear_stiffness', 5.46e6, DOUBLE, 'Draw-gear stiffness k_ec [N/m] (paper eq. 3).',
-              min=0.0, max=1.0e12, min_exclusive=True),
+              low=0.0, high=1.0e12),
+    ParamSpec('draw_gear_stiffness', 5.46e6, DOUBLE,
+              'Draw-gear stiffness k_ec [N/m] (paper eq. 3).',
+              low=0.0, high=1.0e12, low_exclusive=True),
     ParamSpec('draw_gear_friction', 2.43e6, DOUBLE,
               'Draw-gear friction constant k_fc [N/m] (paper eq. 3), 0 <= k_fc < k_ec.',
-              min=0.0, max=1.0e12),
+              low=0.0, high=1.0e12),
     ParamSpec('adhesion_coefficient', 0.1, DOUBLE,
               'Wheel-rail adhesion coefficient mu_a (paper eqs. 12-13): full braking force '
-              'is mu_a*m*g per coach.', min=0.0, max=1.0, min_exclusive=True),
+              'is mu_a*m*g per coach.', low=0.0, high=1.0, low_exclusive=True),
     ParamSpec('gravity', 9.81, DOUBLE, 'Gravitational acceleration g [m/s^2].',
-              min=0.0, max=100.0, min_exclusive=True),
+              low=0.0, high=100.0, low_exclusive=True),
     ParamSpec('max_cylinder_pressure', 380000.0, DOUBLE,
               'Maximum brake-cylinder pressure p_max, gauge [Pa] (paper eq. 13).',
-              min=0.0, max=2.0e6, min_exclusive=True),
+              low=0.0, high=2.0e6, low_exclusive=True),
     ParamSpec('initial_speed', 44.444, DOUBLE, 'Initial speed of every coach v_i(0) [m/s].',
-              min=0.0, max=200.0),
+              low=0.0, high=200.0),
     ParamSpec('brake_input', 'pipe_head', STRING,
               'Which input drives the brakes: pipe_head, pipe_per_coach or cylinder_per_coach.',
               choices=('pipe_head', 'pipe_per_coach', 'cylinder_per_coach')),
     ParamSpec('brake_propagation_speed', 250.0, DOUBLE,
               'Brake-wave propagation speed along the pipe [m/s].',
-              min=0.0, max=1.0e5, min_exclusive=True),
+              low=0.0, high=1.0e5, low_exclusive=True),
     ParamSpec('integration_step', 2.0e-3, DOUBLE,
               'Fixed integrator step [s] (ROS2, L-stable Rosenbrock): 2 ms keeps the peak '
               'coupler force within 0.35 % of a tight reference at u = 1e3 for 3 to 1000 '
-              'coaches (0.07 % on the paper\'s 3); 5 ms is ~2x faster, within 0.7 %.',
-              min=1.0e-6, max=0.05),
+              "coaches (0.07 % on the paper's 3); 5 ms is ~2x faster, within 0.7 %.",
+              low=1.0e-6, high=0.05),
     ParamSpec('publish_rate', 100.0, DOUBLE, 'Output rate [Hz] in simulation time.',
-              min=0.0, max=10000.0, min_exclusive=True),
+              low=0.0, high=10000.0, low_exclusive=True),
     ParamSpec('real_time_factor', 1.0, DOUBLE,
               'Simulation seconds per wall second; 0 = as fast as possible.',
-              min=0.0, max=1000.0, dynamic=True, structural=False),
+              low=0.0, high=1000.0, dynamic=True),
     ParamSpec('publish_clock', False, BOOL, 'Publish /clock with the simulation time.',
-              dynamic=True, structural=False),
+              dynamic=True),
     ParamSpec('record_bag', '', STRING,
               'When set, a path: record inputs and outputs to a rosbag2 (MCAP).'),
-    ParamSpec('atmospheric_pressure', 101325.0, DOUBLE,
+    ParamSpec('atmospheric_pressure', ATMOSPHERIC_PRESSURE, DOUBLE,
               'Atmospheric pressure [Pa]: converts the absolute pressures of FluidPressure '
-              'messages to gauge.', min=50000.0, max=150000.0),
+              'messages to gauge.', low=50000.0, high=150000.0),
     # Brake system (beyond the contract; documented in the README).
     ParamSpec('brake_regime', 'P', STRING,
               'Brake regime for the default cylinder characteristics: "P" passenger '
@@ -119,35 +141,35 @@ _PARAMS = [
               choices=('P', 'G')),
     ParamSpec('cylinder_fill_time', [], DOUBLE_ARRAY,
               'Filling characteristic, times [s] (increasing, from 0); empty = regime default.',
-              min=0.0, max=1000.0),
+              low=0.0, high=1000.0),
     ParamSpec('cylinder_fill_fraction', [], DOUBLE_ARRAY,
               'Filling characteristic, p/p_max at cylinder_fill_time (increasing 0 -> 1).',
-              min=0.0, max=1.0),
+              low=0.0, high=1.0),
     ParamSpec('cylinder_release_time', [], DOUBLE_ARRAY,
               'Release characteristic, times [s] (increasing, from 0); empty = regime default.',
-              min=0.0, max=1000.0),
+              low=0.0, high=1000.0),
     ParamSpec('cylinder_release_fraction', [], DOUBLE_ARRAY,
               'Release characteristic, p/p_max at cylinder_release_time (decreasing 1 -> 0).',
-              min=0.0, max=1.0),
-    ParamSpec('pipe_nominal_pressure', 500000.0, DOUBLE,
-              'Brake-pipe running pressure, gauge [Pa] (UIC: 5 bar).', min=1.0e5, max=1.0e6),
-    ParamSpec('full_service_pressure', 350000.0, DOUBLE,
+              low=0.0, high=1.0),
+    ParamSpec('pipe_nominal_pressure', PIPE_NOMINAL_PRESSURE, DOUBLE,
+              'Brake-pipe running pressure, gauge [Pa] (UIC: 5 bar).', low=1.0e5, high=1.0e6),
+    ParamSpec('full_service_pressure', FULL_SERVICE_PRESSURE, DOUBLE,
               'Brake-pipe pressure at full service, gauge [Pa] (UIC: 3.5 bar).',
-              min=0.0, max=1.0e6),
+              low=0.0, high=1.0e6),
     ParamSpec('distributor_sensitivity', 30000.0, DOUBLE,
               'Pipe-pressure drop below nominal [Pa] that a distributor ignores; a larger '
-              'drop applies the brake (first stage).', min=0.0, max=5.0e5),
+              'drop applies the brake (first stage).', low=0.0, high=5.0e5),
     ParamSpec('max_coupler_displacement', 5.0, DOUBLE,
               'Numerical-fault bound on |y| [m]: beyond it the coaches would overlap or part '
               '(a real buffer strokes ~0.1 m); the integration stops with a fault.',
-              min=0.0, max=1000.0, min_exclusive=True),
+              low=0.0, high=1000.0, low_exclusive=True),
     # Node behaviour (issue 6).
     ParamSpec('input_timeout', 0.0, DOUBLE,
               'Seconds (wall) without any brake input before it is reported stale; 0 = never.',
-              min=0.0, max=3600.0, dynamic=True, structural=False),
+              low=0.0, high=3600.0, dynamic=True),
     ParamSpec('on_input_timeout', 'hold', STRING,
               'On a stale input: "hold" the last value or apply an "emergency" brake.',
-              choices=('hold', 'emergency'), dynamic=True, structural=False),
+              choices=('hold', 'emergency'), dynamic=True),
     # Real trains (issue 11): consist, coupler travel, resistance, track, traction. Each
     # vehicle field of a consist (physics/consist.py) is also a parameter of the same name
     # (mass -> coach_mass, length -> coach_length): the value of the uniform train and the
@@ -157,72 +179,89 @@ _PARAMS = [
               'of num_coaches/masses. Relative: to the parameter file, then config/.'),
     ParamSpec('rotating_mass_factor', 0.0, DOUBLE,
               'Rotating-mass allowance: the inertia of a vehicle is m (1 + factor).',
-              min=0.0, max=2.0),
+              low=0.0, high=2.0),
     ParamSpec('davis_a', 0.0, DOUBLE, 'Running resistance (Davis) constant term A [N].',
-              min=0.0, max=1.0e6),
+              low=0.0, high=1.0e6),
     ParamSpec('davis_b', 0.0, DOUBLE, 'Running resistance (Davis) B |v| term [N s/m].',
-              min=0.0, max=1.0e6),
+              low=0.0, high=1.0e6),
     ParamSpec('davis_c', 0.0, DOUBLE, 'Running resistance (Davis) C v^2 term [N s^2/m^2].',
-              min=0.0, max=1.0e5),
+              low=0.0, high=1.0e5),
     ParamSpec('buffer_stroke', 0.105, DOUBLE,
               'Buffer stroke S_c [m] before blocking (UIC 526-1: 105 mm).',
-              min=0.0, max=10.0, min_exclusive=True),
+              low=0.0, high=10.0, low_exclusive=True),
     ParamSpec('draw_gear_stroke', 0.06, DOUBLE,
               'Draw-gear spring travel S_t [m] before blocking (UIC 520 draw gear, typical).',
-              min=0.0, max=10.0, min_exclusive=True),
+              low=0.0, high=10.0, low_exclusive=True),
     ParamSpec('buffer_slack', 0.0, DOUBLE,
               'Free play g_c [m] before the buffers take load (0: tight screw coupling).',
-              min=0.0, max=1.0),
+              low=0.0, high=1.0),
     ParamSpec('draw_gear_slack', 0.0, DOUBLE,
               'Free play g_t [m] before the draw gear takes load (0: tight coupling).',
-              min=0.0, max=1.0),
+              low=0.0, high=1.0),
     ParamSpec('blocked_stiffness', 1.0e8, DOUBLE,
               'Stiffness K_b [N/m] once a buffer or draw gear is at the end of its stroke '
-              '(vehicle underframe, ~1e8 N/m).', min=0.0, max=1.0e12, min_exclusive=True),
+              '(vehicle underframe, ~1e8 N/m).', low=0.0, high=1.0e12, low_exclusive=True),
     ParamSpec('max_tractive_force', 0.0, DOUBLE,
               'Locomotive: starting tractive effort [N] (0: not a traction unit).',
-              min=0.0, max=1.0e7),
+              low=0.0, high=1.0e7),
     ParamSpec('max_power', 0.0, DOUBLE, 'Locomotive: power at the wheel rim in traction [W].',
-              min=0.0, max=1.0e8),
+              low=0.0, high=1.0e8),
     ParamSpec('max_dynamic_brake_force', 0.0, DOUBLE,
-              'Locomotive: maximum dynamic (electric) braking force [N].', min=0.0, max=1.0e7),
+              'Locomotive: maximum dynamic (electric) braking force [N].', low=0.0, high=1.0e7),
     ParamSpec('max_dynamic_brake_power', 0.0, DOUBLE,
-              'Locomotive: maximum dynamic braking power [W].', min=0.0, max=1.0e8),
+              'Locomotive: maximum dynamic braking power [W].', low=0.0, high=1.0e8),
     ParamSpec('traction_build_up_time', 4.0, DOUBLE,
               'Locomotive: time [s] for the tractive/dynamic-brake force to go from 0 to the '
-              'full command (rate limit); 0 = immediate.', min=0.0, max=600.0),
+              'full command (rate limit); 0 = immediate.', low=0.0, high=600.0),
     ParamSpec('traction_adhesion', 0.33, DOUBLE,
               'Locomotive: wheel-rail adhesion at standstill for traction and dynamic braking; '
-              'falls with speed as Curtius-Kniffler.', min=0.0, max=1.0, min_exclusive=True),
+              'falls with speed as Curtius-Kniffler.', low=0.0, high=1.0, low_exclusive=True),
     ParamSpec('dynamic_brake_fade_speed', 1.4, DOUBLE,
               'Locomotive: below this speed [m/s] the dynamic braking force fades linearly '
-              'to 0.', min=0.0, max=50.0, min_exclusive=True),
+              'to 0.', low=0.0, high=50.0, low_exclusive=True),
     ParamSpec('initial_position', 0.0, DOUBLE,
               'Position along the track [m] of the front of vehicle 1 at t = 0.',
-              min=-1.0e7, max=1.0e7),
+              low=-1.0e7, high=1.0e7),
     ParamSpec('track_gradient_positions', [], DOUBLE_ARRAY,
               'Track positions [m] (increasing) where a gradient starts; 0 before the first.',
-              min=-1.0e7, max=1.0e7),
+              low=-1.0e7, high=1.0e7),
     ParamSpec('track_gradients', [], DOUBLE_ARRAY,
               'Gradient [per mille, > 0 uphill] from each track_gradient_positions entry on.',
-              min=-100.0, max=100.0),
+              low=-100.0, high=100.0),
     ParamSpec('track_curve_starts', [], DOUBLE_ARRAY, 'Track positions [m] where curves start.',
-              min=-1.0e7, max=1.0e7),
+              low=-1.0e7, high=1.0e7),
     ParamSpec('track_curve_ends', [], DOUBLE_ARRAY, 'Track positions [m] where curves end.',
-              min=-1.0e7, max=1.0e7),
+              low=-1.0e7, high=1.0e7),
     ParamSpec('track_curve_radii', [], DOUBLE_ARRAY,
               'Curve radii [m]; Roeckl resistance 650/(R-55) per mille (R >= 300 m), '
-              '500/(R-30) below.', min=100.0, max=1.0e6),
+              '500/(R-30) below.', low=100.0, high=1.0e6),
     ParamSpec('traction_schedule_times', [], DOUBLE_ARRAY,
               'Offline runs without a traction bag: times [s] (increasing) from which every '
               'locomotive holds the matching traction_schedule_commands entry.',
-              min=0.0, max=1.0e7),
+              low=0.0, high=1.0e7),
     ParamSpec('traction_schedule_commands', [], DOUBLE_ARRAY,
               'Traction command in [-1, 1] (> 0 traction, < 0 dynamic brake) from each '
-              'traction_schedule_times entry on.', min=-1.0, max=1.0),
+              'traction_schedule_times entry on.', low=-1.0, high=1.0),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
+
+#: ``sim_node``'s own parameters (not part of the simulator configuration; all live).
+SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
+    ParamSpec('duration', 0.0, DOUBLE,
+              'Simulation time [s] after which the node stops by itself (outputs up to and '
+              'including t = duration); 0 = run until shut down.',
+              low=0.0, high=1.0e9, dynamic=True),
+    ParamSpec('wait_for_input', 0.0, DOUBLE,
+              'Before the simulation clock starts (and after each reset), wait up to this many '
+              'wall seconds until a publisher is connected to every brake-input topic of '
+              'brake_input (the state stays at t = 0 meanwhile); 0 = start at once.',
+              low=0.0, high=3600.0, dynamic=True),
+    ParamSpec('record_flush_period', 10.0, DOUBLE,
+              'Wall-clock period [s] at which the record_bag MCAP file is finished and a new '
+              'one started: a SIGKILL loses at most this much of the recording.',
+              low=0.1, high=3600.0, dynamic=True),
+]}
 
 
 class ConfigError(ValueError):
@@ -233,26 +272,20 @@ def _is_number(value: Any) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
-def validate_value(name: str, value: Any) -> Any:
-    """Check one parameter value; return it normalised (ints to float for doubles).
-
-    Raises :class:`ConfigError` with a one-line reason.
+def validate_value(name: str, value: Any,
+                   table: Mapping[str, ParamSpec] = PARAMETERS) -> Any:
     """
-    spec = PARAMETERS.get(name)
+    Check one value of parameter ``name`` of ``table``; return it normalised.
+
+    Integers become floats for doubles, arrays become lists. Raises :class:`ConfigError`
+    with a one-line reason.
+    """
+    spec = table.get(name)
     if spec is None:
         raise ConfigError(f'unknown parameter {name!r}')
     kind = spec.kind
-    if kind == DOUBLE:
-        if not _is_number(value):
-            raise ConfigError(f'{name}: expected a number, got {type(value).__name__} {value!r}')
-        value = float(value)
-        _check_range(spec, value, name)
-        return value
-    if kind == INTEGER:
-        if not isinstance(value, int) or isinstance(value, bool):
-            raise ConfigError(f'{name}: expected an integer, got {type(value).__name__} {value!r}')
-        _check_range(spec, value, name)
-        return int(value)
+    if kind in (DOUBLE, INTEGER):
+        return _check_number(spec, value, name)
     if kind == BOOL:
         if not isinstance(value, bool):
             raise ConfigError(f'{name}: expected true or false, got {value!r}')
@@ -263,30 +296,49 @@ def validate_value(name: str, value: Any) -> Any:
         if spec.choices and value not in spec.choices:
             raise ConfigError(f'{name}: {value!r} is not one of {", ".join(spec.choices)}')
         return value
-    if kind == DOUBLE_ARRAY:
+    if kind in ARRAY_KINDS:
         if isinstance(value, (str, bytes)) or not hasattr(value, '__iter__'):
-            raise ConfigError(f'{name}: expected a list of numbers, got {value!r}')
-        out = []
-        for k, item in enumerate(value):
-            if not _is_number(item):
-                raise ConfigError(f'{name}[{k}]: expected a number, got {item!r}')
-            item = float(item)
-            _check_range(spec, item, f'{name}[{k}]')
-            out.append(item)
-        return out
+            what = 'numbers' if kind == DOUBLE_ARRAY else 'strings'
+            raise ConfigError(f'{name}: expected a list of {what}, got {value!r}')
+        if kind == STRING_ARRAY:
+            return [_check_string(item, f'{name}[{k}]') for k, item in enumerate(value)]
+        return [_check_number(spec, item, f'{name}[{k}]') for k, item in enumerate(value)]
     raise AssertionError(kind)
+
+
+def _check_string(value: Any, label: str) -> str:
+    if not isinstance(value, str):
+        raise ConfigError(f'{label}: expected a string, got {value!r}')
+    return value
+
+
+def _check_number(spec: ParamSpec, value: Any, label: str) -> float | int:
+    """Check a number of ``spec`` (an element for a double array), range included."""
+    if spec.kind == INTEGER:
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise ConfigError(f'{label}: expected an integer, got {type(value).__name__} '
+                              f'{value!r}')
+        value = int(value)
+    elif not _is_number(value):
+        if spec.kind == DOUBLE_ARRAY:
+            raise ConfigError(f'{label}: expected a number, got {value!r}')
+        raise ConfigError(f'{label}: expected a number, got {type(value).__name__} {value!r}')
+    else:
+        value = float(value)
+    _check_range(spec, value, label)
+    return value
 
 
 def _check_range(spec: ParamSpec, value: float, label: str) -> None:
     if isinstance(value, float) and not math.isfinite(value):
         raise ConfigError(f'{label}: must be finite, got {value}')
-    if spec.min is not None:
-        if spec.min_exclusive and not value > spec.min:
-            raise ConfigError(f'{label}: must be > {spec.min:g}, got {value:g}')
-        if not spec.min_exclusive and not value >= spec.min:
-            raise ConfigError(f'{label}: must be >= {spec.min:g}, got {value:g}')
-    if spec.max is not None and not value <= spec.max:
-        raise ConfigError(f'{label}: must be <= {spec.max:g}, got {value:g}')
+    if spec.low is not None:
+        if spec.low_exclusive and not value > spec.low:
+            raise ConfigError(f'{label}: must be > {spec.low:g}, got {value:g}')
+        if not spec.low_exclusive and not value >= spec.low:
+            raise ConfigError(f'{label}: must be >= {spec.low:g}, got {value:g}')
+    if spec.high is not None and not value <= spec.high:
+        raise ConfigError(f'{label}: must be <= {spec.high:g}, got {value:g}')
 
 
 @dataclass
@@ -328,7 +380,9 @@ class SimConfig:
 
     @property
     def mass_array(self) -> list[float]:
-        return list(self.masses) if self.masses else [float(self.coach_mass)] * int(self.num_coaches)
+        if self.masses:
+            return list(self.masses)
+        return [float(self.coach_mass)] * int(self.num_coaches)
 
     def fill_table(self) -> tuple[list[float], list[float]]:
         if self.cylinder_fill_time:
@@ -352,7 +406,8 @@ class SimConfig:
                               'buffer force would change sign on unloading')
         if not v['draw_gear_friction'] < v['draw_gear_stiffness']:
             raise ConfigError('draw_gear_friction must be < draw_gear_stiffness (k_fc < k_ec)')
-        if not v['full_service_pressure'] + v['distributor_sensitivity'] < v['pipe_nominal_pressure']:
+        if not (v['full_service_pressure'] + v['distributor_sensitivity']
+                < v['pipe_nominal_pressure']):
             raise ConfigError('full_service_pressure + distributor_sensitivity must be below '
                               'pipe_nominal_pressure')
         for kind in ('fill', 'release'):
@@ -379,21 +434,18 @@ class SimConfig:
                     raise ConfigError(f'{f_name}: must fall strictly from 1 to 0')
 
 
-def _ros_yaml_loader():
-    """A safe YAML loader that reads 2.8e6 and 1e-3 as floats, as ROS 2's parser does
-    (PyYAML's YAML 1.1 rules would read them as strings)."""
-    import re
+class _RosParamLoader(yaml.SafeLoader):
+    """
+    A safe YAML loader that reads 2.8e6 and 1e-3 as floats, as ROS 2's parser does.
 
-    import yaml
+    PyYAML's YAML 1.1 rules would read them as strings.
+    """
 
-    class RosParamLoader(yaml.SafeLoader):
-        pass
 
-    RosParamLoader.add_implicit_resolver(
-        'tag:yaml.org,2002:float',
-        re.compile(r'^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$'),
-        list('-+0123456789'))
-    return RosParamLoader
+_RosParamLoader.add_implicit_resolver(
+    'tag:yaml.org,2002:float',
+    re.compile(r'^[-+]?(?:[0-9][0-9_]*)(?:\.[0-9_]*)?[eE][-+]?[0-9]+$'),
+    list('-+0123456789'))
 
 
 #: parameters every ROS 2 node has; a parameter file may set them, the model ignores them
@@ -401,17 +453,16 @@ ROS_BUILTIN_PARAMETERS = ('use_sim_time', 'start_type_description_service')
 
 
 def read_param_file(path: str, node_name: str = 'train_dynamics') -> dict[str, Any]:
-    """Read the ``ros__parameters`` of ``node_name`` from a ROS 2 parameter file.
+    """
+    Read the ``ros__parameters`` of ``node_name`` from a ROS 2 parameter file.
 
     Accepts the node's own key, ``/node``, a namespaced ``/ns/node`` and the ``/**``
     wildcard (more specific sections win). Returns ``{}`` when the node has no section.
     Raises :class:`ConfigError` for a missing or malformed file.
     """
-    import yaml
-
     try:
         with open(path, encoding='utf-8') as fh:
-            doc = yaml.load(fh, Loader=_ros_yaml_loader())
+            doc = yaml.load(fh, Loader=_RosParamLoader)
     except FileNotFoundError:
         raise ConfigError(f'parameter file not found: {path}') from None
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
@@ -421,7 +472,8 @@ def read_param_file(path: str, node_name: str = 'train_dynamics') -> dict[str, A
     if not isinstance(doc, dict):
         raise ConfigError(f'{path}: not a ROS 2 parameter file (top level is not a mapping)')
     merged: dict[str, Any] = {}
-    keys = ['/**'] + [k for k in doc if isinstance(k, str) and k.rstrip('/').split('/')[-1] == node_name]
+    keys = ['/**'] + [k for k in doc
+                      if isinstance(k, str) and k.rstrip('/').split('/')[-1] == node_name]
     for key in keys:
         section = doc.get(key)
         if section is None:
@@ -436,7 +488,7 @@ def read_param_file(path: str, node_name: str = 'train_dynamics') -> dict[str, A
 
 
 def load_param_file(path: str) -> SimConfig:
-    """The simulator configuration from a ROS 2 parameter file (``train_dynamics`` node)."""
+    """Read the simulator configuration from a ROS 2 parameter file (``train_dynamics``)."""
     params = {k: v for k, v in read_param_file(path, 'train_dynamics').items()
               if k not in ROS_BUILTIN_PARAMETERS}
     try:
@@ -461,24 +513,24 @@ def _fmt_range(s: ParamSpec) -> str:
     if s.choices:
         return ', '.join(f'`{c}`' for c in s.choices)
     parts = []
-    if s.min is not None:
-        parts.append(('> ' if s.min_exclusive else '>= ') + f'{s.min:g}')
-    if s.max is not None:
-        parts.append(f'<= {s.max:g}')
+    if s.low is not None:
+        parts.append(('> ' if s.low_exclusive else '>= ') + f'{s.low:g}')
+    if s.high is not None:
+        parts.append(f'<= {s.high:g}')
     return ', '.join(parts)
 
 
 def markdown_table() -> str:
-    """The README's parameter table, generated from :data:`PARAMETERS`."""
+    """Return the README's parameter table, generated from :data:`PARAMETERS`."""
     lines = ['| name | type | default | range | when | meaning |',
              '| --- | --- | --- | --- | --- | --- |']
     for s in PARAMETERS.values():
-        when = 'live' if s.dynamic else ('reset' if s.structural else 'start')
+        when = 'live' if s.dynamic else 'reset'
         meaning = s.description.replace('|', '/')
         lines.append(f'| `{s.name}` | {s.kind} | {_fmt_default(s.default)} | {_fmt_range(s)} '
                      f'| {when} | {meaning} |')
     return '\n'.join(lines)
 
 
-if __name__ == '__main__':   # python -m train_dynamics.physics.parameters: print the README table
+if __name__ == '__main__':   # python -m train_dynamics.physics.parameters: the README table
     print(markdown_table())

@@ -1,4 +1,5 @@
-"""Test support for sim_node tests (no tests here): an in-process harness with real rclpy.
+"""
+Test support for sim_node tests (no tests here): an in-process harness with real rclpy.
 
 The harness spins one executor (the one ``sim_node``'s ``main`` uses) in the test thread; the
 nodes under test run their own simulation threads as in production.
@@ -10,6 +11,15 @@ import time
 from typing import Any, Callable
 
 import numpy as np
+from rcl_interfaces.srv import SetParameters
+import rclpy
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import FluidPressure
+from std_srvs.srv import Trigger
+
+from train_dynamics.ros.executor import make_executor
+from train_dynamics.ros.sim_node import SimNode
 
 TEST_NODE = 'sim_node_test_probe'
 
@@ -18,10 +28,6 @@ class Harness:
     """Nodes under test, a probe node (subscriptions, publishers, clients) and an executor."""
 
     def __init__(self) -> None:
-        import rclpy
-
-        from train_dynamics.ros.sim_node import make_executor
-
         self.executor = make_executor()
         self.probe = rclpy.create_node(TEST_NODE)
         self.executor.add_node(self.probe)
@@ -29,11 +35,7 @@ class Harness:
 
     # -- nodes -------------------------------------------------------------------------
     def start(self, **params: Any):
-        """A SimNode with these parameter overrides, added to the executor."""
-        from rclpy.parameter import Parameter
-
-        from train_dynamics.ros.sim_node import SimNode
-
+        """Start a SimNode with these parameter overrides, added to the executor."""
         node = SimNode(parameter_overrides=[Parameter(k, value=v) for k, v in params.items()])
         self.add(node)
         return node
@@ -74,17 +76,12 @@ class Harness:
     # -- topics ----------------------------------------------------------------------------
     def collect(self, msg_type, topic: str, qos=None) -> list:
         """Every message received on ``topic`` (reliable, deep queue unless ``qos``)."""
-        from rclpy.qos import QoSProfile, ReliabilityPolicy
-
         out: list = []
         qos = qos or QoSProfile(depth=1000, reliability=ReliabilityPolicy.RELIABLE)
         self.probe.create_subscription(msg_type, topic, out.append, qos)
         return out
 
     def publisher(self, topic: str, reliable: bool = True):
-        from rclpy.qos import QoSProfile, ReliabilityPolicy
-        from sensor_msgs.msg import FluidPressure
-
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE if reliable
                          else ReliabilityPolicy.BEST_EFFORT)
         return self.probe.create_publisher(FluidPressure, topic, qos)
@@ -104,23 +101,16 @@ class Harness:
             self.probe.destroy_client(client)
 
     def reset(self, node_name: str = 'train_dynamics'):
-        from std_srvs.srv import Trigger
-
         return self.call(Trigger, f'/{node_name}/reset', Trigger.Request())
 
     def set_remote(self, node_name: str, params: dict[str, Any]):
         """Set parameters over the parameter service (what ``ros2 param set`` does)."""
-        from rcl_interfaces.srv import SetParameters
-        from rclpy.parameter import Parameter
-
         req = SetParameters.Request(
             parameters=[Parameter(k, value=v).to_parameter_msg() for k, v in params.items()])
         return self.call(SetParameters, f'/{node_name}/set_parameters', req).results
 
 
 def fluid(abs_pa: float):
-    from sensor_msgs.msg import FluidPressure
-
     return FluidPressure(fluid_pressure=float(abs_pa), variance=0.0)
 
 

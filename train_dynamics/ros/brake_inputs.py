@@ -1,0 +1,415 @@
+"""
+The brake inputs of ``sim_node``: subscriptions, validation, staleness and the fail-safe.
+
+Inputs (``sensor_msgs/FluidPressure``, ABSOLUTE Pa; gauge = absolute - ``atmospheric_pressure``),
+relative names, subscribed best-effort keep-last 10 so that reliable and best-effort publishers
+both connect:
+
+- ``brake_pipe/pressure`` (``brake_input`` = ``pipe_head``),
+- ``coach_<i>/brake_pipe/pressure`` (``pipe_per_coach``), ``coach_<i>/brake_cylinder/pressure``
+  (``cylinder_per_coach``), i = 1..N.
+
+A message takes effect at the next integration step (zero-order hold). Rejected and counted per
+reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning naming the topic):
+``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute
+pressure > :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of another
+``brake_input``), ``unknown_coach`` (``coach_<i>`` with i outside 1..N), ``malformed`` (not
+deserialisable). The head topic and the per-coach topics of the active mode are subscribed from
+the start; topics of the other modes and of coaches that do not exist are found by a graph scan
+every :data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to count and reject their messages:
+keeping 2N idle subscriptions would slow rclpy's executor for long trains).
+
+Stale inputs: ``input_timeout`` > 0 s (wall) without a brake input (any coach of a per-coach
+mode) is reported in ``/diagnostics``; ``on_input_timeout`` ``hold`` keeps the last values,
+``emergency`` applies the fail-safe (head pipe vented / all pipe pressures 0 gauge / all
+cylinders at ``max_cylinder_pressure``) until every input is fresh again. The fail-safe
+pressures are recorded with ``frame_id`` ``train_dynamics/input_timeout``.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import threading
+import time
+from typing import Any, Callable
+
+import numpy as np
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message, serialize_message
+from sensor_msgs.msg import FluidPressure
+
+from train_dynamics import topics
+from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.recording.outputs import time_ns
+from train_dynamics.ros.outputs import stamp
+
+HEAD = topics.PIPE_HEAD
+CYL = topics.CYLINDER_PER_COACH
+PER_COACH = (topics.PIPE_PER_COACH, topics.CYLINDER_PER_COACH)
+MAX_ABSOLUTE_PRESSURE = topics.MAX_ABSOLUTE_PRESSURE
+#: Reasons an input message is rejected (keys of the counts in /diagnostics).
+REJECT_REASONS = ('non_finite', 'negative', 'too_high', 'wrong_mode', 'unknown_coach',
+                  'malformed')
+GRAPH_SCAN_PERIOD = 2.0  # [s wall] search for input topics of other modes / unknown coaches
+MAX_EXTRA_SUBSCRIPTIONS = 256   # cap on the subscriptions made by the graph scan
+INPUT_SETTLE = 0.3       # [s wall] wait_for_input: pause after the inputs are connected
+WARN_PERIOD = 5.0        # [s wall] throttle of repeated warnings
+
+INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
+                       reliability=ReliabilityPolicy.BEST_EFFORT,
+                       durability=DurabilityPolicy.VOLATILE)
+
+Record = Callable[[str, str, int, bytes], None]
+
+
+class Rejected(Exception):
+    """An input message that is not used; ``reason`` is one of :data:`REJECT_REASONS`."""
+
+    def __init__(self, reason: str, detail: str) -> None:
+        super().__init__(f'{detail} ({reason})')
+        self.reason = reason
+
+
+def absolute_pressure(data: bytes) -> float:
+    """Return the pressure [Pa absolute] of a raw FluidPressure; raise :class:`Rejected`."""
+    try:
+        msg = deserialize_message(data, FluidPressure)
+    except Exception as exc:  # noqa: BLE001
+        raise Rejected('malformed', f'cannot deserialise: {exc}') from None
+    p = msg.fluid_pressure
+    if not math.isfinite(p):
+        raise Rejected('non_finite', f'pressure {p}')
+    if p < 0.0:
+        raise Rejected('negative', f'absolute pressure {p:g} Pa < 0')
+    if p > MAX_ABSOLUTE_PRESSURE:
+        raise Rejected('too_high', f'absolute pressure {p:g} Pa > {MAX_ABSOLUTE_PRESSURE:g} Pa')
+    return p
+
+
+class Throttle:
+    """At most one message per key and period; counts what it suppressed."""
+
+    def __init__(self, period: float = WARN_PERIOD) -> None:
+        self.period = period
+        self._last: dict[Any, float] = {}
+        self._suppressed: dict[Any, int] = {}
+
+    def __call__(self, key: Any, now: float) -> int | None:
+        """Return None to stay quiet, else the number suppressed since the last message."""
+        last = self._last.get(key)
+        if last is not None and now - last < self.period:
+            self._suppressed[key] = self._suppressed.get(key, 0) + 1
+            return None
+        self._last[key] = now
+        return self._suppressed.pop(key, 0)
+
+
+class InputBuffer:
+    """
+    The latest accepted input of every slot of one run (head: 1 slot; per coach: N slots).
+
+    Made per run: ``mode``, ``n``, ``atm``, ``topics``, ``default`` and ``recording`` never
+    change; the other attributes are guarded by the input lock.
+    """
+
+    def __init__(self, mode: str, n: int, atm: float, default: float,
+                 recording: bool) -> None:
+        slots = 1 if mode == HEAD else n
+        self.mode = mode
+        self.n = n
+        self.atm = atm                                  # [Pa] atmospheric_pressure
+        self.topics = [topics.input_topic(mode, i) for i in range(1, slots + 1)]
+        self.default = np.full(slots, default)          # [Pa gauge] the initial inputs
+        self.recording = recording
+        self.value = self.default.copy()                # [Pa gauge] latest accepted
+        self.raw: list[bytes | None] = [None] * slots   # its CDR (None: the default)
+        self.arrival = np.full(slots, time.monotonic())  # [s wall] when it arrived
+        self.dirty = False                  # a value arrived since the simulator took them
+        self.records: list[tuple[str, bytes]] = []      # accepted since, to record
+
+
+class BrakeInputs:
+    """
+    Subscribe to, check and hold the brake inputs; apply them (or the fail-safe) to a run.
+
+    Lock discipline, by owner:
+
+    - executor thread only (subscription callbacks, the graph-scan timer, the reset service):
+      the subscriptions, the rejection counts (``rejected``, ``accepted``, ``last_rejected``);
+    - the input lock (``_in_lock``): the fields of the run's :class:`InputBuffer` that the
+      subscription callbacks write and the simulation thread takes; ``_buffer`` itself is
+      replaced under both locks (by :meth:`start`);
+    - the simulation lock (held by the simulation thread in :meth:`apply` and
+      :meth:`hold_for_input`, by the executor thread in :meth:`start` and when it sets the
+      policy): the staleness state, the timeout policy, the wait state, ``_active``.
+    """
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._log = node.get_logger()
+        self._throttle = Throttle()
+        # executor thread only
+        self._subs: dict[str, Any] = {}       # resolved topic name -> subscription
+        self._sub_info: dict[str, tuple[str, str | None, int | None]] = {}
+        self._n_base_subs = 0
+        self.accepted = 0
+        self.rejected = dict.fromkeys(REJECT_REASONS, 0)
+        self.last_rejected = ''
+        # input lock
+        self._in_lock = threading.Lock()
+        self._buffer: InputBuffer | None = None
+        # simulation lock
+        self._active: tuple[Any, ...] = ()    # subscriptions of the active mode's topics
+        self.timeout = 0.0                    # [s wall] input_timeout, 0 = never stale
+        self.on_timeout = 'hold'
+        self.wait_for_input = 0.0             # [s wall]
+        self._failsafe_cylinder = 0.0         # [Pa gauge] max_cylinder_pressure
+        self.stale = False
+        self.emergency = False
+        self.stale_names: list[str] = []
+        self._stale_count = 0
+        self._wait_since: float | None = None
+        self._wait_ready: float | None = None
+
+    # -- a run (executor thread, simulation lock held) -------------------------------------
+    def start(self, cfg: SimConfig, n: int, recording: bool) -> None:
+        """Take inputs for a new run of ``cfg`` with ``n`` coaches, from its initial inputs."""
+        mode = cfg.brake_input
+        default = 0.0 if mode == CYL else float(cfg.pipe_nominal_pressure)
+        buffer = InputBuffer(mode, n, float(cfg.atmospheric_pressure), default, recording)
+        with self._in_lock:
+            self._buffer = buffer
+        self.set_policy(cfg.input_timeout, cfg.on_input_timeout)
+        self._failsafe_cylinder = float(cfg.max_cylinder_pressure)
+        self.stale = False
+        self.emergency = False
+        self.stale_names = []
+        self._stale_count = 0
+        self._wait_since = None
+        self._update_subscriptions(mode, n)
+
+    def set_policy(self, timeout: float, on_timeout: str) -> None:
+        """Report inputs older than ``timeout`` [s wall]; ``on_timeout``: hold/emergency."""
+        self.timeout = float(timeout)
+        self.on_timeout = on_timeout
+
+    def _update_subscriptions(self, mode: str, n: int) -> None:
+        """Subscribe to the head topic and the active mode's per-coach topics."""
+        wanted: dict[str, tuple[str, str | None, int | None]] = {
+            topics.HEAD_PIPE_TOPIC: (topics.HEAD_PIPE_TOPIC, HEAD, None)}
+        if mode != HEAD:
+            for i in range(1, n + 1):
+                rel = topics.input_topic(mode, i)
+                wanted[rel] = (rel, mode, i - 1)
+        resolved = {self._node.resolve_topic_name(rel): info for rel, info in wanted.items()}
+        for name in list(self._subs):
+            if self._sub_info[name] != resolved.get(name):
+                self._node.destroy_subscription(self._subs.pop(name))
+                del self._sub_info[name]
+        for name, info in resolved.items():
+            if name not in self._subs:
+                self._subscribe(name, info)
+        self._n_base_subs = len(resolved)
+        self._active = tuple(self._subs[name] for name, info in resolved.items()
+                             if info[1] == mode)
+
+    def _subscribe(self, resolved: str, info: tuple[str, str | None, int | None]) -> None:
+        rel, family, index = info
+        cb = functools.partial(self._on_input, rel, resolved, family, index)
+        self._subs[resolved] = self._node.create_subscription(FluidPressure, resolved, cb,
+                                                              INPUT_QOS, raw=True)
+        self._sub_info[resolved] = info
+
+    def scan_graph(self) -> None:
+        """
+        Subscribe to input topics of other modes and of coaches that do not exist.
+
+        Their messages are then counted and rejected. (Graph-scan timer, executor thread.)
+        """
+        node = self._node
+        ns = node.get_namespace().rstrip('/') + '/'
+        n = self._buffer.n          # (replaced by start(), on this thread)
+        try:
+            found = node.get_topic_names_and_types()
+        except Exception:  # noqa: BLE001 - shutting down
+            return
+        for name, types in found:
+            if name in self._subs or not name.startswith(ns) or \
+                    topics.FLUID_PRESSURE not in types:
+                continue
+            rel = name[len(ns):]
+            for family in PER_COACH:
+                m = topics.INPUT_TOPIC_PATTERNS[family].fullmatch(rel)
+                if m is None:
+                    continue
+                if len(self._subs) - self._n_base_subs >= MAX_EXTRA_SUBSCRIPTIONS:
+                    return
+                i = int(m.group(1))
+                self._subscribe(name, (rel, family if 1 <= i <= n else None, None))
+                break
+
+    # -- messages (subscription callbacks, executor thread) --------------------------------
+    def _on_input(self, rel: str, resolved: str, family: str | None, index: int | None,
+                  data: bytes) -> None:
+        """Check a brake-input message (raw CDR); keep it for the next integration step."""
+        with self._in_lock:
+            buffer = self._buffer
+        try:
+            if family is None:
+                raise Rejected('unknown_coach', f'coach index outside 1..{buffer.n}')
+            if family != buffer.mode:
+                raise Rejected('wrong_mode', f'topic of brake_input {family}, the node runs '
+                                             f'{buffer.mode}')
+            p = absolute_pressure(data)
+        except Rejected as exc:
+            self._reject(resolved, exc)
+            return
+        slot = 0 if index is None else index
+        with self._in_lock:
+            if self._buffer is not buffer:      # a reset replaced the run meanwhile
+                return
+            buffer.value[slot] = p - buffer.atm
+            buffer.raw[slot] = bytes(data)
+            buffer.arrival[slot] = time.monotonic()
+            buffer.dirty = True
+            if buffer.recording:
+                buffer.records.append((rel, bytes(data)))
+        self.accepted += 1
+
+    def _reject(self, resolved: str, exc: Rejected) -> None:
+        self.rejected[exc.reason] += 1
+        self.last_rejected = f'{resolved}: {exc.reason}'
+        suppressed = self._throttle((resolved, exc.reason), time.monotonic())
+        if suppressed is not None:
+            more = f' ({suppressed} more since the last warning)' if suppressed else ''
+            self._log.warning(f'rejected input on {resolved}: {exc}{more}')
+
+    def max_age(self, now: float) -> float:
+        """Return the age [s wall] of the oldest input."""
+        with self._in_lock:
+            ages = now - self._buffer.arrival
+            return float(np.max(ages)) if ages.size else 0.0
+
+    # -- the simulation thread (simulation lock held) --------------------------------------
+    def discard_records(self) -> None:
+        """Drop the accepted inputs not yet recorded (the run has ended)."""
+        with self._in_lock:
+            self._buffer.records.clear()
+
+    def apply(self, now: float, sim: TrainSimulator, record: Record) -> None:
+        """Put the inputs received since the last call (or the fail-safe) into ``sim``."""
+        news = self._take(now)
+        if news is None:
+            return
+        dirty, stale, values, raws, records = news
+        t_ns = time_ns(sim.t)
+        if stale != self.stale:
+            self._report_stale(stale)
+        if stale and self.on_timeout == 'emergency':
+            if not self.emergency:
+                self._enter_failsafe(sim, t_ns, record)
+            return       # inputs arriving meanwhile wait until every input is fresh
+        if self.emergency:
+            # Back from the fail-safe: the latest value of every input holds again.
+            self.emergency = False
+            self._set(sim, values)
+            buffer = self._buffer
+            for k, topic in enumerate(buffer.topics):
+                raw = raws[k] if raws[k] is not None else self._synthetic(
+                    sim, buffer.default[k], 'train_dynamics/default')
+                record(topic, topics.FLUID_PRESSURE, t_ns, raw)
+            return
+        if dirty:
+            self._set(sim, values)
+            for topic, raw in records:
+                record(topic, topics.FLUID_PRESSURE, t_ns, raw)
+
+    def _take(self, now: float) -> tuple | None:
+        """Return (dirty, stale, values, raws, records) of the buffer; None: nothing to do."""
+        buffer = self._buffer
+        with self._in_lock:
+            stale = False
+            if self.timeout > 0.0:
+                stale_idx = np.nonzero(now - buffer.arrival > self.timeout)[0]
+                stale = stale_idx.size > 0
+                if stale != self.stale or (stale and stale_idx.size != self._stale_count):
+                    self.stale_names = [buffer.topics[k] for k in stale_idx[:10]]
+                    if stale_idx.size > 10:
+                        self.stale_names.append(f'... ({stale_idx.size} inputs)')
+                    self._stale_count = stale_idx.size
+            dirty = buffer.dirty
+            if not dirty and stale == self.stale and \
+                    self.emergency == (stale and self.on_timeout == 'emergency'):
+                return None
+            buffer.dirty = False
+            records, buffer.records = buffer.records, []
+            return dirty, stale, buffer.value.copy(), list(buffer.raw), records
+
+    def _report_stale(self, stale: bool) -> None:
+        self.stale = stale
+        if stale:
+            what = ', '.join(self.stale_names)
+            self._log.warning(
+                f'brake input stale: nothing for more than {self.timeout:g} s on {what}; '
+                + ('applying the emergency brake' if self.on_timeout == 'emergency'
+                   else 'holding the last values'))
+        else:
+            self.stale_names = []
+            self._log.info('brake input fresh again')
+
+    def _enter_failsafe(self, sim: TrainSimulator, t_ns: int, record: Record) -> None:
+        buffer = self._buffer
+        slots = len(buffer.topics)
+        if buffer.mode == CYL:
+            fail = np.full(slots, self._failsafe_cylinder)
+        else:
+            fail = np.zeros(slots)
+        self._set(sim, fail)
+        for k, topic in enumerate(buffer.topics):
+            record(topic, topics.FLUID_PRESSURE, t_ns,
+                   self._synthetic(sim, fail[k], 'train_dynamics/input_timeout'))
+        self.emergency = True
+
+    def _set(self, sim: TrainSimulator, values: np.ndarray) -> None:
+        mode = self._buffer.mode
+        if mode == HEAD:
+            sim.set_head_pipe_pressure(float(values[0]))
+        elif mode == CYL:
+            sim.set_cylinder_pressure(values)
+        else:
+            sim.set_pipe_pressure(values)
+
+    def _synthetic(self, sim: TrainSimulator, gauge: float, frame_id: str) -> bytes:
+        """Return a FluidPressure (CDR) the node applies itself, stamped with ``sim.t``."""
+        msg = FluidPressure(fluid_pressure=float(gauge + self._buffer.atm), variance=0.0)
+        msg.header.stamp = stamp(time_ns(sim.t))
+        msg.header.frame_id = frame_id
+        return serialize_message(msg)
+
+    def hold_for_input(self, now: float) -> bool:
+        """``wait_for_input``: return True while the start waits for brake-input publishers."""
+        limit = self.wait_for_input
+        if limit <= 0.0:
+            return False
+        if self._wait_since is None:
+            self._wait_since = now
+            self._wait_ready = None
+            self._log.info(f'waiting up to {limit:g} s for publishers on the '
+                           f'{len(self._active)} brake-input topic(s) of {self._buffer.mode} '
+                           'before starting the clock')
+        if all(s.get_publisher_count() > 0 for s in self._active):
+            if self._wait_ready is None:
+                self._wait_ready = now
+            if now - self._wait_ready < INPUT_SETTLE:
+                return True          # let the other direction (e.g. their /clock) match too
+            self._log.info(f'brake input connected after {now - self._wait_since:.2f} s; '
+                           'starting')
+            return False
+        self._wait_ready = None
+        if now - self._wait_since >= limit:
+            self._log.warning(f'no publisher on every brake-input topic after {limit:g} s; '
+                              'starting anyway')
+            return False
+        return True

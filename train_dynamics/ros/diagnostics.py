@@ -1,0 +1,137 @@
+"""
+``/diagnostics`` of ``sim_node`` (~1 Hz wall): what the two statuses say, built from reports.
+
+- ``train_dynamics: simulation``: real-time factor and the achieved one, sim time, steps, lag,
+  integrator health, pending parameter changes, recording;
+- ``train_dynamics: brake input``: input age, staleness, emergency, accepted and rejected
+  counts per reason.
+
+The node fills a :class:`SimulationReport` and an :class:`InputReport` under the simulation
+lock; building the message needs no lock.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
+
+from train_dynamics.topics import NODE_NAME
+
+SIMULATION = f'{NODE_NAME}: simulation'
+BRAKE_INPUT = f'{NODE_NAME}: brake input'
+
+
+@dataclass
+class SimulationReport:
+    """The state of the simulation for one diagnostics message."""
+
+    t: float                    # [s] simulation time
+    steps: int
+    n: int                      # coaches
+    fault: str | None
+    finished: bool
+    behind: float               # [s wall] behind schedule
+    real_time_factor: float
+    achieved: float             # achieved real-time factor
+    lag_dropped: float          # [s wall]
+    lag_events: int
+    model_type: str
+    scale_factor: float         # [s/m]
+    h: float                    # [s] integration step
+    rate: float                 # [Hz] publish_rate
+    duration: float             # [s]
+    behind_warn: float          # [s wall] behind by more: WARN
+    pending: str = ''
+    recording: str = ''         # bag path, '' when not recording
+    recorded: int = 0
+    backlog: int = 0
+    record_error: str | None = None
+
+
+@dataclass
+class InputReport:
+    """The state of the brake inputs for one diagnostics message."""
+
+    mode: str
+    timeout: float              # [s wall] input_timeout
+    on_timeout: str
+    max_age: float              # [s wall] age of the oldest input
+    stale: bool
+    emergency: bool
+    stale_names: str
+    accepted: int
+    rejected: dict[str, int]
+    last_rejected: str
+
+
+def _level_message(r: SimulationReport) -> tuple[bytes, str]:
+    rtf, achieved = r.real_time_factor, r.achieved
+    if r.fault is not None:
+        return DiagnosticStatus.ERROR, f'numerical fault: {r.fault}; stopped, call reset'
+    if r.record_error:
+        return DiagnosticStatus.ERROR, f'recording failed: {r.record_error}'
+    if r.finished:
+        return DiagnosticStatus.OK, 'finished (duration reached)'
+    if rtf > 0 and r.behind > r.behind_warn:
+        return DiagnosticStatus.WARN, (f'behind real time by {r.behind:.3f} s (rtf {rtf:g}, '
+                                       f'achieved {achieved:.3g})')
+    if rtf > 0:
+        return DiagnosticStatus.OK, f'running, real_time_factor {rtf:g}, achieved {achieved:.3g}'
+    return DiagnosticStatus.OK, f'running as fast as possible, achieved rtf {achieved:.3g}'
+
+
+def simulation_status(r: SimulationReport, hardware_id: str) -> DiagnosticStatus:
+    """Build the ``train_dynamics: simulation`` status."""
+    level, message = _level_message(r)
+    kv = {
+        'sim_time': f'{r.t:.6f}', 'steps': str(r.steps),
+        'real_time_factor': f'{r.real_time_factor:g}',
+        'achieved_real_time_factor': f'{r.achieved:.6g}', 'behind_s': f'{r.behind:.6f}',
+        'lag_dropped_s': f'{r.lag_dropped:.6f}', 'lag_drop_events': str(r.lag_events),
+        'integrator': 'fault' if r.fault else 'ok', 'fault': r.fault or '',
+        'num_coaches': str(r.n), 'model_type': str(r.model_type),
+        'scale_factor': f'{float(r.scale_factor):g}', 'integration_step': f'{r.h:g}',
+        'publish_rate': f'{r.rate:g}', 'duration': f'{r.duration:g}',
+        'finished': str(r.finished).lower(), 'pending_changes': r.pending,
+        'recording': r.recording, 'recorded_messages': str(r.recorded),
+        'record_backlog': str(r.backlog),
+    }
+    return DiagnosticStatus(level=level, name=SIMULATION, message=message,
+                            hardware_id=hardware_id,
+                            values=[KeyValue(key=k, value=v) for k, v in kv.items()])
+
+
+def input_status(r: InputReport, hardware_id: str) -> DiagnosticStatus:
+    """Build the ``train_dynamics: brake input`` status."""
+    rejected = sum(r.rejected.values())
+    if r.emergency:
+        level = DiagnosticStatus.ERROR
+        message = f'stale (> {r.timeout:g} s): emergency brake applied ({r.stale_names})'
+    elif r.stale:
+        level = DiagnosticStatus.WARN
+        message = f'stale (> {r.timeout:g} s): holding the last values ({r.stale_names})'
+    elif rejected:
+        level = DiagnosticStatus.WARN
+        message = f'{rejected} input message(s) rejected (last: {r.last_rejected})'
+    else:
+        level, message = DiagnosticStatus.OK, 'ok'
+    kv = {'brake_input': r.mode, 'input_timeout': f'{r.timeout:g}',
+          'on_input_timeout': str(r.on_timeout), 'input_age_s': f'{r.max_age:.3f}',
+          'stale': str(r.stale).lower(), 'stale_inputs': r.stale_names,
+          'emergency_applied': str(r.emergency).lower(),
+          'accepted': str(r.accepted), 'rejected_total': str(rejected)}
+    kv.update({f'rejected_{reason}': str(c) for reason, c in r.rejected.items()})
+    kv['last_rejected'] = r.last_rejected
+    return DiagnosticStatus(level=level, name=BRAKE_INPUT, message=message,
+                            hardware_id=hardware_id,
+                            values=[KeyValue(key=k, value=v) for k, v in kv.items()])
+
+
+def diagnostic_array(sim: SimulationReport, inputs: InputReport, hardware_id: str,
+                     stamp: Time) -> DiagnosticArray:
+    """Build the DiagnosticArray of both statuses."""
+    msg = DiagnosticArray(status=[simulation_status(sim, hardware_id),
+                                  input_status(inputs, hardware_id)])
+    msg.header.stamp = stamp
+    return msg

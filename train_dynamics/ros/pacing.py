@@ -1,0 +1,311 @@
+"""
+The simulation thread of ``sim_node``: pacing against the wall clock, lag policy, chunking.
+
+A dedicated thread advances the simulator in whole integration steps so that simulation
+time = start + ``real_time_factor`` * (wall time since start); each step is computed when its
+wall time arrives (at most every :data:`MIN_SLEEP` s) and outputs are published the moment
+their wall time arrives. Behind schedule it catches up as fast as it can (warning after
+:data:`BEHIND_WARN` s); more than :data:`MAX_LAG` s behind, it stops catching up: the pacing
+restarts from the current state, the dropped wall time is counted (``lag_dropped_s``) and
+logged, and the simulation then runs that much behind the wall clock. ``real_time_factor`` 0:
+as fast as possible, in chunks of at most :data:`CHUNK_BUDGET` s so that subscriptions,
+parameters and services stay responsive.
+
+Numerical fault (``sim.fault``): integration stops, the last good state stays, an error log
+line says why, ``reset`` recovers. With ``duration`` set the node then exits (status 3).
+"""
+from __future__ import annotations
+
+import contextlib
+import math
+import threading
+import time
+from typing import Any, Iterator
+
+from train_dynamics.physics.runner import end_step
+from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.ros.brake_inputs import BrakeInputs
+from train_dynamics.ros.outputs import Outputs
+
+MIN_SLEEP = 0.001        # [s wall] shortest pause between two pacing iterations
+CHUNK_BUDGET = 0.005     # [s wall] longest stretch the simulation thread integrates in one go
+BEHIND_WARN = 0.05       # [s wall] behind schedule by more: throttled warning
+MAX_LAG = 1.0            # [s wall] behind schedule by more: stop catching up (drop the lag)
+WARN_PERIOD = 5.0        # [s wall] throttle of repeated warnings
+IDLE = 0.1               # [s wall] pause of a finished or faulted run
+YIELD = 0.0002           # [s wall] pause that lets a waiting thread take the lock
+
+
+class SimulationLock:
+    """
+    The simulation lock: guards the simulator and the run state of every part of the node.
+
+    The simulation thread holds it for each pacing iteration (``with lock:``) and lets go in
+    between, briefly when another thread is waiting for it (:attr:`waiting`). Other threads
+    take it with :meth:`held`.
+    """
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._waiting = 0     # threads in held() waiting for the lock
+
+    def __enter__(self) -> SimulationLock:
+        self._lock.acquire()
+        return self
+
+    def __exit__(self, *exc: Any) -> None:
+        self._lock.release()
+
+    @property
+    def waiting(self) -> bool:
+        """Return True while another thread waits for the lock."""
+        return self._waiting > 0
+
+    @contextlib.contextmanager
+    def held(self) -> Iterator[None]:
+        """Hold the lock (threads other than the simulation thread, which yields to them)."""
+        self._waiting += 1
+        try:
+            self._lock.acquire()
+        finally:
+            self._waiting -= 1
+        try:
+            yield
+        finally:
+            self._lock.release()
+
+
+class Pacer:
+    """
+    Run the simulation thread: the run's simulator, paced, with its end and its faults.
+
+    Lock discipline: every attribute is guarded by the :class:`SimulationLock`. The simulation
+    thread holds it for each iteration; other threads change the pacing only through
+    :meth:`start`, :meth:`set_real_time_factor`, :meth:`set_duration` and
+    :meth:`measure_rtf`, holding it. ``sim``, ``finished`` and ``exit_code`` are also read
+    without the lock by the spin loop and the node's read-only properties (single attribute
+    reads; a stale value is at most one iteration old).
+    """
+
+    def __init__(self, lock: SimulationLock, logger: Any, context: Any, inputs: BrakeInputs,
+                 outputs: Outputs) -> None:
+        self.lock = lock
+        self._log = logger
+        self._context = context
+        self._inputs = inputs
+        self._outputs = outputs
+        self._stop = threading.Event()
+        self._wake = threading.Event()
+        self._thread: threading.Thread | None = None
+        self.sim: TrainSimulator | None = None
+        self.real_time_factor = 1.0
+        self.duration = 0.0             # [s simulated], 0 = no end
+        self.end_step: int | None = None
+        self.finished = False
+        self.exit_code = 0
+        self.behind = 0.0               # [s wall] behind schedule at the last iteration
+        self.lag_dropped = 0.0          # [s wall] dropped by the lag policy, in total
+        self.lag_events = 0
+        self.achieved_rtf = float('nan')
+        self._rtf_window = (time.monotonic(), 0.0)
+        self._h = 0.0
+        self._step_cost = 1e-5          # [s wall per step], running estimate
+        self._anchor_wall = 0.0         # wall time at which ...
+        self._anchor_sim = 0.0          # ... the simulation was at this time
+        self._need_anchor = True
+        self._fault_reported = False
+
+    # -- control (other threads, lock held) -------------------------------------------------
+    def start(self, sim: TrainSimulator, real_time_factor: float) -> None:
+        """Pace a new run of ``sim`` from its t = 0."""
+        self.sim = sim
+        self._h = sim.h
+        self.real_time_factor = float(real_time_factor)
+        self.finished = False
+        self.exit_code = 0
+        self._fault_reported = False
+        self._update_end_step()
+        self.behind = 0.0
+        self._step_cost = 1e-5
+        self._rtf_window = (time.monotonic(), 0.0)
+        self._anchor(time.monotonic())
+        self._need_anchor = True        # again after the first output (first publish is slow)
+        self._wake.set()
+
+    def set_real_time_factor(self, rtf: float) -> None:
+        """Pace at ``rtf`` from now on."""
+        self.real_time_factor = float(rtf)
+        self._anchor(time.monotonic())
+        self._wake.set()
+
+    def set_duration(self, duration: float) -> None:
+        """End the run at ``duration`` [s simulated] (0: never); may resume a finished one."""
+        self.duration = float(duration)
+        self._update_end_step()
+        if self.finished and (self.end_step is None or self.end_step > self.sim.steps):
+            self.finished = False
+        self._wake.set()
+
+    def measure_rtf(self, now: float) -> float:
+        """Return the achieved real-time factor, measured over >= 0.2 s of wall time."""
+        w0, s0 = self._rtf_window
+        if now - w0 > 0.2:
+            achieved = (self.sim.t - s0) / (now - w0)
+            self.achieved_rtf = achieved if achieved >= 0 else float('nan')
+            self._rtf_window = (now, self.sim.t)
+        return self.achieved_rtf
+
+    def _update_end_step(self) -> None:
+        d = self.duration
+        self.end_step = end_step(d, self._h) if d > 0 else None
+
+    # -- the thread -------------------------------------------------------------------------
+    def start_thread(self) -> None:
+        """Start the simulation thread."""
+        self._thread = threading.Thread(target=self._run, name='train_dynamics_sim',
+                                        daemon=True)
+        self._thread.start()
+
+    def stop_thread(self, timeout: float = 10.0) -> None:
+        """Stop the simulation thread (idempotent)."""
+        self._stop.set()
+        self._wake.set()
+        if self._thread is not None:
+            self._thread.join(timeout)
+
+    def _run(self) -> None:
+        while not self._stop.is_set():
+            try:
+                with self.lock:
+                    wake = self._iterate()
+            except Exception as exc:  # noqa: BLE001
+                if self._stop.is_set() or not self._context.ok():
+                    break            # shut down under our feet (SIGINT/SIGTERM)
+                self._log.error(f'simulation thread: {type(exc).__name__}: {exc}')
+                with self.lock:
+                    self.finished = True
+                    self.exit_code = 1
+                wake = time.monotonic() + IDLE
+            if wake is None:
+                if self.lock.waiting:
+                    time.sleep(YIELD)
+                continue
+            delay = wake - time.monotonic()
+            if delay > 0:
+                self._wake.wait(delay)
+                self._wake.clear()
+            elif self.lock.waiting:
+                time.sleep(YIELD)
+
+    def _iterate(self) -> float | None:
+        """Do one pacing iteration; return the wall time to wake up at (None: at once)."""
+        sim = self.sim
+        now = time.monotonic()
+        if self.finished or sim.fault is not None:
+            self._inputs.discard_records()     # nothing acts any more: nothing to record
+            return now + IDLE
+        self._inputs.apply(now, sim, self._outputs.record)
+        self._outputs.publish_due(sim)         # t = 0 (and right after a reset)
+        if self._need_anchor:
+            if self._inputs.hold_for_input(now):
+                return now + 0.02
+            self._need_anchor = False
+            now = time.monotonic()
+            self._anchor(now)
+            self._rtf_window = (now, sim.t)
+        done = self._integrate(self._target_step(now), now + CHUNK_BUDGET)
+        if self.finished or sim.fault is not None:
+            return now + IDLE
+        if not done or self.real_time_factor <= 0.0:
+            return None
+        # Next wake-up: the next output's wall time, or the next step's (>= MIN_SLEEP away).
+        now = time.monotonic()
+        nxt = max(self._wall_of_step(sim.steps + 1), now + MIN_SLEEP)
+        return min(nxt, self._wall_of_step(self._outputs.next_step))
+
+    def _target_step(self, now: float) -> int | None:
+        """Return the step the wall clock asks for (None: no limit); apply the lag policy."""
+        rtf = self.real_time_factor
+        if rtf <= 0.0:
+            self.behind = 0.0
+            return None
+        sim = self.sim
+        target = int(math.floor(((now - self._anchor_wall) * rtf + self._anchor_sim)
+                                / self._h + 0.5))
+        behind = now - self._wall_of_step(sim.steps + 1)
+        if behind > MAX_LAG:
+            self.lag_dropped += behind
+            self.lag_events += 1
+            self._log.warning(
+                f'cannot keep up with real_time_factor {rtf:g}: {behind:.2f} s behind '
+                f'at t = {sim.t:.3f} s; dropping the lag (the simulation now runs '
+                f'{self.lag_dropped:.2f} s behind the wall clock in total; achieved rtf '
+                f'{self.achieved_rtf:.3g})', throttle_duration_sec=WARN_PERIOD)
+            self._anchor(now)
+            target = sim.steps + 1
+        elif behind > BEHIND_WARN:
+            self._log.warning(
+                f'falling behind real time: {behind * 1000:.0f} ms behind schedule at '
+                f't = {sim.t:.3f} s (real_time_factor {rtf:g}, achieved '
+                f'{self.achieved_rtf:.3g}); catching up', throttle_duration_sec=WARN_PERIOD)
+        self.behind = max(behind, 0.0)
+        return target
+
+    def _integrate(self, target: int | None, deadline: float) -> bool:
+        """
+        Integrate toward step ``target`` (None: no limit), publishing on the way.
+
+        Stops at the deadline (wall); returns True if the target was reached.
+        """
+        sim = self.sim
+        while True:
+            stop = self._outputs.next_step
+            if target is not None:
+                stop = min(stop, target)
+            if self.end_step is not None:
+                stop = min(stop, self.end_step)
+            if sim.steps >= stop:
+                if self.end_step is not None and sim.steps >= self.end_step:
+                    self._finish('duration reached')
+                return target is None or sim.steps >= target
+            n = stop - sim.steps
+            n = max(1, min(n, int(CHUNK_BUDGET / max(self._step_cost, 1e-9))))
+            t0 = time.monotonic()
+            sim.advance(n)
+            t1 = time.monotonic()
+            self._step_cost = 0.8 * self._step_cost + 0.2 * (t1 - t0) / n
+            if sim.fault is not None:
+                self._on_fault()
+                return True
+            self._outputs.publish_due(sim)
+            if t1 >= deadline:
+                return False
+            self._inputs.apply(t1, sim, self._outputs.record)
+
+    def _anchor(self, now: float) -> None:
+        self._anchor_wall = now
+        self._anchor_sim = self.sim.steps * self._h if self.sim is not None else 0.0
+
+    def _wall_of_step(self, step: int) -> float:
+        return self._anchor_wall + (step * self._h - self._anchor_sim) / self.real_time_factor
+
+    def _on_fault(self) -> None:
+        if self._fault_reported:
+            return
+        self._fault_reported = True
+        writer = self._outputs.writer
+        self._log.error(
+            f'NUMERICAL FAULT: {self.sim.fault}. The simulation keeps its last good state '
+            f'(t = {self.sim.t:.4f} s) and stops integrating; call the reset service to '
+            'start again' + ('' if writer is None else
+                             f'; the recording {writer.path} stays intact'))
+        if self.end_step is not None:
+            self._finish('numerical fault', code=3)
+
+    def _finish(self, why: str, code: int = 0) -> None:
+        if self.finished:
+            return
+        self.finished = True
+        self.exit_code = code
+        self._log.info(f'{why} at t = {self.sim.t:.3f} s ({self.sim.steps} steps); '
+                       'simulation stopped')

@@ -1,0 +1,162 @@
+"""
+ROS 2 parameters from :class:`~train_dynamics.physics.parameters.ParamSpec` tables.
+
+One descriptor builder (:func:`descriptor`), one declaration (:func:`declare_parameters`) and
+one set-callback scheme (:func:`watch_parameters`) for both nodes, following the ROS 2
+parameter design: a pre-set callback converts what ``ros2 param set`` sends into the declared
+type, the set callback VALIDATES ONLY (no side effects; every value through
+:func:`~train_dynamics.physics.parameters.validate_value`, then the node's whole-batch check),
+and the change is APPLIED by the post-set callback, after rclpy has stored the new values.
+All three run on the executor thread (or the thread calling ``set_parameters``).
+"""
+from __future__ import annotations
+
+from typing import Any, Callable, Mapping
+
+from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
+                                ParameterType, SetParametersResult)
+from rclpy.exceptions import ParameterUninitializedException
+from rclpy.node import Node
+from rclpy.parameter import Parameter
+
+from train_dynamics.physics.parameters import (ARRAY_KINDS, BOOL, DOUBLE, DOUBLE_ARRAY,
+                                               INTEGER, ParamSpec, STRING, STRING_ARRAY,
+                                               validate_value)
+
+Specs = Mapping[str, ParamSpec]
+
+_ROS_TYPE = {DOUBLE: ParameterType.PARAMETER_DOUBLE, INTEGER: ParameterType.PARAMETER_INTEGER,
+             STRING: ParameterType.PARAMETER_STRING, BOOL: ParameterType.PARAMETER_BOOL,
+             DOUBLE_ARRAY: ParameterType.PARAMETER_DOUBLE_ARRAY,
+             STRING_ARRAY: ParameterType.PARAMETER_STRING_ARRAY}
+_PARAMETER_TYPE = {DOUBLE_ARRAY: Parameter.Type.DOUBLE_ARRAY,
+                   STRING_ARRAY: Parameter.Type.STRING_ARRAY}
+_ANY_ARRAY = (Parameter.Type.INTEGER_ARRAY, Parameter.Type.BOOL_ARRAY,
+              Parameter.Type.BYTE_ARRAY, Parameter.Type.STRING_ARRAY,
+              Parameter.Type.DOUBLE_ARRAY)
+
+
+def constraints(spec: ParamSpec) -> str:
+    """Return the constraints of ``spec`` in words (choices, bounds), as the README shows."""
+    words = []
+    if spec.choices:
+        words.append('one of: ' + ', '.join(spec.choices))
+    if spec.low is not None:
+        words.append(('> ' if spec.low_exclusive else '>= ') + f'{spec.low:g}')
+    if spec.high is not None:
+        words.append(f'<= {spec.high:g}')
+    if spec.kind == DOUBLE_ARRAY and words:
+        words[0] = 'every element ' + words[0]
+    return ', '.join(words)
+
+
+def descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    """Build the ParameterDescriptor (type, description, range, choices) of ``spec``."""
+    when = ('changeable while running' if spec.dynamic
+            else 'structural: pending until the reset service is called')
+    d = ParameterDescriptor(name=spec.name, type=_ROS_TYPE[spec.kind],
+                            description=f'{spec.description} ({when})',
+                            additional_constraints=constraints(spec), read_only=False)
+    if spec.low is None or spec.high is None:
+        return d
+    if spec.kind == DOUBLE:
+        d.floating_point_range = [FloatingPointRange(from_value=float(spec.low),
+                                                     to_value=float(spec.high), step=0.0)]
+    elif spec.kind == INTEGER:
+        d.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high),
+                                        step=1)]
+    return d
+
+
+def as_declared_type(param: Parameter, spec: ParamSpec | None) -> Parameter:
+    """
+    Convert ``param`` to the type ``spec`` declares, where the meaning is unambiguous.
+
+    An integer for a double; an integer array for a double array; an empty array of any type
+    for an array (``ros2 param set`` sends ``[]`` as a bool array). Anything else unchanged
+    (rclpy then rejects a wrong type).
+    """
+    if spec is None:
+        return param
+    t = param.type_
+    if spec.kind == DOUBLE and t == Parameter.Type.INTEGER:
+        return Parameter(param.name, Parameter.Type.DOUBLE, float(param.value))
+    if spec.kind in ARRAY_KINDS and t in _ANY_ARRAY:
+        values = list(param.value)
+        if not values:
+            return Parameter(param.name, _PARAMETER_TYPE[spec.kind], [])
+        if spec.kind == DOUBLE_ARRAY and t == Parameter.Type.INTEGER_ARRAY:
+            return Parameter(param.name, Parameter.Type.DOUBLE_ARRAY, [float(v) for v in values])
+    return param
+
+
+def declare_parameters(node: Node, specs: Specs) -> None:
+    """Declare every parameter of ``specs`` with its default and descriptor."""
+    # rclpy keeps the overrides (command line, parameter file) here; an integer given for a
+    # double is converted first, as the offline command accepts it.
+    overrides = getattr(node, '_parameter_overrides', None)
+    for name, spec in specs.items():
+        if isinstance(overrides, dict) and name in overrides:
+            overrides[name] = as_declared_type(overrides[name], spec)
+        if spec.kind in ARRAY_KINDS:
+            # declared by type: an empty default would not tell rclpy the element type
+            node.declare_parameter(name, _PARAMETER_TYPE[spec.kind], descriptor(spec))
+            try:
+                node.get_parameter(name)
+            except ParameterUninitializedException:
+                node.set_parameters([Parameter(name, _PARAMETER_TYPE[spec.kind],
+                                               list(spec.default))])
+        else:
+            node.declare_parameter(name, spec.default, descriptor(spec))
+
+
+def parameter_values(node: Node, specs: Specs) -> dict[str, Any]:
+    """Return the node's current values of ``specs`` (arrays as lists)."""
+    out = {}
+    for name, spec in specs.items():
+        value = node.get_parameter(name).value
+        out[name] = list(value) if spec.kind in ARRAY_KINDS else value
+    return out
+
+
+def validated(params: list[Parameter], specs: Specs) -> dict[str, Any]:
+    """Return ``{name: value}`` of the parameters in ``specs``, each value validated."""
+    return {p.name: validate_value(p.name, p.value, specs) for p in params if p.name in specs}
+
+
+def watch_parameters(node: Node, specs: Specs, check: Callable[[dict[str, Any]], None],
+                     apply: Callable[[dict[str, Any]], None],
+                     skip: Callable[[], bool] = lambda: False) -> None:
+    """
+    Register the set callbacks of ``node`` for ``specs``.
+
+    ``check(changes)`` is the node's whole-batch validation (no side effects): it raises
+    ``ValueError`` (or ``OSError``) with the reason to reject the batch, which then changes
+    nothing. ``apply(changes)`` runs after rclpy has stored an accepted batch. ``changes``
+    holds the validated values of the batch's parameters of ``specs``; others (e.g.
+    ``use_sim_time``) are left to rclpy. While ``skip()`` is true (the node setting a
+    parameter itself) neither runs.
+    """
+    log = node.get_logger()
+
+    def convert(params: list[Parameter]) -> list[Parameter]:
+        return [as_declared_type(p, specs.get(p.name)) for p in params]
+
+    def validate(params: list[Parameter]) -> SetParametersResult:
+        if skip():
+            return SetParametersResult(successful=True)
+        try:
+            check(validated(params, specs))
+        except (ValueError, OSError) as exc:     # ConfigError, FileExistsError, ...
+            reason = str(exc)
+            log.warning(f'parameter change rejected: {reason}')
+            return SetParametersResult(successful=False, reason=reason)
+        return SetParametersResult(successful=True)
+
+    def post_set(params: list[Parameter]) -> None:
+        if not skip():
+            apply(validated(params, specs))
+
+    node.add_pre_set_parameters_callback(convert)
+    node.add_on_set_parameters_callback(validate)
+    node.add_post_set_parameters_callback(post_set)
