@@ -91,9 +91,11 @@ def test_uniform_train_of_the_parameters():
     assert list(c['mass']) == [40000.0, 50000.0]
 
 
-def test_relative_path_resolves_against_base_dir_then_config(tmp_path):
+def test_relative_path_resolves_against_base_dir_then_config(tmp_path, monkeypatch):
     write(tmp_path, 'vehicles: [{type: paper_coach, count: 2}]\n', 'mine.yaml')
-    assert consist.consist_of(values(consist_file='mine.yaml'), str(tmp_path)).n == 2
+    assert consist.resolve_path('mine.yaml', str(tmp_path)) == tmp_path / 'mine.yaml'
+    monkeypatch.chdir(tmp_path)             # without a base folder: the working directory
+    assert consist.consist_of(values(consist_file='mine.yaml')).n == 2
     # the library itself is found in config/ from anywhere
     assert consist.resolve_path('vehicles.yaml', str(tmp_path)).name == 'vehicles.yaml'
 
@@ -127,7 +129,9 @@ def test_errors_name_the_vehicle_and_the_field(tmp_path, text, words):
 
 def test_missing_consist_file_is_a_clear_error(tmp_path):
     with pytest.raises(ConfigError, match='not found'):
-        consist.consist_of(values(consist_file='nowhere.yaml'), str(tmp_path))
+        consist.consist_of({'consist_file': 'nowhere.yaml'}, str(tmp_path))
+    with pytest.raises(ConfigError, match='not found'):
+        SimConfig.from_dict({'consist_file': 'nowhere.yaml'})
 
 
 def test_connection_harmonic_mean_with_zero_friction():

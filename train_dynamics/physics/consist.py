@@ -32,8 +32,8 @@ import sys
 from typing import Any
 
 import numpy as np
-from train_dynamics.physics.parameters import (_RosParamLoader, ConfigError, PARAMETERS,
-                                               validate_value)
+# parameters imports this module: use its names at call time only (parameters.X)
+from train_dynamics.physics import parameters
 import yaml
 
 #: the fields a vehicle type may set (each also a simulator parameter, see PARAM_OF)
@@ -61,6 +61,11 @@ COUPLER_FIELDS = ('buffer_stiffness', 'buffer_friction', 'draw_gear_stiffness',
 LIBRARY = 'vehicles.yaml'
 
 
+def _error(message: str) -> Exception:
+    """Return a ConfigError (looked up late: the parameters module imports this one)."""
+    return parameters.ConfigError(message)
+
+
 def config_dirs() -> list[Path]:
     """Return the folders holding the shipped ``config/`` files: source tree, then installed."""
     dirs = [Path(__file__).resolve().parents[2] / 'config']
@@ -79,46 +84,46 @@ def resolve_path(name: str, base_dir: str | None = None) -> Path:
     if path.is_absolute():
         if path.is_file():
             return path
-        raise ConfigError(f'consist_file: file not found: {path}')
+        raise _error(f'consist_file: file not found: {path}')
     tried = [Path(base_dir or os.getcwd()) / path] + [d / path for d in config_dirs()]
     for candidate in tried:
         if candidate.is_file():
             return candidate
-    raise ConfigError(f'consist_file: {name!r} not found (looked in '
-                      f'{", ".join(str(t.parent) for t in tried)})')
+    raise _error(f'consist_file: {name!r} not found (looked in '
+                 f'{", ".join(str(t.parent) for t in tried)})')
 
 
 def _read_yaml(path: Path) -> Any:
     try:
         with open(path, encoding='utf-8') as fh:
-            return yaml.load(fh, Loader=_RosParamLoader)
+            return yaml.load(fh, Loader=parameters._RosParamLoader)
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise ConfigError(f'cannot read {path}: {exc}'.splitlines()[0]) from None
+        raise _error(f'cannot read {path}: {exc}'.splitlines()[0]) from None
 
 
 def check_field(field: str, value: Any, where: str) -> Any:
     """Return ``value`` validated as vehicle field ``field``; ConfigError names ``where``."""
     if field not in VEHICLE_FIELDS:
-        raise ConfigError(f'{where}: unknown field {field!r} (fields: '
-                          f'{", ".join(VEHICLE_FIELDS)})')
+        raise _error(f'{where}: unknown field {field!r} (fields: '
+                     f'{", ".join(VEHICLE_FIELDS)})')
     param = PARAM_OF.get(field, field)
     try:
-        return validate_value(param, value)
-    except ConfigError as exc:
+        return parameters.validate_value(param, value)
+    except parameters.ConfigError as exc:
         reason = str(exc).split(': ', 1)[-1]
-        raise ConfigError(f'{where}: {field}: {reason}') from None
+        raise _error(f'{where}: {field}: {reason}') from None
 
 
 def _types_of(doc: Any, source: str) -> dict[str, dict[str, Any]]:
     if doc is None:
         return {}
     if not isinstance(doc, dict):
-        raise ConfigError(f'{source}: vehicle_types must be a mapping of name -> fields')
+        raise _error(f'{source}: vehicle_types must be a mapping of name -> fields')
     types = {}
     for name, fields in doc.items():
         fields = fields or {}
         if not isinstance(fields, dict):
-            raise ConfigError(f'{source}: vehicle type {name!r}: fields must be a mapping')
+            raise _error(f'{source}: vehicle type {name!r}: fields must be a mapping')
         types[str(name)] = {k: check_field(k, v, f'{source}: vehicle type {name!r}')
                             for k, v in fields.items()}
     return types
@@ -136,7 +141,7 @@ def defaults_of(values: dict[str, Any]) -> dict[str, Any]:
     out = {}
     for field in VEHICLE_FIELDS:
         param = PARAM_OF.get(field, field)
-        out[field] = values.get(param, PARAMETERS[param].default)
+        out[field] = values.get(param, parameters.PARAMETERS[param].default)
     return out
 
 
@@ -195,10 +200,10 @@ def _make(rows: list[tuple[str, dict[str, Any]]], source: str) -> Consist:
         for stiff, fric in (('buffer_stiffness', 'buffer_friction'),
                             ('draw_gear_stiffness', 'draw_gear_friction')):
             if not f[fric] < f[stiff]:
-                raise ConfigError(f'{where}: {fric}: must be < {stiff} ({f[fric]:g} >= '
-                                  f'{f[stiff]:g})')
+                raise _error(f'{where}: {fric}: must be < {stiff} ({f[fric]:g} >= '
+                             f'{f[stiff]:g})')
     if len(rows) < 2:
-        raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {len(rows)}')
+        raise _error(f'{source}: a train needs at least 2 vehicles, got {len(rows)}')
     numeric = [f for f in VEHICLE_FIELDS if f != 'brake_regime']
     fields = {f: np.array([r[1][f] for r in rows], dtype=float) for f in numeric}
     return Consist([r[0] for r in rows], fields, [r[1]['brake_regime'] for r in rows])
@@ -214,31 +219,31 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
     source = str(file)
     doc = _read_yaml(file)
     if not isinstance(doc, dict):
-        raise ConfigError(f'{source}: a consist file is a mapping with vehicles: (and '
-                          'optionally vehicle_types:)')
+        raise _error(f'{source}: a consist file is a mapping with vehicles: (and '
+                     'optionally vehicle_types:)')
     unknown = set(doc) - {'vehicle_types', 'vehicles'}
     if unknown:
-        raise ConfigError(f'{source}: unknown key(s) {", ".join(sorted(map(str, unknown)))} '
-                          '(expected vehicle_types, vehicles)')
+        raise _error(f'{source}: unknown key(s) {", ".join(sorted(map(str, unknown)))} '
+                     '(expected vehicle_types, vehicles)')
     types = library_types()
     types.update(_types_of(doc.get('vehicle_types'), source))
     vehicles = doc.get('vehicles')
     if not isinstance(vehicles, list) or not vehicles:
-        raise ConfigError(f'{source}: vehicles: must be a non-empty list, front to rear')
+        raise _error(f'{source}: vehicles: must be a non-empty list, front to rear')
     defaults = defaults_of(values)
     rows: list[tuple[str, dict[str, Any]]] = []
     for k, entry in enumerate(vehicles, start=1):
         where = f'{source}: vehicles[{k}]'
         if not isinstance(entry, dict) or 'type' not in entry:
-            raise ConfigError(f'{where}: each entry needs type: NAME')
+            raise _error(f'{where}: each entry needs type: NAME')
         entry = dict(entry)
         name = str(entry.pop('type'))
         if name not in types:
-            raise ConfigError(f'{where}: unknown vehicle type {name!r} (known: '
-                              f'{", ".join(sorted(types))})')
+            raise _error(f'{where}: unknown vehicle type {name!r} (known: '
+                         f'{", ".join(sorted(types))})')
         count = entry.pop('count', 1)
         if not isinstance(count, int) or isinstance(count, bool) or count < 1:
-            raise ConfigError(f'{where} ({name}): count: must be an integer >= 1, got {count!r}')
+            raise _error(f'{where} ({name}): count: must be an integer >= 1, got {count!r}')
         overrides = {f: check_field(f, v, f'{where} ({name})') for f, v in entry.items()}
         merged = {**defaults, **types[name], **overrides}
         rows.extend((name, merged) for _ in range(count))
@@ -249,7 +254,7 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
     """Return the uniform train of the parameters (num_coaches/masses and the constants)."""
     defaults = defaults_of(values)
     masses = values.get('masses') or [float(values.get('coach_mass', defaults['mass']))] * int(
-        values.get('num_coaches', PARAMETERS['num_coaches'].default))
+        values.get('num_coaches', parameters.PARAMETERS['num_coaches'].default))
     rows = [('coach', {**defaults, 'mass': float(m)}) for m in masses]
     return _make(rows, 'parameters')
 

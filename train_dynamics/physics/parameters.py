@@ -17,9 +17,12 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
+import os
 import re
 from typing import Any, Mapping
 
+# consist uses this module's table at call time only (a circular import that is safe)
+from train_dynamics.physics import consist, track
 import yaml
 
 # Kinds of value, named after the ROS 2 parameter types they map to.
@@ -376,13 +379,34 @@ class SimConfig:
     # -- derived quantities -------------------------------------------------------------
     @property
     def n_coaches(self) -> int:
+        if self.consist_file:
+            return self.consist.n
         return len(self.masses) if self.masses else int(self.num_coaches)
 
     @property
     def mass_array(self) -> list[float]:
+        if self.consist_file:
+            return [float(m) for m in self.consist['mass']]
         if self.masses:
             return list(self.masses)
         return [float(self.coach_mass)] * int(self.num_coaches)
+
+    @property
+    def consist(self):
+        """Return the train's :class:`~train_dynamics.physics.consist.Consist` (cached)."""
+        cached = self.__dict__.get('_consist')
+        if cached is None or cached[0] != self.values:
+            cached = (dict(self.values), consist.consist_of(self.values))
+            self.__dict__['_consist'] = cached
+        return cached[1]
+
+    @property
+    def track(self):
+        """Return the line (:class:`~train_dynamics.physics.track.Track`) of the parameters."""
+        v = self.values
+        return track.Track.from_lists(v['initial_position'], v['track_gradient_positions'],
+                                      v['track_gradients'], v['track_curve_starts'],
+                                      v['track_curve_ends'], v['track_curve_radii'])
 
     def fill_table(self) -> tuple[list[float], list[float]]:
         if self.cylinder_fill_time:
@@ -399,6 +423,7 @@ class SimConfig:
     def check(self) -> None:
         """Cross-parameter checks; raises :class:`ConfigError`."""
         v = self.values
+        self._check_real_train()
         if self.masses and len(self.masses) < 2:
             raise ConfigError(f'masses: a train needs at least 2 coaches, got {len(self.masses)}')
         if not v['buffer_friction'] < v['buffer_stiffness']:
@@ -432,6 +457,23 @@ class SimConfig:
                     b < a for a, b in zip(fracs, fracs[1:]))
                 if not ok:
                     raise ConfigError(f'{f_name}: must fall strictly from 1 to 0')
+
+
+    def _check_real_train(self) -> None:
+        """Check the track, the traction schedule and the consist file (issue 11)."""
+        v = self.values
+        try:
+            self.track
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        times, cmds = v['traction_schedule_times'], v['traction_schedule_commands']
+        if len(times) != len(cmds):
+            raise ConfigError('traction_schedule_times and traction_schedule_commands must have '
+                              f'the same length ({len(times)} != {len(cmds)})')
+        if any(b <= a for a, b in zip(times, times[1:])):
+            raise ConfigError('traction_schedule_times: must strictly increase')
+        if v['consist_file']:
+            self.consist
 
 
 class _RosParamLoader(yaml.SafeLoader):
@@ -491,6 +533,11 @@ def load_param_file(path: str) -> SimConfig:
     """Read the simulator configuration from a ROS 2 parameter file (``train_dynamics``)."""
     params = {k: v for k, v in read_param_file(path, 'train_dynamics').items()
               if k not in ROS_BUILTIN_PARAMETERS}
+    name = params.get('consist_file')
+    if isinstance(name, str) and name and not os.path.isabs(os.path.expanduser(name)):
+        local = os.path.join(os.path.dirname(os.path.abspath(path)), name)
+        if os.path.isfile(local):        # relative to the parameter file, then config/
+            params['consist_file'] = local
     try:
         return SimConfig.from_dict(params)
     except ConfigError as exc:
