@@ -401,6 +401,15 @@ class SimConfig:
         return cached[1]
 
     @property
+    def external_forces(self) -> bool:
+        """Return True when the train has resistance, gradients, curves or traction."""
+        v = self.values
+        if v['consist_file'] or v['davis_a'] or v['davis_b'] or v['davis_c']:
+            return True
+        return bool(v['track_gradients'] or v['track_curve_starts']
+                    or v['max_tractive_force'] or v['max_dynamic_brake_force'])
+
+    @property
     def track(self):
         """Return the line (:class:`~train_dynamics.physics.track.Track`) of the parameters."""
         v = self.values

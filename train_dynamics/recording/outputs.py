@@ -7,7 +7,10 @@ writes them to its bag. One definition of what each output topic carries:
 - ``couplers``: JointState ``coupler_1..N-1``: position y [m], velocity ydot [m/s], effort F [N];
 - ``coaches``: JointState ``coach_1..N``: position x [m], velocity v [m/s], effort Fb [N];
 - ``brake_cylinders``: JointState ``coach_1..N``: position = brake-cylinder gauge pressure
-  [Pa], velocity empty, effort = local brake-pipe gauge pressure [Pa].
+  [Pa], velocity empty, effort = local brake-pipe gauge pressure [Pa];
+- ``vehicle_forces`` (a train with resistance, gradients, curves or traction only):
+  JointState ``coach_1..N``: position = traction / dynamic-brake force, velocity = running
+  + curve resistance, effort = gradient force [N, on the vehicle, forward > 0].
 """
 from __future__ import annotations
 
@@ -39,6 +42,15 @@ class OutputEncoder:
         return (self._couplers(t_ns, sim.y, sim.ydot, sim.coupler_force),
                 self._coaches(t_ns, sim.x, sim.v, sim.brake_force),
                 self._coaches(t_ns, sim.cylinder_pressure, None, sim.pipe_pressure))
+
+    def encode_forces(self, t_ns: int, sim: Any) -> bytes:
+        """
+        Return ``vehicle_forces`` of ``sim``'s present state: JointState ``coach_1..N``.
+
+        position = traction / dynamic-brake force, velocity = running + curve resistance,
+        effort = gradient force; each [N] on the vehicle, forward > 0.
+        """
+        return self._coaches(t_ns, sim.traction_force, sim.resistance_force, sim.gradient_force)
 
 
 def run_metadata(cfg: Any, generator: str, **extra: str) -> dict[str, str]:
