@@ -1,4 +1,5 @@
-"""Benchmark of the physics core (issue 5): speed, accuracy and memory of the fixed-step model.
+"""
+Benchmark of the physics core: speed, accuracy and memory of the fixed-step model.
 
 Scenario: the paper's emergency braking generalised to N coaches (config defaults: 45 t
 coaches at 44.444 m/s, ``pipe_head``). The head brake-pipe pressure is set to 0 gauge at
@@ -39,6 +40,9 @@ Reference solutions (over 0-60 s, the envelope up to the first stop) are cached 
 fingerprint of the force law and the reference solver's defaults, so they are recomputed
 only when the physics changes (delete the file to force it). ``python bench/core.py --refs``
 fills the cache; ``make bench`` computes missing ones up to ``--ref-max-n`` coaches.
+
+numpy, scipy and the package are imported inside the functions on purpose: each case runs
+in a fresh process that times its own import and start-up, and the driver stays light.
 """
 from __future__ import annotations
 
@@ -122,8 +126,11 @@ def _grid(t_end: float):
 
 # --------------------------------------------------------------------------- one case
 def calibration_s(reps: int = 5) -> float:
-    """Wall time [s] of a fixed pure-Python workload (best of ``reps``): a yardstick of how
-    fast the (shared, virtual) machine runs right now."""
+    """
+    Return the wall time [s] of a fixed pure-Python workload (best of ``reps``).
+
+    A yardstick of how fast the (shared, virtual) machine runs right now.
+    """
     best = float('inf')
     for _ in range(reps):
         t0 = time.perf_counter()
@@ -222,9 +229,12 @@ def measure_case(n: int, model: str, u: float, h: float) -> dict:
 
 # --------------------------------------------------------------------------- reference
 def _physics_fingerprint(u: float) -> str:
-    """What the reference depends on besides the configuration: the force law (evaluated
-    on a grid of states, so cosmetic source edits keep the cache) and the reference
-    solver's default tolerances and method."""
+    """
+    Return a hash of what the reference depends on besides the configuration.
+
+    That is the force law (evaluated on a grid of states, so cosmetic source edits keep the
+    cache) and the reference solver's default tolerances and method.
+    """
     import numpy as np
     from train_dynamics.physics import couplers, integrators
     y, yd = np.meshgrid(np.linspace(-0.3, 0.3, 13), np.linspace(-0.02, 0.02, 17))
@@ -283,8 +293,12 @@ def save_cache_entry(key: str, entry: dict) -> None:
 
 
 def compute_reference(n: int, u: float) -> dict:
-    """Reference over [0, T_END] on the 10 ms grid: the envelope max_j |F_j| (float32) up
-    to the first sample at which a coach has stopped (v <= 0), where it stops being valid."""
+    """
+    Compute the reference over [0, T_END] on the 10 ms grid.
+
+    Keeps the envelope max_j |F_j| (float32) up to the first sample at which a coach has
+    stopped (v <= 0), where it stops being valid.
+    """
     import numpy as np
     from train_dynamics.physics import couplers
     from train_dynamics.physics.integrators import reference_solution
@@ -316,7 +330,7 @@ def compute_reference(n: int, u: float) -> dict:
 
 
 def get_reference(n: int, u: float, allow_compute: bool) -> dict | None:
-    """The cached reference (envelope decoded into 'envelope'), computed if allowed."""
+    """Return the cached reference (envelope decoded into 'envelope'), computed if allowed."""
     cfg = make_config(n, 'tanh', u)
     key = reference_key(cfg)
     cache = load_cache()
@@ -332,8 +346,12 @@ def get_reference(n: int, u: float, allow_compute: bool) -> dict | None:
 
 
 def comparison_window(t_first_stop_sim: float | None, ref: dict | None) -> float:
-    """End of the comparison [s]: STOP_MARGIN before the first coach stops (in our run or in
-    the reference, whichever is first), at most T_END; on the 10 ms grid."""
+    """
+    Return the end of the comparison [s], on the 10 ms grid.
+
+    STOP_MARGIN before the first coach stops (in our run or in the reference, whichever is
+    first), at most T_END.
+    """
     t = T_END + STOP_MARGIN
     if t_first_stop_sim is not None:
         t = min(t, t_first_stop_sim)
@@ -344,7 +362,7 @@ def comparison_window(t_first_stop_sim: float | None, ref: dict | None) -> float
 
 # --------------------------------------------------------------------------- baseline
 def baseline_case(n: int, t_end: float = T_END, u: float = 1000.0) -> dict:
-    """The user's script: solve_ivp RK45 on the paper's eqs. (17)-(18) for N coaches."""
+    """Run the user's script: solve_ivp RK45 on the paper's eqs. (17)-(18) for N coaches."""
     import numpy as np
     from scipy.integrate import solve_ivp
     cfg = make_config(n, 'tanh', u)
@@ -468,10 +486,10 @@ def run(ref_max_n: int = 100, sizes=SIZES, models=MODELS, steps=STEP_VARIANTS,
             if ref is not None:
                 note = ''
         row = _summarise_case(res, ref, note)
-        log(f"  N={n:5d} {model} u={u:g} h={h:g}: wall {row['wall_s']:.3f} s, "
+        log(f'  N={n:5d} {model} u={u:g} h={h:g}: wall {row["wall_s"]:.3f} s, '
             f"{row['rtf']:.1f}x real time, peak {row['peak_N']:.4g} N"
             + (f", peak err {100 * row['peak_err']:+.3f} %" if 'peak_err' in row else
-               f" ({note})"))
+               f' ({note})'))
         return row
 
     log('core: fixed-step cases')
@@ -582,7 +600,7 @@ def main(argv=None) -> int:
                            [float(s) for s in args.ref_us.split(',')], args.ref_max_n)
         return 0
     res = run()
-    print(json.dumps({k: v for k, v in res.items()}, indent=1, default=str)[:5000])
+    print(json.dumps(dict(res), indent=1, default=str)[:5000])
     return 0
 
 

@@ -1,16 +1,16 @@
 """Shared scenario helpers for the physics tests (plain functions, no fixtures)."""
 import numpy as np
 
-from train_dynamics.physics.parameters import SimConfig
-from train_dynamics.physics.couplers import TANH, coupler_force
+from train_dynamics.physics.couplers import coupler_force, TANH
 from train_dynamics.physics.integrators import reference_solution
+from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 
 T_EMERGENCY = 1.0   # the brake valve vents the pipe at t = 1 s
 
 
 def paper_sim(**overrides) -> TrainSimulator:
-    """The paper's scenario (config defaults), pipe vented to 0 gauge at t = 1 s."""
+    """Return the paper's scenario (config defaults), pipe vented to 0 gauge at t = 1 s."""
     sim = TrainSimulator(SimConfig.from_dict(overrides))
     sim.advance_to(T_EMERGENCY)
     sim.set_head_pipe_pressure(0.0)
@@ -32,7 +32,10 @@ def record(sim: TrainSimulator, t_end: float, dt: float = 0.01):
 
 
 def paper_reference(t_eval, u=1000.0, **overrides):
-    """Tight-tolerance solve_ivp solution of the paper scenario: coupler forces at t_eval.
+    """
+    Return the coupler forces at t_eval of a tight-tolerance solution of the paper scenario.
+
+    Returns (F [N], shape (len(t_eval), N-1), brake(t) -> braking forces [N]).
 
     The brake system does not depend on the motion: after the emergency venting the cylinder
     of coach i follows the filling table from T_EMERGENCY + (i-1) L / c, so the braking force

@@ -40,7 +40,8 @@ def test_tanh_model_by_hand():
     s = math.tanh(-1.0)
     expected = (KE - KF * s) * -0.05
     assert expected == pytest.approx(-193311.5909, rel=1e-9)
-    assert force_law(-0.05, -0.001, model='tanh', u=1000.0)[0] == pytest.approx(expected, rel=1e-12)
+    F = force_law(-0.05, -0.001, model='tanh', u=1000.0)[0]
+    assert F == pytest.approx(expected, rel=1e-12)
     # extension, opening at 0.5 mm/s: tanh(0.5)
     expected = (KEC + KFC * math.tanh(0.5)) * 0.03
     assert force_law(0.03, 0.0005, model='tanh', u=1000.0)[0] == pytest.approx(expected, rel=1e-12)
@@ -88,8 +89,24 @@ def test_jacobian_matches_finite_differences():
     k = [np.full(4, c) for c in (KE, KF, KEC, KFC)]
     dfdy, dfdv = couplers.coupler_force_jacobian(y, yd, *k, couplers.TANH, 1000.0)
     eps_y, eps_v = 1e-7, 1e-9
-    f = lambda a, b: couplers.coupler_force(a, b, *k, couplers.TANH, 1000.0)
-    np.testing.assert_allclose(dfdy, (f(y + eps_y, yd) - f(y - eps_y, yd)) / (2 * eps_y), rtol=1e-6)
-    np.testing.assert_allclose(dfdv, (f(y, yd + eps_v) - f(y, yd - eps_v)) / (2 * eps_v), rtol=1e-5)
+
+    def f(a, b):
+        return couplers.coupler_force(a, b, *k, couplers.TANH, 1000.0)
+
+    np.testing.assert_allclose(dfdy, (f(y + eps_y, yd) - f(y - eps_y, yd)) / (2 * eps_y),
+                               rtol=1e-6)
+    np.testing.assert_allclose(dfdv, (f(y, yd + eps_v) - f(y, yd - eps_v)) / (2 * eps_v),
+                               rtol=1e-5)
     # the stiff friction derivative: u k_f |y| sech^2(u ydot) in compression
     assert dfdv[0] == pytest.approx(1000.0 * KF * 0.04 * (1 - math.tanh(-0.2) ** 2), rel=1e-12)
+
+
+def test_net_force_on_the_coaches_eqs5_7():
+    """Coupler j pulls coach j back and coach j+1 forward; the forces cancel in the sum."""
+    F = np.array([1.0e5, -3.0e4, 2.5e4])         # tension, compression, tension [N]
+    net = couplers.net_forces(F)
+    np.testing.assert_array_equal(net, [-1.0e5, 1.0e5 + 3.0e4, -3.0e4 - 2.5e4, 2.5e4])
+    assert net.sum() == 0.0
+    # the kernel's form: only the first n_couplers entries of a longer row are read
+    row = np.append(F, 7.0e9)
+    assert [couplers.net_force(row, i, 3) for i in range(4)] == list(net)

@@ -1,10 +1,13 @@
 """Fixed-step ROS2 against the tight-tolerance reference; convergence; the sign model."""
+import ast
+from pathlib import Path
+
 import numpy as np
+from physics_helpers import paper_reference, paper_sim, record
 import pytest
 
-from train_dynamics.physics import integrators as I
-
-from physics_helpers import paper_reference, paper_sim, record
+from train_dynamics.physics import _jit, couplers, integrators
+from train_dynamics.physics.layout import COACH, WORK
 
 T_END = 12.0   # the brake wave, the buffer shock and the oscillations after it
 
@@ -16,15 +19,74 @@ def reference_u1000():
     return t, F
 
 
-def test_thomas_solver_matches_dense_solve():
+def test_stage_solve_matches_dense_solve_with_held_coaches():
+    """
+    Check the ROS2 step's stage 1 (fused assembly, Thomas algorithm) against a dense solve.
+
+    (M + D^T diag(kk) D) b1 = -D^T F - g h D^T diag(dF/dy) D v - Fb on the free rows, with
+    b1 = 0 on the rows of held coaches (their columns drop out).
+    """
     rng = np.random.default_rng(3)
-    n = 9
-    lower, upper = -rng.uniform(1, 2, n - 1), -rng.uniform(1, 2, n - 1)
-    diag = 5.0 + rng.uniform(0, 1, n)
-    A = np.diag(diag) + np.diag(lower, -1) + np.diag(upper, 1)
-    b = rng.normal(size=n)
-    np.testing.assert_allclose(I.solve_tridiagonal(lower, diag, upper, b),
-                               np.linalg.solve(A, b), rtol=1e-12)
+    n, h = 9, 2e-3
+    m = n - 1
+    gh = integrators.GAMMA * h
+    masses = rng.uniform(3e4, 6e4, n)
+    F, dfdy, kk = rng.normal(0, 1e5, m), rng.uniform(1e6, 8e6, m), rng.uniform(0, 1e5, m)
+    v, brake = rng.uniform(10.0, 11.0, n), rng.uniform(0.0, 4e4, n)
+    held = np.zeros(n, dtype=bool)
+    held[[0, 4, 5]] = True
+    coach = np.zeros((len(COACH), n))
+    coach[COACH.MASS] = masses
+    cpl = np.tile(np.array([[2.8e6], [1.4e6], [5.46e6], [2.43e6]]), (1, m))
+    ws = integrators.make_workspace(n)
+    ws[WORK.F, :m], ws[WORK.DFDY, :m], ws[WORK.KK, :m] = F, dfdy, kk
+    ws[WORK.VSTART], ws[WORK.SIGNED] = v, brake
+    integrators._ros2_step(h, coach, cpl, couplers.TANH, 1000.0, held, ws)
+    D = np.eye(n)[:-1] - np.eye(n, k=1)[:-1]          # y = D x
+    A = np.diag(masses) + D.T @ np.diag(kk) @ D
+    rhs = -D.T @ F - gh * D.T @ (dfdy * (D @ v))
+    free = ~held
+    b1 = np.zeros(n)
+    b1[free] = np.linalg.solve(A[np.ix_(free, free)], rhs[free] - brake[free])
+    assert np.all(ws[WORK.B1][held] == 0.0)
+    np.testing.assert_allclose(ws[WORK.B1], b1, rtol=1e-10, atol=1e-12 * np.abs(b1).max())
+    np.testing.assert_allclose(ws[WORK.DIAG], np.diag(A), rtol=1e-15)
+    np.testing.assert_allclose(ws[WORK.RHS1], rhs, rtol=1e-12, atol=1e-9 * np.abs(rhs).max())
+
+
+def _physics_imports(path: Path) -> set:
+    """Return the file names of the physics modules that the module at ``path`` imports."""
+    names = set()
+    for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+        if not isinstance(node, ast.ImportFrom) or node.module is None:
+            continue
+        if node.module == 'train_dynamics.physics':
+            names.update(f'{alias.name}.py' for alias in node.names)
+        elif node.module.startswith('train_dynamics.physics.'):
+            names.add(node.module.rsplit('.', 1)[1] + '.py')
+    return names
+
+
+def test_kernel_cache_key_covers_every_kernel_source():
+    """
+    Check that the numba cache is keyed on every file the compiled kernels depend on.
+
+    A kernel inlines the compiled functions and freezes the constants of the modules it
+    imports, and numba's own cache only watches the kernel's file: every physics module
+    with compiled functions, and every physics module those import (transitively), must be
+    in KERNEL_SOURCES, or a stale kernel runs after an edit.
+    """
+    folder = Path(integrators.__file__).parent
+    kernels = {p.name for p in folder.glob('*.py') if '_jit.py' in _physics_imports(p)}
+    assert {'brakes.py', 'couplers.py', 'integrators.py'} <= kernels
+    needed, todo = set(), list(kernels)
+    while todo:
+        name = todo.pop()
+        if name not in needed:
+            needed.add(name)
+            todo.extend(_physics_imports(folder / name))
+    assert needed <= set(_jit.KERNEL_SOURCES), needed - set(_jit.KERNEL_SOURCES)
+    assert all((folder / name).is_file() for name in _jit.KERNEL_SOURCES)
 
 
 def test_fixed_step_matches_reference_u1000(reference_u1000):
@@ -68,8 +130,12 @@ def test_u10000_is_stable_at_the_default_step_and_matches_its_reference():
 
 
 def chatter(model, h, window=(3.0, 12.0)):
-    """Per step, over the window: sign changes of ydot per second and the total variation
-    of the coupler forces per second [N/s] (how much F jumps about)."""
+    """
+    Measure the chatter of a model at step h over the window.
+
+    Returns, per second, the sign changes of ydot, the total variation of the coupler
+    forces [N/s] (how much F jumps about), and the peak |F| [N].
+    """
     sim = paper_sim(model_type=model, integration_step=h)
     sim.advance_to(window[0])
     prev_sign, prev_F = np.sign(sim.ydot), sim.coupler_force
@@ -87,7 +153,8 @@ def chatter(model, h, window=(3.0, 12.0)):
 
 
 def test_sign_model_chatters_bounded_and_step_dependent():
-    """The paper's finding: sgn(ydot) gives integration errors around ydot = 0, tanh not.
+    """
+    Reproduce the paper's finding: sgn(ydot) gives integration errors around ydot = 0, tanh not.
 
     Measured (3 coaches, 3-12 s): tanh 4.4 sign changes/s and ~900 N/s of force variation
     at every step; sign 6.4, 10.2, 14 changes/s and 1.6, 3.2, 7.3 kN/s at h = 2, 1, 0.5 ms:
@@ -130,11 +197,14 @@ def test_deterministic():
 
 
 def test_long_train_stick_slip_peak_at_5ms_matches_reference():
-    """30 coaches, u = 1e4, 5 ms: the relative velocities first reverse ~3.7 s after the
-    venting, and a step carrying ydot across the 1e-4 m/s tanh band must still see the
-    friction's damping (secant slope in the stage matrix). With the tangent slope this peak
-    came out 8 % too high; the reference's peak must be met within 1 %."""
-    overrides = dict(num_coaches=30, scale_factor=1e4, integration_step=5e-3)
+    """
+    Meet the reference's stick-slip peak within 1 % (30 coaches, u = 1e4, 5 ms).
+
+    The relative velocities first reverse ~3.7 s after the venting, and a step carrying
+    ydot across the 1e-4 m/s tanh band must still see the friction's damping (secant slope
+    in the stage matrix). With the tangent slope this peak came out 8 % too high.
+    """
+    overrides = {'num_coaches': 30, 'scale_factor': 1e4, 'integration_step': 5e-3}
     t, _, _, F = record(paper_sim(**overrides), 7.0)
     F_ref, _ = paper_reference(t, u=1e4, num_coaches=30)
     peak, peak_ref = np.abs(F).max(), np.abs(F_ref).max()

@@ -1,12 +1,11 @@
 """The coach chain: momentum (eq. 8), energy, stopping distance, brakes that hold."""
 import numpy as np
+from physics_helpers import paper_sim
 import pytest
 
-from train_dynamics.physics import integrators as I
+from train_dynamics.physics.layout import COACH
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
-
-from physics_helpers import paper_sim
 
 G = 9.81
 MU = 0.1
@@ -42,13 +41,14 @@ def test_energy_balance_paper_scenario():
 
 
 def test_energy_balance_buffer_impact():
-    """Two free coaches, the rear one 1 m/s faster: all energy goes into the couplers.
+    """
+    Two free coaches, the rear one 1 m/s faster: all energy goes into the couplers.
 
     Here the coupler work is everything, so the test checks the coupler bookkeeping itself.
     """
     sim = TrainSimulator(SimConfig.from_dict({'num_coaches': 2, 'initial_speed': 10.0,
                                               'integration_step': 5e-4}))
-    sim.coach[I.V, 1] = 11.0
+    sim.coach[COACH.V, 1] = 11.0
     ke0 = sim.kinetic_energy
     p0 = sim.momentum
     sim.advance_to(3.0)
@@ -136,7 +136,7 @@ def test_mixed_vehicles_per_coupler_constants():
     ke = [2.8e6, 8.0e6, 2.8e6]
     sim = TrainSimulator(SimConfig.from_dict({'num_coaches': 4, 'initial_speed': 10.0}),
                          coupler_constants={'buffer_stiffness': ke})
-    sim.coach[I.V, 3] = 10.5          # the last coach runs into the train
+    sim.coach[COACH.V, 3] = 10.5          # the last coach runs into the train
     sim.advance_to(0.3)
     y, yd = sim.y, sim.ydot
     s = np.tanh(1000.0 * yd)

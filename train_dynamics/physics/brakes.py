@@ -1,4 +1,5 @@
-"""The brake system: braking force (paper eqs. 12-13), brake pipe, distributors, cylinders.
+"""
+The brake system: braking force (paper eqs. 12-13), brake pipe, distributors, cylinders.
 
 Chain of the ``pipe_head`` mode, from the driver's brake valve to the wheel:
 
@@ -29,7 +30,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from ._jit import jit
+from train_dynamics.physics._jit import jit
 
 #: brake_input mode codes used inside the compiled kernels
 PIPE_HEAD = 0
@@ -42,10 +43,11 @@ MODE_CODES = {'pipe_head': PIPE_HEAD, 'pipe_per_coach': PIPE_PER_COACH,
 RELEASE_FRACTION_OF_SENSITIVITY = 0.5
 
 
-@jit
+@jit(inline=True)
 def braking_force(p_cyl: np.ndarray, p_max: float, mu_a: float, mass: np.ndarray,
                   g: float, out: np.ndarray) -> np.ndarray:
-    """Braking force Fb_i [N], eq. (13), limited by adhesion, eq. (12); written to ``out``.
+    """
+    Write the braking force Fb_i [N] of eq. (13), limited by adhesion (eq. 12), to ``out``.
 
     p_cyl gauge [Pa]; p_max gauge [Pa]; mass [kg]; g [m/s^2]. A cylinder pressure above
     p_max cannot brake harder than mu_a m g; a negative one does not brake at all.
@@ -69,7 +71,7 @@ def delay_split(delay_steps: np.ndarray, k0: np.ndarray, frac: np.ndarray) -> No
         frac[i] = delay_steps[i] - k0[i]
 
 
-@jit
+@jit(inline=True)
 def delay_line_push(ring: np.ndarray, pos: int, value: float) -> int:
     """Store the head pressure of a new step in the ring buffer; return the new position."""
     pos += 1
@@ -79,7 +81,7 @@ def delay_line_push(ring: np.ndarray, pos: int, value: float) -> int:
     return pos
 
 
-@jit
+@jit(inline=True)
 def delay_line_read(ring: np.ndarray, pos: int, k0: np.ndarray, frac: np.ndarray,
                     out: np.ndarray) -> None:
     """Head pressure k0 + frac steps ago at each coach (linear interpolation) [Pa]."""
@@ -94,11 +96,12 @@ def delay_line_read(ring: np.ndarray, pos: int, k0: np.ndarray, frac: np.ndarray
         out[i] = (1.0 - frac[i]) * ring[i0] + frac[i] * ring[i1]
 
 
-@jit
+@jit(inline=True)
 def distributor_target(p_pipe: np.ndarray, applied: np.ndarray, p_nominal: float,
                        p_full_service: float, sensitivity: float, p_max: float,
                        out: np.ndarray) -> np.ndarray:
-    """Target cylinder pressure [Pa] of each distributor into ``out``; updates ``applied``.
+    """
+    Write each distributor's target cylinder pressure [Pa] to ``out``; update ``applied``.
 
     drop = p_nominal - p_pipe. Applies when drop > sensitivity, releases when
     drop < sensitivity/2 (hysteresis); while applied, target = p_max * drop /
@@ -122,15 +125,14 @@ CylinderTables.__doc__ = """Filling (p/p_max rising 0 -> 1 against time [s]) and
 inverse look-up."""
 
 
-def cylinder_tables(fill_t, fill_f, rel_t, rel_f) -> CylinderTables:
-    arr = [np.asarray(a, dtype=float) for a in (fill_t, fill_f, rel_t, rel_f)]
-    return CylinderTables(*arr, arr[2][::-1].copy(), arr[3][::-1].copy())
-
-
-@jit
+@jit(inline=True)
 def table_interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
-    """Piecewise-linear table look-up, clamped at both ends (np.interp for one point;
-    a linear scan is fastest for the short characteristics used here)."""
+    """
+    Return fp at x by piecewise-linear look-up in (xp, fp), clamped at both ends.
+
+    np.interp for one point; a linear scan is fastest for the short characteristics used
+    here.
+    """
     if x <= xp[0]:
         return fp[0]
     last = xp.shape[0] - 1
@@ -143,10 +145,11 @@ def table_interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
     return fp[k - 1] + w * (fp[k] - fp[k - 1])
 
 
-@jit
+@jit(inline=True)
 def cylinder_advance(p_cyl: np.ndarray, target: np.ndarray, dt: float, p_max: float,
                      tables) -> None:
-    """Move the cylinder pressures ``p_cyl`` [Pa] (in place) ``dt`` seconds toward ``target``.
+    """
+    Move the cylinder pressures ``p_cyl`` [Pa] (in place) ``dt`` seconds toward ``target``.
 
     Rising: along the filling table; falling: along the release table
     (:class:`CylinderTables`). The time on the curve at the present pressure is found by

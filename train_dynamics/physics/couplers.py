@@ -1,4 +1,5 @@
-"""Force laws of the traction, collision and coupling device (paper eqs. 1-4, 14-16).
+"""
+Force laws of the traction, collision and coupling device (paper eqs. 1-4, 14-16).
 
 Sign conventions (product contract): y = x_i - x_{i+1} [m] is the coupler's relative
 displacement, y < 0 compression (the buffers work, constants k_e, k_f), y > 0 extension (the
@@ -15,9 +16,9 @@ the paper's Fig. 2).
 
 The law is written once, per coupler (:func:`coupler_branch` for the branches,
 :func:`coupler_force_scalar` for F and its derivatives), compiled with numba and called by
-the integrator kernel; :func:`coupler_force` and
-:func:`coupler_force_jacobian` apply it to arrays of couplers (per-coupler constants let a
-train mix vehicles).
+the integrator kernel; :func:`coupler_force` and :func:`coupler_force_jacobian` apply it to
+arrays of couplers (per-coupler constants let a train mix vehicles). The couplers' resultant
+on each coach (eqs. 5-7) is :func:`net_force` (per coach) and :func:`net_forces`.
 """
 from __future__ import annotations
 
@@ -25,7 +26,7 @@ import math
 
 import numpy as np
 
-from ._jit import jit
+from train_dynamics.physics._jit import jit
 
 #: model codes used inside the compiled kernels
 SIGN = 0
@@ -35,7 +36,8 @@ MODEL_CODES = {'sign': SIGN, 'tanh': TANH}
 
 @jit
 def fast_tanh(z: float) -> float:
-    """tanh(z) to full double precision through expm1 (cheaper than libm's tanh here).
+    """
+    Return tanh(z) to full double precision through expm1 (cheaper than libm's tanh here).
 
     tanh|z| = -expm1(-2|z|) / (2 + expm1(-2|z|)): no cancellation near 0, exactly 1 once
     expm1 rounds to -1; no branch (the kernels' loops run it for every coupler).
@@ -46,9 +48,11 @@ def fast_tanh(z: float) -> float:
 
 @jit
 def coupler_branch(y: float, s: float, ke: float, kf: float, kec: float, kfc: float):
-    """The branch of the law at y [m] for a friction sign s (sgn or tanh of ydot):
-    (F [N], dF/dy [N/m], k_fr), k_fr = -k_f (buffers) or +k_fc (draw gear), so that the
-    friction part of F is k_fr s y.
+    """
+    Return the branch of the law at y [m] for a friction sign s (sgn or tanh of ydot).
+
+    Returns (F [N], dF/dy [N/m], k_fr), k_fr = -k_f (buffers) or +k_fc (draw gear), so that
+    the friction part of F is k_fr s y.
 
     y < 0: F = (k_e - k_f s) y (eq. 2 / 15); y > 0: F = (k_ec + k_fc s) y (eq. 3 / 16);
     y = 0: F = 0 (sgn 0 = 0 in eq. 4), dF/dy the mean of both branches. Selects, not
@@ -66,7 +70,8 @@ def coupler_branch(y: float, s: float, ke: float, kf: float, kec: float, kfc: fl
 @jit
 def coupler_force_scalar(y: float, ydot: float, ke: float, kf: float, kec: float, kfc: float,
                          model: int, u: float):
-    """One coupler: (F [N], dF/dy [N/m], dF/dydot [N s/m]) at y [m], ydot [m/s].
+    """
+    Return one coupler's (F [N], dF/dy [N/m], dF/dydot [N s/m]) at y [m], ydot [m/s].
 
     s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14) in the branch law of
     :func:`coupler_branch` (eqs. 2-4 / 15-16).
@@ -84,7 +89,8 @@ def coupler_force_scalar(y: float, ydot: float, ke: float, kf: float, kec: float
 @jit
 def coupler_force(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf: np.ndarray,
                   kec: np.ndarray, kfc: np.ndarray, model: int, u: float) -> np.ndarray:
-    """Coupler forces F(y, ydot) [N] of every coupler, eq. (4) = (2) + (3), or (15) + (16).
+    """
+    Return the force F(y, ydot) [N] of every coupler, eq. (4) = (2) + (3), or (15) + (16).
 
     y [m], ydot [m/s], stiffness/friction constants [N/m] per coupler, u [s/m].
     """
@@ -97,7 +103,8 @@ def coupler_force(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf: np.ndarra
 @jit
 def coupler_force_jacobian(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf: np.ndarray,
                            kec: np.ndarray, kfc: np.ndarray, model: int, u: float):
-    """Partial derivatives (dF/dy [N/m], dF/dydot [N s/m]) of every coupler's force.
+    """
+    Return the partial derivatives (dF/dy [N/m], dF/dydot [N s/m]) of every coupler's force.
 
     dF/dy is the branch stiffness k +- k_friction s(ydot). dF/dydot is the friction
     term's u k_friction |y| sech^2(u ydot) for ``tanh``: the stiff part of the system
@@ -114,16 +121,43 @@ def coupler_force_jacobian(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf: 
 
 
 @jit
+def net_force(F: np.ndarray, i: int, n_couplers: int) -> float:
+    """
+    Return the couplers' resultant on coach i, F_{i-1} - F_i [N] (eqs. 5-7).
+
+    0-based: coupler j joins coaches j and j+1, so the front coach (i = 0) and the last
+    (i = n_couplers) have one coupler each. Only F[:n_couplers] is read.
+    """
+    f = 0.0
+    if i > 0:
+        f += F[i - 1]
+    if i < n_couplers:
+        f -= F[i]
+    return f
+
+
+@jit
+def net_forces(F: np.ndarray) -> np.ndarray:
+    """Return the couplers' resultant on every coach [N] (N = len(F) + 1), eqs. (5)-(7)."""
+    n = F.shape[0]
+    out = np.empty(n + 1)
+    for i in range(n + 1):
+        out[i] = net_force(F, i, n)
+    return out
+
+
+@jit
 def elastic_energy(y: np.ndarray, ke: np.ndarray, kec: np.ndarray) -> np.ndarray:
     """Energy stored in the springs of each coupler [J]: k_e y^2/2 (y<0), k_ec y^2/2 (y>0)."""
     return np.where(y < 0.0, 0.5 * ke * y * y, 0.5 * kec * y * y)
 
 
 def force_law(y, ydot, *, ke=2.8e6, kf=1.4e6, kec=5.46e6, kfc=2.43e6, model='tanh', u=1000.0):
-    """Convenience wrapper for scalars or arrays with the paper's constants as defaults."""
+    """Return F [N] for scalars or arrays of y [m], ydot [m/s]; paper constants by default."""
     y = np.atleast_1d(np.asarray(y, dtype=float))
     ydot = np.broadcast_to(np.asarray(ydot, dtype=float), y.shape).copy()
-    full = [np.broadcast_to(np.asarray(k, dtype=float), y.shape).copy() for k in (ke, kf, kec, kfc)]
+    full = [np.broadcast_to(np.asarray(k, dtype=float), y.shape).copy()
+            for k in (ke, kf, kec, kfc)]
     return coupler_force(y, ydot, *full, MODEL_CODES[model], float(u))
 
 

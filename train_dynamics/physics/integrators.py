@@ -1,4 +1,5 @@
-"""Integrators of the coach chain: the fixed-step real-time method and a reference.
+"""
+Integrators of the coach chain: the fixed-step real-time method and a reference.
 
 Fixed step: **ROS2**, the two-stage, second-order, L-stable Rosenbrock method of Verwer,
 Spee, Blom and Hundsdorfer (SIAM J. Sci. Comput. 20, 1999), gamma = 1 + 1/sqrt(2).
@@ -29,6 +30,23 @@ the available braking force is released, a moving coach whose velocity would cha
 stopped. Momentum bookkeeping is exact: the held coaches' brake force is the one that the
 stage equations require.
 
+One step of :func:`advance_chain`, in named parts:
+
+1. :func:`_brake_system_step`: brake pipe, distributors and cylinders to t + h (they do not
+   depend on the motion);
+2. :func:`_braking_force_trapezoid`: the braking force over the step, eq. (13);
+3. :func:`_active_set_step`: :func:`_ros2_step` with the active set of held coaches
+   (:func:`_signed_brake`, :func:`_release_slipping`, :func:`_hold_stopping`);
+4. :func:`_fault_check`, then :func:`_accept_step` and the couplers at the new state
+   (:func:`_eval_couplers_work`).
+
+The packed arrays the kernel works on are laid out in :mod:`train_dynamics.physics.layout`.
+Speed: the steps take the packed arrays and are inlined into :func:`advance_chain` by numba
+(``@jit(inline=True)``, as are the brake-system functions they call). A compiled function
+that takes arrays, or makes row views, pays their reference counting at every call, and
+a call left inside an inlined step stops LLVM from removing that counting: split into
+ordinary calls, a 3-coach step ran 1.5-2 times slower.
+
 Reference: :func:`reference_solution`, scipy ``solve_ivp`` (Radau by default) with the
 analytical sparse Jacobian and tight tolerances, for tests and benchmarks.
 """
@@ -38,8 +56,9 @@ import math
 
 import numpy as np
 
-from . import brakes, couplers
-from ._jit import jit
+from train_dynamics.physics import brakes, couplers
+from train_dynamics.physics._jit import jit
+from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
 
 GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 
@@ -57,66 +76,24 @@ STATUS_TEXT = {
 }
 
 
-@jit
-def solve_tridiagonal(lower: np.ndarray, diag: np.ndarray, upper: np.ndarray,
-                      rhs: np.ndarray) -> np.ndarray:
-    """Thomas algorithm: solve A z = rhs, A tridiagonal (lower[i] = A[i+1, i],
-    upper[i] = A[i, i+1]); A must be diagonally dominant (no pivoting)."""
-    n = diag.shape[0]
-    c = np.empty(n)
-    winv = np.empty(n)
-    z = np.empty(n)
-    winv[0] = 1.0 / diag[0]
-    z[0] = rhs[0] * winv[0]
-    for i in range(1, n):
-        c[i - 1] = upper[i - 1] * winv[i - 1]
-        winv[i] = 1.0 / (diag[i] - lower[i - 1] * c[i - 1])
-        z[i] = (rhs[i] - lower[i - 1] * z[i - 1]) * winv[i]
-    for i in range(n - 2, -1, -1):
-        z[i] -= c[i] * z[i + 1]
-    return z
-
-
-@jit
-def chain_matvec(k: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """(D^T diag(k) D) w: a coupler property k spread onto the coaches [N]."""
-    dk = k * (w[:-1] - w[1:])
-    out = np.zeros(w.shape[0])
-    out[:-1] += dk
-    out[1:] -= dk
-    return out
-
-
-@jit
-def _net_coupler(F: np.ndarray) -> np.ndarray:
-    out = np.zeros(F.shape[0] + 1)
-    out[:-1] -= F
-    out[1:] += F
-    return out
-
-
-# Rows of the kernel's scratch memory (one array, no allocation inside the step loop).
-(W_F, W_DFDY, W_KK, W_DIAG, W_LOWER, W_RHS1, W_RHS2, W_B1, W_B2, W_C, W_WINV, W_F2,
- W_FB, W_SIGNED, W_VSTART, W_RELDIR, W_HOLD, W_TARGET, W_FBNEXT, W_K0, W_FRAC, W_XNEW,
- W_VNEW, W_XOLD) = range(24)
-N_WORK_ROWS = 24
-
-
 def make_workspace(n: int) -> np.ndarray:
-    """Scratch memory of the kernel (N_WORK_ROWS arrays of N)."""
-    return np.zeros((N_WORK_ROWS, n))
+    """Return the kernel's scratch memory for n coaches: len(WORK) rows of n."""
+    return np.zeros((len(WORK), n))
 
 
+# ----------------------------------------------------------------------------- couplers
 @jit
 def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
-    """One coupler's force F [N], dF/dy [N/m] and the dF/dydot [N s/m] of the stage matrix.
+    """
+    Return one coupler's F [N], dF/dy [N/m] and the dF/dydot [N s/m] of the stage matrix.
 
-    The stage matrix takes, for the tanh model, the secant slope of the friction force
-    through ydot = 0, k_fr |y| tanh(u ydot) / ydot, not the tangent u k_fr |y| sech^2(u ydot):
-    a step that carries ydot across the 1/u-wide tanh band then still sees the friction's
-    damping (the tangent is ~0 outside the band, which made the friction explicit exactly
-    there and overshot the peak force of long trains by 10 % at 5 ms). ROS2 is a W-method:
-    order 2 holds for any matrix. Both slopes agree as ydot -> 0. The sign model keeps 0.
+    The stage matrix takes, for the tanh model (eq. 14), the secant slope of the friction
+    force through ydot = 0, k_fr |y| tanh(u ydot) / ydot, not the tangent
+    u k_fr |y| sech^2(u ydot): a step that carries ydot across the 1/u-wide tanh band then
+    still sees the friction's damping (the tangent is ~0 outside the band, which made the
+    friction explicit exactly there and overshot the peak force of long trains by 10 % at
+    5 ms). ROS2 is a W-method: order 2 holds for any matrix. Both slopes agree as
+    ydot -> 0. The sign model keeps 0.
     """
     if model == couplers.TANH:
         z = u * ydot
@@ -131,13 +108,22 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
     return f, stiff, kfr * y * u * ratio
 
 
-@jit
-def _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws):
-    """F, dF/dy and the stage-matrix weights g h dF/dydot + (g h)^2 dF/dy of every coupler
-    at (x, v), into ws."""
-    F0 = ws[W_F]
-    dfdy = ws[W_DFDY]
-    kk = ws[W_KK]
+@jit(inline=True)
+def _eval_couplers(x, v, cpl, model, u, gh, ws):
+    """
+    Write every coupler's F [N], dF/dy [N/m] and stage-matrix weight [kg] at (x, v) to ws.
+
+    Coupler j: y = x_j - x_{j+1} (eq. 9), force law eqs. (2)-(4) / (14)-(16) with the
+    constants of ``cpl`` [N/m]; the weight is g h dF/dydot + (g h)^2 dF/dy (rows WORK.F,
+    DFDY, KK).
+    """
+    ke = cpl[COUPLER.KE]
+    kf = cpl[COUPLER.KF]
+    kec = cpl[COUPLER.KEC]
+    kfc = cpl[COUPLER.KFC]
+    F0 = ws[WORK.F]
+    dfdy = ws[WORK.DFDY]
+    kk = ws[WORK.KK]
     for j in range(x.shape[0] - 1):
         f, dy, dv = _coupler_w(x[j] - x[j + 1], v[j] - v[j + 1], ke[j], kf[j], kec[j], kfc[j],
                                model, u)
@@ -147,12 +133,23 @@ def _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws):
 
 
 @jit
-def _eval_couplers_work(x, v, x_old, ke, kf, kec, kfc, model, u, gh, ws):
-    """:func:`_eval_couplers` at the new state (x, v) that also returns the couplers' work
-    over the step from x_old [J] (trapezoidal in the force, as before)."""
-    F0 = ws[W_F]
-    dfdy = ws[W_DFDY]
-    kk = ws[W_KK]
+def _eval_couplers_work(coach, cpl, model, u, gh, ws):
+    """
+    Do :func:`_eval_couplers` at the new state (COACH.X, V); return the couplers' work [J].
+
+    The work over the step from the positions WORK.XOLD [m] is trapezoidal in the force:
+    sum_j (F_j(old) + F_j(new)) / 2 (y_j(new) - y_j(old)).
+    """
+    x = coach[COACH.X]
+    v = coach[COACH.V]
+    x_old = ws[WORK.XOLD]
+    ke = cpl[COUPLER.KE]
+    kf = cpl[COUPLER.KF]
+    kec = cpl[COUPLER.KEC]
+    kfc = cpl[COUPLER.KFC]
+    F0 = ws[WORK.F]
+    dfdy = ws[WORK.DFDY]
+    kk = ws[WORK.KK]
     wc = 0.0
     for j in range(x.shape[0] - 1):
         y = x[j] - x[j + 1]
@@ -164,53 +161,68 @@ def _eval_couplers_work(x, v, x_old, ke, kf, kec, kfc, model, u, gh, ws):
     return wc
 
 
-@jit
-def _ros2_step(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, ws,
-               x_new, v_new, hold):
-    """One ROS2 step with the coaches in ``held`` fixed at rest.
+# ----------------------------------------------------------------------------- ROS2
+@jit(inline=True)
+def _ros2_step(h, coach, cpl, model, u, held, ws):
+    """
+    Do one ROS2 step of eqs. (5)-(7) from (x, v) with the coaches in ``held`` at rest.
 
-    ``brake`` [N] is the signed braking force on the moving coaches (positive retarding).
-    Fills x_new, v_new and ``hold``: the holding force [N] the stage equations require of
-    each held coach (signed, positive retarding; 0 on moving coaches). The couplers'
-    forces and Jacobian at (x, v) must be in ws (:func:`_eval_couplers`).
+    x = COACH.X [m], v = WORK.VSTART [m/s]; brake = WORK.SIGNED [N], the signed braking
+    force on the moving coaches (positive retarding). The couplers' forces and Jacobian at
+    (x, v) must be in ws (:func:`_eval_couplers`).
+    Leaves the new state in WORK.XNEW, VNEW and in WORK.HOLD the holding force [N] the
+    stage equations require of each held coach (signed, positive retarding; 0 on moving
+    coaches). Stage equations, with A = M + g h C_c + (g h)^2 K_c [kg] (tridiagonal):
 
-    Stage equations, with A = M + g h C_c + (g h)^2 K_c (tridiagonal):
       A b1 = g(x, v) - g h K_c v - Fb,                        a1 = v + g h b1
       A b2 = g(x + h a1, v + h b1) - 2 M b1 - g h K_c r - Fb,  r = v + h b1 - 2 a1,
                                                                a2 = r + g h b2
-      x' = x + h (3/2 a1 + 1/2 a2),  v' = v + h (3/2 b1 + 1/2 b2).
-    Written as fused loops: assembly, LU factorisation and forward substitution in one pass.
+      x' = x + h (3/2 a1 + 1/2 a2),  v' = v + h (3/2 b1 + 1/2 b2),
+
+    g the net coupler force of eqs. (5)-(7). A held coach's row becomes b_i = 0; its
+    holding force is the mean over both stages of the residual its free row would leave.
+    Written as fused loops (one pass: assembly, LU factorisation and forward substitution)
+    in the caller's scratch rows: no allocation, no call per stage.
     """
+    x = coach[COACH.X]
+    v = ws[WORK.VSTART]
+    masses = coach[COACH.MASS]
+    brake = ws[WORK.SIGNED]
+    ke = cpl[COUPLER.KE]
+    kf = cpl[COUPLER.KF]
+    kec = cpl[COUPLER.KEC]
+    kfc = cpl[COUPLER.KFC]
     n = x.shape[0]
     m = n - 1
     gh = GAMMA * h
-    F0 = ws[W_F]
-    dfdy = ws[W_DFDY]
-    kk = ws[W_KK]
-    diag = ws[W_DIAG]       # diagonal of the free rows (for the holding forces)
-    lower = ws[W_LOWER]     # A[i+1, i] of the effective matrix
-    rhs1 = ws[W_RHS1]       # right-hand sides of the free rows, brake apart
-    rhs2 = ws[W_RHS2]
-    b1 = ws[W_B1]
-    b2 = ws[W_B2]
-    c = ws[W_C]
-    winv = ws[W_WINV]
-    F2 = ws[W_F2]
+    hr = h - 2.0 * gh            # r = v + h b1 - 2 a1 = (h - 2 g h) b1 - v
+    F0 = ws[WORK.F]
+    dfdy = ws[WORK.DFDY]
+    kk = ws[WORK.KK]
+    diag = ws[WORK.DIAG]       # diagonal of the free rows (for the holding forces)
+    lower = ws[WORK.LOWER]     # A[i+1, i] of the effective matrix
+    rhs1 = ws[WORK.RHS1]       # right-hand sides of the free rows, brake apart
+    rhs2 = ws[WORK.RHS2]
+    b1 = ws[WORK.B1]
+    b2 = ws[WORK.B2]
+    c = ws[WORK.C]
+    winv = ws[WORK.WINV]
+    F2 = ws[WORK.F2]
+    x_new = ws[WORK.XNEW]
+    v_new = ws[WORK.VNEW]
+    hold = ws[WORK.HOLD]
     # stage 1: assemble, factor and forward-substitute in one sweep
     for i in range(n):
         d = masses[i]
-        g = 0.0
         kv = 0.0
         if i > 0:
             d += kk[i - 1]
-            g += F0[i - 1]
             kv += dfdy[i - 1] * (v[i] - v[i - 1])
         if i < m:
             d += kk[i]
-            g -= F0[i]
             kv += dfdy[i] * (v[i] - v[i + 1])
         diag[i] = d
-        rhs1[i] = g - gh * kv
+        rhs1[i] = couplers.net_force(F0, i, m) - gh * kv
         if held[i]:
             d = 1.0
             r1 = 0.0
@@ -236,18 +248,14 @@ def _ros2_step(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, ws,
             x[j] - x[j + 1] + h * (dv + gh * db), dv + h * db, ke[j], kf[j], kec[j], kfc[j],
             model, u)
         F2[j] = f
-    hr = h - 2.0 * gh            # r = v + h b1 - 2 a1 = (h - 2 g h) b1 - v
     for i in range(n):
-        g = 0.0
         kr = 0.0
         ri = hr * b1[i] - v[i]
         if i > 0:
-            g += F2[i - 1]
             kr += dfdy[i - 1] * (ri - (hr * b1[i - 1] - v[i - 1]))
         if i < m:
-            g -= F2[i]
             kr += dfdy[i] * (ri - (hr * b1[i + 1] - v[i + 1]))
-        rhs2[i] = g - 2.0 * masses[i] * b1[i] - gh * kr
+        rhs2[i] = couplers.net_force(F2, i, m) - 2.0 * masses[i] * b1[i] - gh * kr
         r2 = 0.0 if held[i] else rhs2[i] - brake[i]
         if i == 0:
             b2[0] = r2 * winv[0]
@@ -275,10 +283,17 @@ def _ros2_step(h, x, v, held, brake, masses, ke, kf, kec, kfc, model, u, ws,
         hold[i] = 0.5 * ((rhs1[i] - ab1) + (rhs2[i] - ab2))
 
 
+# ----------------------------------------------------------------------------- active set
+# The steps below run once per step: they take the packed arrays and index them per
+# element (coach[COACH.V, i]), which costs no reference counting (see the module's notes).
 @jit
 def _stops(v0, v1, fb):
-    """A moving coach stops within the step: its velocity v0 -> v1 [m/s] changes sign, or a
-    braked coach (fb [N] > 0) ends the step slower than V_REST."""
+    """
+    Tell whether a moving coach stops within the step.
+
+    Its velocity v0 -> v1 [m/s] changes sign, or a braked coach (fb [N] > 0) ends the step
+    slower than V_REST.
+    """
     if v0 == 0.0:
         return False
     if v0 * v1 <= 0.0:
@@ -286,164 +301,229 @@ def _stops(v0, v1, fb):
     return fb > 0.0 and abs(v1) < V_REST
 
 
-# Rows of the coach array and slots of the scalar arrays passed to :func:`advance_chain`
-# (few arguments keep numba's call overhead at a few microseconds).
-X, V, MASS, PCYL, PPIPE, PIPE_IN, CYL_IN, FB_AVAIL, FB_APPLIED, DELAY, APPLIED, HELD = range(12)
-N_COACH_ROWS = 12
-KE, KF, KEC, KFC = range(4)
-S_H, S_U, S_PMAX, S_MU, S_G, S_PNOM, S_PFS, S_SENS, S_HEAD_IN, S_YLIM, S_WB, S_WC = range(12)
-N_SCALARS = 12
-I_MODEL, I_MODE, I_RING_POS, I_WS_VALID = range(4)
-N_INT_SCALARS = 4
+@jit(inline=True)
+def _signed_brake(ws):
+    """
+    Sign the braking force over the step against each coach's motion [N] (WORK.SIGNED).
+
+    From WORK.FB, positive retarding; a coach released from rest at this step
+    (WORK.VSTART = 0) is braked against the direction WORK.RELDIR it slides in.
+    """
+    for i in range(ws.shape[1]):
+        if ws[WORK.VSTART, i] > 0.0:
+            ws[WORK.SIGNED, i] = ws[WORK.FB, i]
+        elif ws[WORK.VSTART, i] < 0.0:
+            ws[WORK.SIGNED, i] = -ws[WORK.FB, i]
+        else:
+            ws[WORK.SIGNED, i] = ws[WORK.RELDIR, i] * ws[WORK.FB, i]
+
+
+@jit(inline=True)
+def _release_slipping(held, ws):
+    """
+    Release the held coaches whose holding force exceeds the braking force [N].
+
+    Such a coach (WORK.HOLD > WORK.FB) slides, braked against its motion (WORK.RELDIR).
+    Return whether any was released.
+    """
+    changed = False
+    for i in range(held.shape[0]):
+        if held[i] and abs(ws[WORK.HOLD, i]) > ws[WORK.FB, i] * (1.0 + 1e-12):
+            held[i] = False
+            ws[WORK.RELDIR, i] = 1.0 if ws[WORK.HOLD, i] > 0.0 else -1.0
+            ws[WORK.VSTART, i] = 0.0
+            changed = True
+    return changed
+
+
+@jit(inline=True)
+def _hold_stopping(held, coach, ws, extra_work):
+    """
+    Hold the moving coaches that stop within the step from the step's start.
+
+    Their kinetic energy m v^2 / 2 [J] goes to the brakes' work: return (whether any
+    stopped, ``extra_work`` plus that energy).
+    """
+    changed = False
+    for i in range(held.shape[0]):
+        if held[i] or ws[WORK.RELDIR, i] != 0.0:
+            continue
+        v0 = ws[WORK.VSTART, i]
+        if _stops(v0, ws[WORK.VNEW, i], ws[WORK.FB, i]):
+            held[i] = True
+            extra_work += 0.5 * coach[COACH.MASS, i] * v0 * v0
+            ws[WORK.VSTART, i] = 0.0
+            changed = True
+    return changed, extra_work
+
+
+@jit(inline=True)
+def _active_set_step(coach, cpl, sc, iv, held, ws):
+    """
+    Do one ROS2 step of the chain with the active set of held coaches; return work [J].
+
+    Starts from the coaches held at the end of the last step (COACH.HELD) and iterates (at
+    most N + 2 times): release the held coaches the brake cannot hold, else stop the
+    moving coaches whose velocity would change sign. WORK.FB is the braking force over the
+    step [N]. The returned work is the kinetic energy of the coaches stopped at the step's
+    start. The new state and the holding forces are left in WORK.XNEW, VNEW, HOLD.
+    """
+    n = held.shape[0]
+    h = sc[SCALAR.H]
+    model = iv[FLAG.MODEL]
+    for i in range(n):
+        held[i] = coach[COACH.HELD, i] > 0.5
+        ws[WORK.RELDIR, i] = 0.0
+        ws[WORK.VSTART, i] = coach[COACH.V, i]
+    extra_work = 0.0
+    for it in range(n + 2):
+        if it > 0:   # the active set changed some starting velocities
+            _eval_couplers(coach[COACH.X], ws[WORK.VSTART], cpl, model, sc[SCALAR.U],
+                           GAMMA * h, ws)
+        _signed_brake(ws)
+        _ros2_step(h, coach, cpl, model, sc[SCALAR.U], held, ws)
+        changed = _release_slipping(held, ws)
+        if not changed:
+            changed, extra_work = _hold_stopping(held, coach, ws, extra_work)
+        if not changed:
+            break
+    return extra_work
+
+
+# ----------------------------------------------------------------------------- one step
+@jit(inline=True)
+def _brake_system_step(coach, sc, iv, ring, tables, ws):
+    """
+    Move the brake system to the end of the step (it does not depend on the motion).
+
+    ``pipe_head``: the head pressure [Pa] enters the delay line and each coach reads its
+    delayed pipe pressure (WORK.K0 + FRAC steps ago); ``pipe_per_coach``: the pipe
+    pressures are the inputs COACH.PIPE_IN. Then the distributors' targets and the
+    cylinders along their filling/release tables [Pa]; or, ``cylinder_per_coach``, the
+    cylinder pressures are the inputs COACH.CYL_IN (see ``brakes``).
+    """
+    mode = iv[FLAG.MODE]
+    if mode == brakes.PIPE_HEAD:
+        iv[FLAG.RING_POS] = brakes.delay_line_push(ring, iv[FLAG.RING_POS],
+                                                   sc[SCALAR.HEAD_IN])
+        brakes.delay_line_read(ring, iv[FLAG.RING_POS], ws[WORK.K0], ws[WORK.FRAC],
+                               coach[COACH.PPIPE])
+    elif mode == brakes.PIPE_PER_COACH:
+        coach[COACH.PPIPE] = coach[COACH.PIPE_IN]
+    if mode == brakes.CYLINDER_PER_COACH:
+        coach[COACH.PCYL] = coach[COACH.CYL_IN]
+    else:
+        brakes.distributor_target(coach[COACH.PPIPE], coach[COACH.APPLIED], sc[SCALAR.PNOM],
+                                  sc[SCALAR.PFS], sc[SCALAR.SENS], sc[SCALAR.PMAX],
+                                  ws[WORK.TARGET])
+        brakes.cylinder_advance(coach[COACH.PCYL], ws[WORK.TARGET], sc[SCALAR.H],
+                                sc[SCALAR.PMAX], tables)
+
+
+@jit(inline=True)
+def _braking_force_trapezoid(coach, sc, ws):
+    """
+    Write the braking force over the step [N] to WORK.FB: the trapezoid of eq. (13).
+
+    The mean of the available force (eq. 13, limited by eq. 12) at both ends of the step,
+    second order; COACH.FB_AVAIL moves on to the step's end (WORK.FBNEXT).
+    """
+    brakes.braking_force(coach[COACH.PCYL], sc[SCALAR.PMAX], sc[SCALAR.MU],
+                         coach[COACH.MASS], sc[SCALAR.G], ws[WORK.FBNEXT])
+    for i in range(coach.shape[1]):
+        ws[WORK.FB, i] = 0.5 * (coach[COACH.FB_AVAIL, i] + ws[WORK.FBNEXT, i])
+        coach[COACH.FB_AVAIL, i] = ws[WORK.FBNEXT, i]
+
+
+@jit(inline=True)
+def _fault_check(ws, y_limit):
+    """
+    Return the status of the new state WORK.XNEW, VNEW: OK, NON_FINITE or OUT_OF_RANGE.
+
+    OUT_OF_RANGE: a coupler's |y| = |x_i - x_{i+1}| exceeds y_limit [m] (the displacement
+    the vehicles physically allow); NON_FINITE wins.
+    """
+    n = ws.shape[1]
+    bad = OK
+    for i in range(n):
+        if not (np.isfinite(ws[WORK.XNEW, i]) and np.isfinite(ws[WORK.VNEW, i])):
+            bad = NON_FINITE
+            break
+        if i < n - 1 and abs(ws[WORK.XNEW, i] - ws[WORK.XNEW, i + 1]) > y_limit:
+            bad = OUT_OF_RANGE
+    return bad
+
+
+@jit(inline=True)
+def _accept_step(coach, held, extra_work, ws):
+    """
+    Move the coaches to the new state; return the brakes' work over the step [J].
+
+    The work is sum_i Fb_i (x_i' - x_i) with the holding force WORK.HOLD on held coaches
+    and WORK.SIGNED on the others, plus ``extra_work``; COACH.FB_APPLIED gets |Fb_i| [N],
+    COACH.HELD the active set (1.0 = held), WORK.XOLD the positions at the step's start.
+    """
+    wb = extra_work
+    for i in range(held.shape[0]):
+        b = ws[WORK.HOLD, i] if held[i] else ws[WORK.SIGNED, i]
+        wb += b * (ws[WORK.XNEW, i] - coach[COACH.X, i])
+        coach[COACH.FB_APPLIED, i] = abs(b)
+        ws[WORK.XOLD, i] = coach[COACH.X, i]
+        coach[COACH.X, i] = ws[WORK.XNEW, i]
+        coach[COACH.V, i] = ws[WORK.VNEW, i]
+        coach[COACH.HELD, i] = 1.0 if held[i] else 0.0
+    return wb
 
 
 @jit
 def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
-    """Advance brakes and chain ``n_steps`` fixed steps, in place; returns (steps, status).
-
-    coach: (12, N) rows X..HELD above; cpl: (4, N-1) k_e, k_f, k_ec, k_fc [N/m];
-    sc: float scalars (S_*), iv: int scalars (I_*); fill, rel: (2, L) tables (times [s],
-    p/p_max); ring: head-pressure history; ws: :func:`make_workspace`.
-
-    Each step: the brake system moves to the end of the step (pipe delay, distributors,
-    cylinders: it does not depend on the motion), the braking force over the step is the
-    mean of its values at both ends (trapezoidal, second order), then one ROS2 step with the
-    active set of held coaches.
     """
-    n = coach.shape[1]
-    m = n - 1
-    x = coach[X]
-    v = coach[V]
-    masses = coach[MASS]
-    p_cyl = coach[PCYL]
-    p_pipe = coach[PPIPE]
-    fb_avail = coach[FB_AVAIL]
-    fb_applied = coach[FB_APPLIED]
-    ke = cpl[KE]
-    kf = cpl[KF]
-    kec = cpl[KEC]
-    kfc = cpl[KFC]
-    h = sc[S_H]
-    u = sc[S_U]
-    p_max = sc[S_PMAX]
-    model = iv[I_MODEL]
-    mode = iv[I_MODE]
-    applied = coach[APPLIED]      # float flags, updated in place by distributor_target
-    fb = ws[W_FB]
-    signed = ws[W_SIGNED]
-    v_start = ws[W_VSTART]
-    rel_dir = ws[W_RELDIR]
-    hold = ws[W_HOLD]
-    target = ws[W_TARGET]
-    fb_next = ws[W_FBNEXT]
-    x_new = ws[W_XNEW]
-    v_new = ws[W_VNEW]
-    x_old = ws[W_XOLD]
-    hold_set = np.empty(n, dtype=np.bool_)
+    Advance brakes and chain ``n_steps`` fixed steps, in place; return (steps, status).
+
+    coach: (len(COACH), N); cpl: (len(COUPLER), N-1) k_e, k_f, k_ec, k_fc [N/m]; sc, iv:
+    float and integer scalars (SCALAR, FLAG); fill, rel: (2, L) cylinder tables (times [s],
+    p/p_max); ring: head-pressure history [Pa]; ws: :func:`make_workspace`. The layouts are
+    in :mod:`train_dynamics.physics.layout`. Each step: the brake system to the step's end,
+    the braking force over the step (trapezoid), one ROS2 step with the active set of held
+    coaches, the fault check, then the new state is accepted and the work booked.
+    """
+    gh = GAMMA * sc[SCALAR.H]
+    held = np.empty(coach.shape[1], dtype=np.bool_)
     tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
                                    rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
-    k0 = ws[W_K0]
-    frac = ws[W_FRAC]
-    gh = GAMMA * h
-    if iv[I_WS_VALID] == 0:
+    if iv[FLAG.WS_VALID] == 0:
         # first call after reset()/set_model(): pipe delays and the couplers at (x, v); later
         # calls find them in ws, left there by the last step of the previous call
-        brakes.delay_split(coach[DELAY], k0, frac)
-        _eval_couplers(x, v, ke, kf, kec, kfc, model, u, gh, ws)
-        iv[I_WS_VALID] = 1
+        brakes.delay_split(coach[COACH.DELAY], ws[WORK.K0], ws[WORK.FRAC])
+        _eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh,
+                       ws)
+        iv[FLAG.WS_VALID] = 1
     for step in range(n_steps):
-        # --- brake system to t + h
-        if mode == brakes.PIPE_HEAD:
-            iv[I_RING_POS] = brakes.delay_line_push(ring, iv[I_RING_POS], sc[S_HEAD_IN])
-            brakes.delay_line_read(ring, iv[I_RING_POS], k0, frac, p_pipe)
-        elif mode == brakes.PIPE_PER_COACH:
-            p_pipe[:] = coach[PIPE_IN]
-        if mode == brakes.CYLINDER_PER_COACH:
-            p_cyl[:] = coach[CYL_IN]
-        else:
-            brakes.distributor_target(p_pipe, applied, sc[S_PNOM], sc[S_PFS], sc[S_SENS],
-                                      p_max, target)
-            brakes.cylinder_advance(p_cyl, target, h, p_max, tables)
-        brakes.braking_force(p_cyl, p_max, sc[S_MU], masses, sc[S_G], fb_next)
-        for i in range(n):
-            fb[i] = 0.5 * (fb_avail[i] + fb_next[i])
-            fb_avail[i] = fb_next[i]
-            hold_set[i] = coach[HELD, i] > 0.5
-            rel_dir[i] = 0.0
-            v_start[i] = v[i]
-        # --- mechanics: active-set iteration over the held coaches
-        extra_work = 0.0
-        for it in range(n + 2):
-            if it > 0:   # the active set changed some starting velocities
-                _eval_couplers(x, v_start, ke, kf, kec, kfc, model, u, gh, ws)
-            for i in range(n):
-                if v_start[i] > 0.0:
-                    signed[i] = fb[i]
-                elif v_start[i] < 0.0:
-                    signed[i] = -fb[i]
-                else:
-                    signed[i] = rel_dir[i] * fb[i]
-            _ros2_step(h, x, v_start, hold_set, signed, masses, ke, kf, kec, kfc, model, u,
-                       ws, x_new, v_new, hold)
-            changed = False
-            stops = False
-            for i in range(n):
-                if hold_set[i]:
-                    if abs(hold[i]) > fb[i] * (1.0 + 1e-12):
-                        # the brake cannot hold it: it slides, braked against its motion
-                        hold_set[i] = False
-                        rel_dir[i] = 1.0 if hold[i] > 0.0 else -1.0
-                        v_start[i] = 0.0
-                        changed = True
-                elif rel_dir[i] == 0.0 and _stops(v_start[i], v_new[i], fb[i]):
-                    stops = True
-            if stops and not changed:
-                for i in range(n):
-                    if (not hold_set[i]) and rel_dir[i] == 0.0 and _stops(v_start[i], v_new[i],
-                                                                          fb[i]):
-                        # stops within the step: the brake holds it from the step's start
-                        hold_set[i] = True
-                        extra_work += 0.5 * masses[i] * v_start[i] * v_start[i]
-                        v_start[i] = 0.0
-                        changed = True
-            if not changed:
-                break
-        # --- health, then accept
-        bad = OK
-        for i in range(n):
-            if not (np.isfinite(x_new[i]) and np.isfinite(v_new[i])):
-                bad = NON_FINITE
-                break
-            if i < m and abs(x_new[i] - x_new[i + 1]) > sc[S_YLIM]:
-                bad = OUT_OF_RANGE
-        if bad != OK:
-            return step, bad
-        wb = extra_work
-        for i in range(n):
-            b = hold[i] if hold_set[i] else signed[i]
-            wb += b * (x_new[i] - x[i])
-            fb_applied[i] = abs(b)
-            x_old[i] = x[i]
-            x[i] = x_new[i]
-            v[i] = v_new[i]
-            coach[HELD, i] = 1.0 if hold_set[i] else 0.0
-        # couplers at the new state: the work over the step, and the next step's start
-        wc = _eval_couplers_work(x, v, x_old, ke, kf, kec, kfc, model, u, gh, ws)
-        sc[S_WB] += wb
-        sc[S_WC] += wc
+        _brake_system_step(coach, sc, iv, ring, tables, ws)
+        _braking_force_trapezoid(coach, sc, ws)
+        extra_work = _active_set_step(coach, cpl, sc, iv, held, ws)
+        status = _fault_check(ws, sc[SCALAR.YLIM])
+        if status != OK:
+            return step, status
+        sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws)
+        # the couplers at the new state: their work over the step, and the next step's start
+        sc[SCALAR.WC] += _eval_couplers_work(coach, cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh, ws)
     return n_steps, OK
 
 
 # ----------------------------------------------------------------------------- reference
 def reference_solution(masses, ke, kf, kec, kfc, u, v0, brake_of_t, t_end, *,
                        t_eval=None, rtol=1e-9, atol=1e-11, method='Radau', x0=None):
-    """Tight-tolerance solution of eqs. (5)-(7) with the tanh law (eqs. 14-16).
+    """
+    Solve eqs. (5)-(7) with the tanh law (eqs. 14-16) to tight tolerances.
 
     ``brake_of_t(t) -> (N,)`` braking forces [N] (positive retarding), valid while every
     coach moves forward (the reference does not model the brake holding a coach at rest).
     Uses scipy ``solve_ivp`` with the analytical sparse Jacobian of the chain (state
     [x, v]). Returns the ``OdeResult`` (``.t``, ``.y`` with x = y[:N], v = y[N:]).
     """
+    # scipy is imported here, not at the top: only tests and benchmarks need the reference,
+    # and the node and the offline command should not pay scipy's import time.
     import scipy.sparse as sp
     from scipy.integrate import solve_ivp
 
@@ -458,7 +538,7 @@ def reference_solution(masses, ke, kf, kec, kfc, u, v0, brake_of_t, t_end, *,
     def rhs(t, z):
         x, v = z[:n], z[n:]
         F = couplers.coupler_force(x[:-1] - x[1:], v[:-1] - v[1:], *args, model, float(u))
-        return np.concatenate([v, (_net_coupler(F) - brake_of_t(t)) * inv_m])
+        return np.concatenate([v, (couplers.net_forces(F) - brake_of_t(t)) * inv_m])
 
     def jac(t, z):
         x, v = z[:n], z[n:]

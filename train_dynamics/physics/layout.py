@@ -1,0 +1,100 @@
+"""
+Layout of the packed state that the chain kernel advances in place.
+
+The compiled kernel (:func:`train_dynamics.physics.integrators.advance_chain`) takes a few
+packed arrays instead of some forty arguments (numba's call overhead grows with the
+argument count). Each layout below names the rows (or slots) of one array, once: the
+index of a name is its position, the count is the length of the layout. Inside the kernel
+``coach[COACH.V]`` compiles to a constant row index (numba freezes global tuples).
+
+- :data:`COACH`: rows of ``coach``, shape (len(COACH), N), one column per coach.
+- :data:`COUPLER`: rows of ``cpl``, shape (len(COUPLER), N-1), one column per coupler.
+- :data:`SCALAR`: slots of ``sc``, the float scalars.
+- :data:`FLAG`: slots of ``iv``, the integer scalars.
+- :data:`WORK`: rows of ``ws``, the kernel's scratch memory, shape (len(WORK), N).
+"""
+from __future__ import annotations
+
+from collections import namedtuple
+
+
+def _indices(rows):
+    """Return the named tuple class ``rows`` filled with its row indices 0, 1, ..."""
+    return rows(*range(len(rows._fields)))
+
+
+CoachRows = namedtuple('CoachRows', [
+    'X',            # position, distance travelled since t = 0 [m]
+    'V',            # speed [m/s]
+    'MASS',         # [kg]
+    'PCYL',         # brake-cylinder pressure, gauge [Pa]
+    'PPIPE',        # brake-pipe pressure at the coach, gauge [Pa]
+    'PIPE_IN',      # input: local pipe pressure (pipe_per_coach) [Pa]
+    'CYL_IN',       # input: cylinder pressure (cylinder_per_coach) [Pa]
+    'FB_AVAIL',     # braking force available at the end of the last step, eq. (13) [N]
+    'FB_APPLIED',   # |braking force| applied over the last step [N]
+    'DELAY',        # brake-pipe delay of the coach [steps]
+    'APPLIED',      # distributor state: 1.0 applied, 0.0 released
+    'HELD',         # 1.0 while the brake holds the coach at rest
+])
+COACH = _indices(CoachRows)
+
+CouplerRows = namedtuple('CouplerRows', [
+    'KE',           # buffer stiffness k_e [N/m]
+    'KF',           # buffer friction k_f [N/m]
+    'KEC',          # draw-gear stiffness k_ec [N/m]
+    'KFC',          # draw-gear friction k_fc [N/m]
+])
+COUPLER = _indices(CouplerRows)
+
+ScalarSlots = namedtuple('ScalarSlots', [
+    'H',            # integration step [s]
+    'U',            # tanh scale factor u [s/m]
+    'PMAX',         # maximum cylinder pressure, gauge [Pa]
+    'MU',           # adhesion coefficient mu_a
+    'G',            # gravity [m/s^2]
+    'PNOM',         # brake-pipe running pressure, gauge [Pa]
+    'PFS',          # pipe pressure at full service, gauge [Pa]
+    'SENS',         # distributor sensitivity [Pa]
+    'HEAD_IN',      # input: head-end pipe pressure (pipe_head) [Pa]
+    'YLIM',         # largest physically possible |y| [m]
+    'WB',           # work of the brakes since t = 0 [J]
+    'WC',           # work on the couplers since t = 0 [J]
+])
+SCALAR = _indices(ScalarSlots)
+
+FlagSlots = namedtuple('FlagSlots', [
+    'MODEL',        # coupler law: couplers.SIGN or couplers.TANH
+    'MODE',         # brake input: brakes.PIPE_HEAD, PIPE_PER_COACH or CYLINDER_PER_COACH
+    'RING_POS',     # write position of the head-pressure ring buffer
+    'WS_VALID',     # 1 when the WORK rows F, DFDY, KK, K0, FRAC hold the present state
+])
+FLAG = _indices(FlagSlots)
+
+WorkRows = namedtuple('WorkRows', [
+    'F',            # coupler forces at the step's start [N] (N-1 used)
+    'DFDY',         # dF/dy [N/m]
+    'KK',           # stage-matrix weights g h dF/dydot + (g h)^2 dF/dy [kg]
+    'DIAG',         # diagonal of the stage matrix [kg]
+    'LOWER',        # sub-diagonal of the stage matrix, held rows cut [kg]
+    'RHS1',         # right-hand side of stage 1 without the brake [N]
+    'RHS2',         # right-hand side of stage 2 without the brake [N]
+    'B1',           # velocity stage 1 [m/s^2]
+    'B2',           # velocity stage 2 [m/s^2]
+    'C',            # Thomas algorithm: upper factor
+    'WINV',         # Thomas algorithm: inverse pivots [1/kg]
+    'F2',           # coupler forces at the stage-2 point [N]
+    'FB',           # braking force over the step (trapezoid) [N]
+    'SIGNED',       # braking force signed against the motion [N]
+    'VSTART',       # speeds at the step's start, stopped coaches at 0 [m/s]
+    'RELDIR',       # direction of a released coach's brake (+-1, 0 = by its motion)
+    'HOLD',         # holding force of each held coach [N]
+    'TARGET',       # distributors' target cylinder pressure [Pa]
+    'FBNEXT',       # braking force available at the step's end [N]
+    'K0',           # pipe delay, whole steps
+    'FRAC',         # pipe delay, fraction of a step
+    'XNEW',         # positions at the step's end [m]
+    'VNEW',         # speeds at the step's end [m/s]
+    'XOLD',         # positions at the step's start [m]
+])
+WORK = _indices(WorkRows)
