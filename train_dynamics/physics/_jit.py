@@ -35,7 +35,8 @@ HAVE_NUMBA = _numba is not None
 _FASTMATH = {'afn', 'contract', 'arcp', 'nsz'}
 
 #: the modules (of this folder) whose compiled code depends on each other
-KERNEL_SOURCES = ('_jit.py', 'brakes.py', 'couplers.py', 'integrators.py', 'layout.py')
+KERNEL_SOURCES = ('_jit.py', 'brakes.py', 'couplers.py', 'integrators.py', 'layout.py',
+                  'resistance.py', 'track.py', 'traction.py')
 
 _cache_dir: str | None = None
 

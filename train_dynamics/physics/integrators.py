@@ -56,9 +56,10 @@ import math
 
 import numpy as np
 
-from train_dynamics.physics import brakes, couplers
+from train_dynamics.physics import brakes, couplers, traction
 from train_dynamics.physics._jit import jit
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
+from train_dynamics.physics.track import profile_mean
 
 GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 
@@ -83,7 +84,7 @@ def make_workspace(n: int) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- couplers
 @jit
-def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
+def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u):
     """
     Return one coupler's F [N], dF/dy [N/m] and the dF/dydot [N s/m] of the stage matrix.
 
@@ -93,7 +94,10 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
     still sees the friction's damping (the tangent is ~0 outside the band, which made the
     friction explicit exactly there and overshot the peak force of long trains by 10 % at
     5 ms). ROS2 is a W-method: order 2 holds for any matrix. Both slopes agree as
-    ydot -> 0. The sign model keeps 0.
+    ydot -> 0. The sign model keeps 0. The law has free play (slack g_t, g_c [m]) and blocks
+    at the strokes S_t, S_c [m] with stiffness K_b [N/m], which dF/dy then includes
+    (:func:`couplers.coupler_branch_travel`; with no slack and below the strokes it is the
+    paper's law bit for bit).
     """
     if model == couplers.TANH:
         z = u * ydot
@@ -104,8 +108,8 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
     else:
         s = np.sign(ydot)
         ratio = 0.0
-    f, stiff, kfr = couplers.coupler_branch(y, s, ke, kf, kec, kfc)
-    return f, stiff, kfr * y * u * ratio
+    f, stiff, amp = couplers.coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb)
+    return f, stiff, amp * u * ratio
 
 
 @jit(inline=True)
@@ -121,12 +125,17 @@ def _eval_couplers(x, v, cpl, model, u, gh, ws):
     kf = cpl[COUPLER.KF]
     kec = cpl[COUPLER.KEC]
     kfc = cpl[COUPLER.KFC]
+    gt = cpl[COUPLER.GT]
+    gc = cpl[COUPLER.GC]
+    st = cpl[COUPLER.ST]
+    sc = cpl[COUPLER.SC]
+    kb = cpl[COUPLER.KB]
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
     for j in range(x.shape[0] - 1):
         f, dy, dv = _coupler_w(x[j] - x[j + 1], v[j] - v[j + 1], ke[j], kf[j], kec[j], kfc[j],
-                               model, u)
+                               gt[j], gc[j], st[j], sc[j], kb[j], model, u)
         F0[j] = f
         dfdy[j] = dy
         kk[j] = gh * dv + gh * gh * dy
@@ -147,13 +156,19 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     kf = cpl[COUPLER.KF]
     kec = cpl[COUPLER.KEC]
     kfc = cpl[COUPLER.KFC]
+    gt = cpl[COUPLER.GT]
+    gc = cpl[COUPLER.GC]
+    st = cpl[COUPLER.ST]
+    sc = cpl[COUPLER.SC]
+    kb = cpl[COUPLER.KB]
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
     wc = 0.0
     for j in range(x.shape[0] - 1):
         y = x[j] - x[j + 1]
-        f, dy, dv = _coupler_w(y, v[j] - v[j + 1], ke[j], kf[j], kec[j], kfc[j], model, u)
+        f, dy, dv = _coupler_w(y, v[j] - v[j + 1], ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j],
+                               st[j], sc[j], kb[j], model, u)
         wc += 0.5 * (F0[j] + f) * (y - (x_old[j] - x_old[j + 1]))
         F0[j] = f
         dfdy[j] = dy
@@ -161,9 +176,49 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     return wc
 
 
+# ----------------------------------------------------------------------------- external
+@jit
+def _vehicle_external(coach, i, x, v, d, teff, gprof, track):
+    """
+    Return (gradient force, speed-dependent resistance, traction force) [N] of vehicle i.
+
+    At its position x [m] (travelled) and speed v [m/s]; d: the direction its friction
+    acts in (+1 against forward motion, -1, 0 at rest); teff: traction command. Gradient:
+    -m g (mean gradient over the vehicle) / 1000 (``track``); resistance: d (B |v| + C v^2)
+    (Davis, the static A is with the brake); traction: ``traction.traction_force``.
+    """
+    gr = 0.0
+    if track and gprof.shape[1] > 0:
+        hi = coach[COACH.FRONT0, i] + x
+        gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
+            hi - coach[COACH.LENGTH, i], hi, gprof[0], gprof[1], gprof[2])
+    rd = 0.0
+    if d != 0.0:
+        s = abs(v)
+        rd = d * (coach[COACH.DAVIS_B, i] + coach[COACH.DAVIS_C, i] * s) * s
+    tr = 0.0
+    if teff != 0.0:
+        tr = traction.traction_force(teff, v, coach[COACH.T_FORCE, i], coach[COACH.T_POWER, i],
+                                     coach[COACH.DB_FORCE, i], coach[COACH.DB_POWER, i],
+                                     coach[COACH.DB_FADE, i], coach[COACH.T_ADH, i],
+                                     coach[COACH.WEIGHT, i])
+    return gr, rd, tr
+
+
+@jit
+def _friction_direction(ws, i):
+    """Return the direction the brake and resistance of vehicle i act in (+1, -1, 0)."""
+    vs = ws[WORK.VSTART, i]
+    if vs > 0.0:
+        return 1.0
+    if vs < 0.0:
+        return -1.0
+    return ws[WORK.RELDIR, i]
+
+
 # ----------------------------------------------------------------------------- ROS2
 @jit(inline=True)
-def _ros2_step(h, coach, cpl, model, u, held, ws):
+def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     """
     Do one ROS2 step of eqs. (5)-(7) from (x, v) with the coaches in ``held`` at rest.
 
@@ -179,7 +234,9 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
                                                                a2 = r + g h b2
       x' = x + h (3/2 a1 + 1/2 a2),  v' = v + h (3/2 b1 + 1/2 b2),
 
-    g the net coupler force of eqs. (5)-(7). A held coach's row becomes b_i = 0; its
+    g the net coupler force of eqs. (5)-(7), plus (``ext``) the external forces E: gradient,
+    traction and the speed-dependent resistance, evaluated at each stage's point (the brake
+    and the static resistance A + curve are in Fb). A held coach's row becomes b_i = 0; its
     holding force is the mean over both stages of the residual its free row would leave.
     Written as fused loops (one pass: assembly, LU factorisation and forward substitution)
     in the caller's scratch rows: no allocation, no call per stage.
@@ -192,6 +249,11 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
     kf = cpl[COUPLER.KF]
     kec = cpl[COUPLER.KEC]
     kfc = cpl[COUPLER.KFC]
+    gt = cpl[COUPLER.GT]
+    gc = cpl[COUPLER.GC]
+    st = cpl[COUPLER.ST]
+    scs = cpl[COUPLER.SC]
+    kb = cpl[COUPLER.KB]
     n = x.shape[0]
     m = n - 1
     gh = GAMMA * h
@@ -223,6 +285,14 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
             kv += dfdy[i] * (v[i] - v[i + 1])
         diag[i] = d
         rhs1[i] = couplers.net_force(F0, i, m) - gh * kv
+        if ext:
+            gr, rd, tr = _vehicle_external(coach, i, x[i], v[i], _friction_direction(ws, i),
+                                           ws[WORK.TEFF, i], gprof, track)
+            ws[WORK.GR1, i] = gr
+            ws[WORK.RD1, i] = rd
+            ws[WORK.TR1, i] = tr
+            ws[WORK.E1, i] = gr + tr - rd
+            rhs1[i] += ws[WORK.E1, i]
         if held[i]:
             d = 1.0
             r1 = 0.0
@@ -244,9 +314,9 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
     for j in range(m):
         dv = v[j] - v[j + 1]
         db = b1[j] - b1[j + 1]
-        f, _, _ = couplers.coupler_force_scalar(
+        f, _, _ = couplers.coupler_force_travel_scalar(
             x[j] - x[j + 1] + h * (dv + gh * db), dv + h * db, ke[j], kf[j], kec[j], kfc[j],
-            model, u)
+            gt[j], gc[j], st[j], scs[j], kb[j], model, u)
         F2[j] = f
     for i in range(n):
         kr = 0.0
@@ -256,6 +326,15 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
         if i < m:
             kr += dfdy[i] * (ri - (hr * b1[i + 1] - v[i + 1]))
         rhs2[i] = couplers.net_force(F2, i, m) - 2.0 * masses[i] * b1[i] - gh * kr
+        if ext:
+            gr, rd, tr = _vehicle_external(coach, i, x[i] + h * (v[i] + gh * b1[i]),
+                                           v[i] + h * b1[i], _friction_direction(ws, i),
+                                           ws[WORK.TEFF, i], gprof, track)
+            ws[WORK.GR2, i] = gr
+            ws[WORK.RD2, i] = rd
+            ws[WORK.TR2, i] = tr
+            ws[WORK.E2, i] = gr + tr - rd
+            rhs2[i] += ws[WORK.E2, i]
         r2 = 0.0 if held[i] else rhs2[i] - brake[i]
         if i == 0:
             b2[0] = r2 * winv[0]
@@ -337,12 +416,13 @@ def _release_slipping(held, ws):
 
 
 @jit(inline=True)
-def _hold_stopping(held, coach, ws, extra_work):
+def _hold_stopping(held, coach, ws, extra_work, sc):
     """
     Hold the moving coaches that stop within the step from the step's start.
 
     Their kinetic energy m v^2 / 2 [J] goes to the brakes' work: return (whether any
-    stopped, ``extra_work`` plus that energy).
+    stopped, ``extra_work`` plus that energy); their momentum m v [N s] is taken off the
+    external impulse (SCALAR.PEXT, ``sc``).
     """
     changed = False
     for i in range(held.shape[0]):
@@ -352,13 +432,14 @@ def _hold_stopping(held, coach, ws, extra_work):
         if _stops(v0, ws[WORK.VNEW, i], ws[WORK.FB, i]):
             held[i] = True
             extra_work += 0.5 * coach[COACH.MASS, i] * v0 * v0
+            sc[SCALAR.PEXT] -= coach[COACH.MASS, i] * v0
             ws[WORK.VSTART, i] = 0.0
             changed = True
     return changed, extra_work
 
 
 @jit(inline=True)
-def _active_set_step(coach, cpl, sc, iv, held, ws):
+def _active_set_step(coach, cpl, sc, iv, held, ws, gprof):
     """
     Do one ROS2 step of the chain with the active set of held coaches; return work [J].
 
@@ -381,10 +462,11 @@ def _active_set_step(coach, cpl, sc, iv, held, ws):
             _eval_couplers(coach[COACH.X], ws[WORK.VSTART], cpl, model, sc[SCALAR.U],
                            GAMMA * h, ws)
         _signed_brake(ws)
-        _ros2_step(h, coach, cpl, model, sc[SCALAR.U], held, ws)
+        _ros2_step(h, coach, cpl, model, sc[SCALAR.U], held, ws, iv[FLAG.EXT], iv[FLAG.TRACK],
+                   gprof)
         changed = _release_slipping(held, ws)
         if not changed:
-            changed, extra_work = _hold_stopping(held, coach, ws, extra_work)
+            changed, extra_work = _hold_stopping(held, coach, ws, extra_work, sc)
         if not changed:
             break
     return extra_work
@@ -429,10 +511,38 @@ def _braking_force_trapezoid(coach, sc, ws):
     second order; COACH.FB_AVAIL moves on to the step's end (WORK.FBNEXT).
     """
     brakes.braking_force(coach[COACH.PCYL], sc[SCALAR.PMAX], sc[SCALAR.MU],
-                         coach[COACH.MASS], sc[SCALAR.G], ws[WORK.FBNEXT])
+                         coach[COACH.BMASS], sc[SCALAR.G], ws[WORK.FBNEXT])
     for i in range(coach.shape[1]):
         ws[WORK.FB, i] = 0.5 * (coach[COACH.FB_AVAIL, i] + ws[WORK.FBNEXT, i])
         coach[COACH.FB_AVAIL, i] = ws[WORK.FBNEXT, i]
+
+
+@jit(inline=True)
+def _external_step(coach, sc, iv, cprof, ws):
+    """
+    Add the static resistance to the friction of the step; ramp the traction command.
+
+    WORK.FBRAKE keeps the braking force [N]; WORK.RSTAT = A + curve resistance at the step's
+    start [N] (Davis A, Roeckl over the vehicle's length) joins it in WORK.FB: like the
+    brake it holds a vehicle at rest and never pushes it. COACH.T_EFF moves toward the
+    command COACH.T_CMD (build-up rate limit); WORK.TEFF is the mean over the step.
+    """
+    h = sc[SCALAR.H]
+    for i in range(coach.shape[1]):
+        r = coach[COACH.DAVIS_A, i]
+        if iv[FLAG.TRACK] and cprof.shape[1] > 0:
+            hi = coach[COACH.FRONT0, i] + coach[COACH.X, i]
+            r += coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
+                hi - coach[COACH.LENGTH, i], hi, cprof[0], cprof[1], cprof[2])
+        ws[WORK.RSTAT, i] = r
+        ws[WORK.FBRAKE, i] = ws[WORK.FB, i]
+        ws[WORK.FB, i] += r
+        old = coach[COACH.T_EFF, i]
+        new = old
+        if coach[COACH.T_CMD, i] != old:
+            new = traction.ramp(old, coach[COACH.T_CMD, i], h, coach[COACH.T_BUILD, i])
+        coach[COACH.T_EFF, i] = new
+        ws[WORK.TEFF, i] = 0.5 * (old + new)
 
 
 @jit(inline=True)
@@ -455,7 +565,7 @@ def _fault_check(ws, y_limit):
 
 
 @jit(inline=True)
-def _accept_step(coach, held, extra_work, ws):
+def _accept_step(coach, held, extra_work, ws, ext):
     """
     Move the coaches to the new state; return the brakes' work over the step [J].
 
@@ -465,9 +575,10 @@ def _accept_step(coach, held, extra_work, ws):
     """
     wb = extra_work
     for i in range(held.shape[0]):
-        b = ws[WORK.HOLD, i] if held[i] else ws[WORK.SIGNED, i]
-        wb += b * (ws[WORK.XNEW, i] - coach[COACH.X, i])
-        coach[COACH.FB_APPLIED, i] = abs(b)
+        if not ext:       # else booked by _accept_external
+            b = ws[WORK.HOLD, i] if held[i] else ws[WORK.SIGNED, i]
+            wb += b * (ws[WORK.XNEW, i] - coach[COACH.X, i])
+            coach[COACH.FB_APPLIED, i] = abs(b)
         ws[WORK.XOLD, i] = coach[COACH.X, i]
         coach[COACH.X, i] = ws[WORK.XNEW, i]
         coach[COACH.V, i] = ws[WORK.VNEW, i]
@@ -475,14 +586,51 @@ def _accept_step(coach, held, extra_work, ws):
     return wb
 
 
+@jit(inline=True)
+def _accept_external(coach, sc, held, ws):
+    """
+    Book the external forces of the accepted step; return the brakes' work [J].
+
+    Splits the friction applied (WORK.HOLD on held vehicles, WORK.SIGNED on the others) into
+    brake and static resistance, books the work of brake, resistance, traction and gravity
+    (SCALAR.WR, WT, WG: the stage mean of each force times the displacement, as the ROS2
+    update weights them) and the impulse of all external forces (SCALAR.PEXT), and leaves
+    the forces at the step's end in COACH.F_TRAC, F_RES, F_GRADE [N, forward > 0].
+    """
+    h = sc[SCALAR.H]
+    wb = 0.0
+    for i in range(held.shape[0]):
+        dx = ws[WORK.XNEW, i] - coach[COACH.X, i]
+        rstat = ws[WORK.RSTAT, i]
+        if held[i]:
+            b = ws[WORK.HOLD, i]
+            res = min(max(b, -rstat), rstat)
+        else:
+            b = ws[WORK.SIGNED, i]
+            res = _friction_direction(ws, i) * rstat
+        brake = b - res
+        wb += brake * dx
+        coach[COACH.FB_APPLIED, i] = abs(brake)
+        sc[SCALAR.WR] += (res + 0.5 * (ws[WORK.RD1, i] + ws[WORK.RD2, i])) * dx
+        sc[SCALAR.WT] += 0.5 * (ws[WORK.TR1, i] + ws[WORK.TR2, i]) * dx
+        sc[SCALAR.WG] += 0.5 * (ws[WORK.GR1, i] + ws[WORK.GR2, i]) * dx
+        sc[SCALAR.PEXT] += h * (0.5 * (ws[WORK.E1, i] + ws[WORK.E2, i]) - b)
+        coach[COACH.F_TRAC, i] = ws[WORK.TR2, i]
+        coach[COACH.F_GRADE, i] = ws[WORK.GR2, i]
+        coach[COACH.F_RES, i] = -(res + ws[WORK.RD2, i])
+    return wb
+
+
 @jit
-def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
+def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof):
     """
     Advance brakes and chain ``n_steps`` fixed steps, in place; return (steps, status).
 
-    coach: (len(COACH), N); cpl: (len(COUPLER), N-1) k_e, k_f, k_ec, k_fc [N/m]; sc, iv:
-    float and integer scalars (SCALAR, FLAG); fill, rel: (2, L) cylinder tables (times [s],
-    p/p_max); ring: head-pressure history [Pa]; ws: :func:`make_workspace`. The layouts are
+    coach: (len(COACH), N); cpl: (len(COUPLER), N-1) k_e, k_f, k_ec, k_fc [N/m], slack,
+    strokes [m], K_b [N/m]; sc, iv: float and integer scalars (SCALAR, FLAG); fill, rel:
+    (2, L) cylinder tables (times [s], p/p_max); ring: head-pressure history [Pa]; ws:
+    :func:`make_workspace`; gprof, cprof: (3, K) gradient and curve-resistance profiles
+    (breakpoints, values, integrals; ``track``), used when FLAG.TRACK is set. The layouts are
     in :mod:`train_dynamics.physics.layout`. Each step: the brake system to the step's end,
     the braking force over the step (trapezoid), one ROS2 step with the active set of held
     coaches, the fault check, then the new state is accepted and the work booked.
@@ -501,11 +649,15 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
     for step in range(n_steps):
         _brake_system_step(coach, sc, iv, ring, tables, ws)
         _braking_force_trapezoid(coach, sc, ws)
-        extra_work = _active_set_step(coach, cpl, sc, iv, held, ws)
+        if iv[FLAG.EXT]:
+            _external_step(coach, sc, iv, cprof, ws)
+        extra_work = _active_set_step(coach, cpl, sc, iv, held, ws, gprof)
         status = _fault_check(ws, sc[SCALAR.YLIM])
         if status != OK:
             return step, status
-        sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws)
+        if iv[FLAG.EXT]:
+            sc[SCALAR.WB] += _accept_external(coach, sc, held, ws)
+        sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws, iv[FLAG.EXT])
         # the couplers at the new state: their work over the step, and the next step's start
         sc[SCALAR.WC] += _eval_couplers_work(coach, cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh, ws)
     return n_steps, OK
