@@ -112,6 +112,43 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u):
     return f, stiff, amp * u * ratio
 
 
+@jit
+def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb):
+    """Return the elastic (friction-free) force [N] of the law with free play and blocking."""
+    if y > gt:
+        d = y - gt
+        return kec * d + kb * max(d - st, 0.0)
+    if y < -gc:
+        d = y + gc
+        return ke * d + kb * min(d + sc, 0.0)
+    return 0.0
+
+
+@jit
+def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
+    """
+    Return the dF/dy [N/m] of the stage matrix: the secant over the step's predicted move.
+
+    When y + h ydot crosses the end of the free play (g_t or g_c > 0) or a stroke, the
+    tangent at y (0 in free play, k before blocking) would leave the stiff contact
+    explicit for the whole step: the secant of the elastic force between y and y + h ydot
+    puts it in the matrix (K_b when the step blocks). ROS2 is a W-method, so any slope keeps
+    order two. Without a crossing: the tangent ``stiff``.
+    """
+    yp = y + h * ydot
+    lo = min(y, yp)
+    hi = max(y, yp)
+    cross = (lo < gt + st < hi) or (lo < -(gc + sc) < hi)
+    if gt > 0.0:
+        cross = cross or (lo < gt < hi)
+    if gc > 0.0:
+        cross = cross or (lo < -gc < hi)
+    if not cross:
+        return stiff
+    return (_elastic_travel(yp, ke, kec, gt, gc, st, sc, kb)
+            - _elastic_travel(y, ke, kec, gt, gc, st, sc, kb)) / (yp - y)
+
+
 @jit(inline=True)
 def _eval_couplers(x, v, cpl, model, u, gh, ws):
     """
@@ -133,9 +170,13 @@ def _eval_couplers(x, v, cpl, model, u, gh, ws):
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
+    h = gh / GAMMA
     for j in range(x.shape[0] - 1):
-        f, dy, dv = _coupler_w(x[j] - x[j + 1], v[j] - v[j + 1], ke[j], kf[j], kec[j], kfc[j],
-                               gt[j], gc[j], st[j], sc[j], kb[j], model, u)
+        y = x[j] - x[j + 1]
+        ydot = v[j] - v[j + 1]
+        f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j],
+                               sc[j], kb[j], model, u)
+        dy = _travel_slope(y, ydot, h, dy, ke[j], kec[j], gt[j], gc[j], st[j], sc[j], kb[j])
         F0[j] = f
         dfdy[j] = dy
         kk[j] = gh * dv + gh * gh * dy
@@ -165,10 +206,13 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
     wc = 0.0
+    h = gh / GAMMA
     for j in range(x.shape[0] - 1):
         y = x[j] - x[j + 1]
-        f, dy, dv = _coupler_w(y, v[j] - v[j + 1], ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j],
-                               st[j], sc[j], kb[j], model, u)
+        ydot = v[j] - v[j + 1]
+        f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j],
+                               sc[j], kb[j], model, u)
+        dy = _travel_slope(y, ydot, h, dy, ke[j], kec[j], gt[j], gc[j], st[j], sc[j], kb[j])
         wc += 0.5 * (F0[j] + f) * (y - (x_old[j] - x_old[j + 1]))
         F0[j] = f
         dfdy[j] = dy
