@@ -49,8 +49,8 @@ def test_davis_coast_down_matches_the_closed_form():
 
 
 def test_vehicle_at_rest_on_a_gradient_is_held_by_its_brake():
-    common = dict(num_coaches=3, initial_speed=0.0, brake_input='cylinder_per_coach',
-                  track_gradient_positions=[-1.0e6], track_gradients=[-8.0])
+    common = {'num_coaches': 3, 'initial_speed': 0.0, 'brake_input': 'cylinder_per_coach',
+              'track_gradient_positions': [-1.0e6], 'track_gradients': [-8.0]}
     sim = sim_of(**common)
     sim.set_cylinder_pressure(np.full(3, 380000.0))
     sim.advance_to(20.0)
@@ -76,11 +76,11 @@ vehicles:
 
 def mixed_sim(tmp_path, **params) -> TrainSimulator:
     """Return a locomotive and 7 wagons on a line with a hump, a sag and a curve."""
-    base = dict(consist_file=write_consist(tmp_path, MIXED), initial_speed=15.0,
-                brake_regime='G', initial_position=0.0,
-                track_gradient_positions=[100.0, 300.0, 500.0],
-                track_gradients=[6.0, -10.0, 2.0],
-                track_curve_starts=[150.0], track_curve_ends=[400.0], track_curve_radii=[280.0])
+    base = {'consist_file': write_consist(tmp_path, MIXED), 'initial_speed': 15.0,
+            'brake_regime': 'G', 'initial_position': 0.0,
+            'track_gradient_positions': [100.0, 300.0, 500.0],
+            'track_gradients': [6.0, -10.0, 2.0], 'track_curve_starts': [150.0],
+            'track_curve_ends': [400.0], 'track_curve_radii': [280.0]}
     base.update(params)
     return sim_of(**base)
 

@@ -467,7 +467,6 @@ class SimConfig:
                 if not ok:
                     raise ConfigError(f'{f_name}: must fall strictly from 1 to 0')
 
-
     def _check_real_train(self) -> None:
         """Check the track, the traction schedule and the consist file (issue 11)."""
         v = self.values

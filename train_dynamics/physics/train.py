@@ -198,7 +198,7 @@ class TrainSimulator:
         return self.consist.locomotives
 
     def set_traction_command(self, command: float, index: int) -> None:
-        """Set locomotive ``index``'s (0-based) traction command in [-1, 1] (< 0: dynamic brake)."""
+        """Set the traction command of locomotive ``index`` (0-based), in [-1, 1]."""
         c = float(command)
         if not (np.isfinite(c) and -1.0 <= c <= 1.0):
             raise ValueError(f'traction command must be in [-1, 1], got {command!r}')

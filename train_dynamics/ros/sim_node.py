@@ -179,7 +179,8 @@ class SimNode(Node):
         # the first real-time step.
         TrainSimulator(cfg).advance(1)
         sim = TrainSimulator(cfg)
-        self._outputs.start(sim.n, cfg.publish_rate, sim.h, cfg.publish_clock, writer)
+        self._outputs.start(sim.n, cfg.publish_rate, sim.h, cfg.publish_clock, writer,
+                            forces=cfg.external_forces)
         self._inputs.start(cfg, sim.n, recording=writer is not None)
         self._pacer.start(sim, cfg.real_time_factor)
         rtf, duration = cfg.real_time_factor, self._pacer.duration
