@@ -221,35 +221,7 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
 
 
 # ----------------------------------------------------------------------------- external
-@jit
-def _vehicle_external(coach, i, x, v, d, teff, gprof, track):
-    """
-    Return (gradient force, speed-dependent resistance, traction force) [N] of vehicle i.
-
-    At its position x [m] (travelled) and speed v [m/s]; d: the direction its friction
-    acts in (+1 against forward motion, -1, 0 at rest); teff: traction command. Gradient:
-    -m g (mean gradient over the vehicle) / 1000 (``track``); resistance: d (B |v| + C v^2)
-    (Davis, the static A is with the brake); traction: ``traction.traction_force``.
-    """
-    gr = 0.0
-    if track and gprof.shape[1] > 0:
-        hi = coach[COACH.FRONT0, i] + x
-        gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
-            hi - coach[COACH.LENGTH, i], hi, gprof[0], gprof[1], gprof[2])
-    rd = 0.0
-    if d != 0.0:
-        s = abs(v)
-        rd = d * (coach[COACH.DAVIS_B, i] + coach[COACH.DAVIS_C, i] * s) * s
-    tr = 0.0
-    if teff != 0.0:
-        tr = traction.traction_force(teff, v, coach[COACH.T_FORCE, i], coach[COACH.T_POWER, i],
-                                     coach[COACH.DB_FORCE, i], coach[COACH.DB_POWER, i],
-                                     coach[COACH.DB_FADE, i], coach[COACH.T_ADH, i],
-                                     coach[COACH.WEIGHT, i])
-    return gr, rd, tr
-
-
-@jit
+@jit(inline=True)
 def _friction_direction(ws, i):
     """Return the direction the brake and resistance of vehicle i act in (+1, -1, 0)."""
     vs = ws[WORK.VSTART, i]
@@ -258,6 +230,50 @@ def _friction_direction(ws, i):
     if vs < 0.0:
         return -1.0
     return ws[WORK.RELDIR, i]
+
+
+@jit(inline=True)
+def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_tr, row_e):
+    """
+    Write the external forces of every vehicle at a stage's point to four WORK rows.
+
+    The point is (x + h (v + g h b1), v + h b1) with b1 = WORK.B1: stage 1 for h = 0,
+    stage 2 for the step h [s]. Gradient, resistance and traction [N] of
+    gradient -m g (mean gradient over the vehicle) / 1000 (``track``), the speed-dependent
+    resistance d (B |v| + C v^2) against the friction's direction d (Davis; A is with the
+    brake), traction (``traction.traction_force``), and E = gradient + traction -
+    resistance. (Written out here, not in a called function: a per-vehicle call cost the
+    step more than the forces themselves.)
+    """
+    gh = GAMMA * h
+    grades = track and gx.shape[0] > 0
+    for i in range(x.shape[0]):
+        xi = x[i]
+        vi = v[i]
+        if h != 0.0:
+            b = ws[WORK.B1, i]
+            xi += h * (vi + gh * b)
+            vi += h * b
+        vs = ws[WORK.VSTART, i]      # the friction's direction (see _friction_direction)
+        d = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else ws[WORK.RELDIR, i])
+        sv = abs(vi)
+        rd = d * (coach[COACH.DAVIS_B, i] + coach[COACH.DAVIS_C, i] * sv) * sv
+        gr = 0.0
+        if grades:
+            hi = coach[COACH.FRONT0, i] + xi
+            gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
+                hi - coach[COACH.LENGTH, i], hi, gx, gv, gc)
+        tr = 0.0
+        teff = ws[WORK.TEFF, i]
+        if teff != 0.0:
+            tr = traction.traction_force(
+                teff, vi, coach[COACH.T_FORCE, i], coach[COACH.T_POWER, i],
+                coach[COACH.DB_FORCE, i], coach[COACH.DB_POWER, i], coach[COACH.DB_FADE, i],
+                coach[COACH.T_ADH, i], coach[COACH.WEIGHT, i])
+        ws[row_gr, i] = gr
+        ws[row_rd, i] = rd
+        ws[row_tr, i] = tr
+        ws[row_e, i] = gr + tr - rd
 
 
 # ----------------------------------------------------------------------------- ROS2
@@ -298,6 +314,9 @@ def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     st = cpl[COUPLER.ST]
     scs = cpl[COUPLER.SC]
     kb = cpl[COUPLER.KB]
+    gx = gprof[0]
+    gv = gprof[1]
+    gpc = gprof[2]
     n = x.shape[0]
     m = n - 1
     gh = GAMMA * h
@@ -317,6 +336,11 @@ def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     x_new = ws[WORK.XNEW]
     v_new = ws[WORK.VNEW]
     hold = ws[WORK.HOLD]
+    e1 = ws[WORK.E1]
+    e2 = ws[WORK.E2]
+    if ext:       # the external forces at stage 1, (x, v)
+        _stage_external(coach, x, v, 0.0, ws, gx, gv, gpc, track, WORK.GR1, WORK.RD1,
+                        WORK.TR1, WORK.E1)
     # stage 1: assemble, factor and forward-substitute in one sweep
     for i in range(n):
         d = masses[i]
@@ -330,13 +354,7 @@ def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
         diag[i] = d
         rhs1[i] = couplers.net_force(F0, i, m) - gh * kv
         if ext:
-            gr, rd, tr = _vehicle_external(coach, i, x[i], v[i], _friction_direction(ws, i),
-                                           ws[WORK.TEFF, i], gprof, track)
-            ws[WORK.GR1, i] = gr
-            ws[WORK.RD1, i] = rd
-            ws[WORK.TR1, i] = tr
-            ws[WORK.E1, i] = gr + tr - rd
-            rhs1[i] += ws[WORK.E1, i]
+            rhs1[i] += e1[i]
         if held[i]:
             d = 1.0
             r1 = 0.0
@@ -362,6 +380,9 @@ def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
             x[j] - x[j + 1] + h * (dv + gh * db), dv + h * db, ke[j], kf[j], kec[j], kfc[j],
             gt[j], gc[j], st[j], scs[j], kb[j], model, u)
         F2[j] = f
+    if ext:       # the external forces at stage 2, (x + h a1, v + h b1)
+        _stage_external(coach, x, v, h, ws, gx, gv, gpc, track, WORK.GR2, WORK.RD2,
+                        WORK.TR2, WORK.E2)
     for i in range(n):
         kr = 0.0
         ri = hr * b1[i] - v[i]
@@ -371,14 +392,7 @@ def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
             kr += dfdy[i] * (ri - (hr * b1[i + 1] - v[i + 1]))
         rhs2[i] = couplers.net_force(F2, i, m) - 2.0 * masses[i] * b1[i] - gh * kr
         if ext:
-            gr, rd, tr = _vehicle_external(coach, i, x[i] + h * (v[i] + gh * b1[i]),
-                                           v[i] + h * b1[i], _friction_direction(ws, i),
-                                           ws[WORK.TEFF, i], gprof, track)
-            ws[WORK.GR2, i] = gr
-            ws[WORK.RD2, i] = rd
-            ws[WORK.TR2, i] = tr
-            ws[WORK.E2, i] = gr + tr - rd
-            rhs2[i] += ws[WORK.E2, i]
+            rhs2[i] += e2[i]
         r2 = 0.0 if held[i] else rhs2[i] - brake[i]
         if i == 0:
             b2[0] = r2 * winv[0]
@@ -572,12 +586,16 @@ def _external_step(coach, sc, iv, cprof, ws):
     command COACH.T_CMD (build-up rate limit); WORK.TEFF is the mean over the step.
     """
     h = sc[SCALAR.H]
+    cx = cprof[0]
+    cv = cprof[1]
+    cc = cprof[2]
+    curves = iv[FLAG.TRACK] and cx.shape[0] > 0
     for i in range(coach.shape[1]):
         r = coach[COACH.DAVIS_A, i]
-        if iv[FLAG.TRACK] and cprof.shape[1] > 0:
+        if curves:
             hi = coach[COACH.FRONT0, i] + coach[COACH.X, i]
             r += coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
-                hi - coach[COACH.LENGTH, i], hi, cprof[0], cprof[1], cprof[2])
+                hi - coach[COACH.LENGTH, i], hi, cx, cv, cc)
         ws[WORK.RSTAT, i] = r
         ws[WORK.FBRAKE, i] = ws[WORK.FB, i]
         ws[WORK.FB, i] += r
@@ -643,6 +661,10 @@ def _accept_external(coach, sc, held, ws):
     """
     h = sc[SCALAR.H]
     wb = 0.0
+    wr = 0.0
+    wt = 0.0
+    wg = 0.0
+    pext = 0.0
     for i in range(held.shape[0]):
         dx = ws[WORK.XNEW, i] - coach[COACH.X, i]
         rstat = ws[WORK.RSTAT, i]
@@ -655,13 +677,20 @@ def _accept_external(coach, sc, held, ws):
         brake = b - res
         wb += brake * dx
         coach[COACH.FB_APPLIED, i] = abs(brake)
-        sc[SCALAR.WR] += (res + 0.5 * (ws[WORK.RD1, i] + ws[WORK.RD2, i])) * dx
-        sc[SCALAR.WT] += 0.5 * (ws[WORK.TR1, i] + ws[WORK.TR2, i]) * dx
-        sc[SCALAR.WG] += 0.5 * (ws[WORK.GR1, i] + ws[WORK.GR2, i]) * dx
-        sc[SCALAR.PEXT] += h * (0.5 * (ws[WORK.E1, i] + ws[WORK.E2, i]) - b)
-        coach[COACH.F_TRAC, i] = ws[WORK.TR2, i]
-        coach[COACH.F_GRADE, i] = ws[WORK.GR2, i]
-        coach[COACH.F_RES, i] = -(res + ws[WORK.RD2, i])
+        rd2 = ws[WORK.RD2, i]
+        tr2 = ws[WORK.TR2, i]
+        gr2 = ws[WORK.GR2, i]
+        wr += (res + 0.5 * (ws[WORK.RD1, i] + rd2)) * dx
+        wt += 0.5 * (ws[WORK.TR1, i] + tr2) * dx
+        wg += 0.5 * (ws[WORK.GR1, i] + gr2) * dx
+        pext += 0.5 * (ws[WORK.E1, i] + ws[WORK.E2, i]) - b
+        coach[COACH.F_TRAC, i] = tr2
+        coach[COACH.F_GRADE, i] = gr2
+        coach[COACH.F_RES, i] = -(res + rd2)
+    sc[SCALAR.WR] += wr
+    sc[SCALAR.WT] += wt
+    sc[SCALAR.WG] += wg
+    sc[SCALAR.PEXT] += h * pext
     return wb
 
 
