@@ -5,7 +5,8 @@ Prints the tables (markdown) and writes ``bench/RESULTS.md`` (machine, load, tab
 and the soak figures of the last ``make soak`` from ``bench/soak_results.md``), plus the raw
 figures to ``bench/last_run.json``. See bench/core.py and bench/node.py for what is measured.
 
-Options: ``--no-node``, ``--no-core``, ``--ref-max-n N`` (compute missing reference solutions
+Options: ``--no-node``, ``--no-core``, ``--no-sweep`` (bench/sweep.py: cases/min on 1 and 2 Dask
+workers), ``--ref-max-n N`` (compute missing reference solutions
 only up to N coaches; cached ones are always used), ``--no-write`` (print only).
 """
 from __future__ import annotations
@@ -25,6 +26,7 @@ sys.path.insert(1, os.path.dirname(HERE))
 import core  # noqa: E402
 import freight  # noqa: E402  (the real-train case: 750 m freight)
 from soak import SOAK_BEGIN, SOAK_END, SOAK_MD as SOAK  # noqa: E402  (soak.py owns its section)
+import sweep as sweepbench  # noqa: E402  (sweep.py owns its section)
 
 RESULTS = os.path.join(HERE, 'RESULTS.md')
 RAW = os.path.join(HERE, 'last_run.json')
@@ -315,7 +317,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
                             f'60 s run: {best / a:.2f} / {best / b:.2f} (run '
                             f"{node_res.get('attempt', 1)}; a run below {core.SLOW_HOST:g} is "
                             'done once more, keeping the run at the higher host speed).']
-    parts += [soak_section(), '']
+    parts += [soak_section(), '', sweepbench.sweep_section(), '']
     return '\n'.join(parts)
 
 
@@ -323,9 +325,11 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument('--no-core', action='store_true')
     ap.add_argument('--no-node', action='store_true')
+    ap.add_argument('--no-sweep', action='store_true', help='skip bench/sweep.py')
     ap.add_argument('--no-freight', action='store_true')
     ap.add_argument('--ref-max-n', type=int, default=100)
     ap.add_argument('--no-write', action='store_true')
+    ap.add_argument('--no-pneumatic', action='store_true', help='skip bench/pneumatic.py')
     ap.add_argument('--from-json', metavar='RAW',
                     help='only re-render RESULTS.md from a raw file (bench/last_run.json)')
     args = ap.parse_args(argv)
@@ -369,6 +373,18 @@ def main(argv=None) -> int:
             nodebench.apply_startup_target(node_res)
         except Exception as exc:  # noqa: BLE001 - report and keep the core results
             log(f'node benchmark failed: {exc}')
+    pneu_md = ''
+    if not args.no_pneumatic:       # issue 12: bench/pneumatic.py owns its section
+        import pneumatic
+        rows = pneumatic.run_offline(log=log)
+        pneu_md = pneumatic.render(rows, None if args.no_node else pneumatic.run_node(log=log))
+        with open(pneumatic.RESULTS_MD, 'w') as fh:
+            fh.write(pneu_md)
+    if not args.no_sweep:
+        try:
+            sweepbench.run_and_write(log=log, write=not args.no_write)
+        except Exception as exc:  # noqa: BLE001 - report and keep the other results
+            log(f'sweep benchmark failed: {exc}')
     load['after'] = os.getloadavg()[0]
     load['others_cores'] = meter.others_cores()
     freight_res = None
@@ -378,6 +394,8 @@ def main(argv=None) -> int:
         except Exception as exc:  # noqa: BLE001 - report and keep the other results
             log(f'freight benchmark failed: {exc}')
     text = render(mach, load, core_res, node_res)
+    if pneu_md:
+        text = text.rstrip('\n') + '\n\n' + pneu_md
     if freight_res is not None:
         text = text.rstrip('\n') + '\n\n' + freight.render(freight_res) + '\n'
     print(text)

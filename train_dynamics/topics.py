@@ -53,6 +53,8 @@ TRACTION_TOPIC_DISPLAY = 'coach_<i>/traction/command'
 COUPLERS_TOPIC = 'couplers'
 COACHES_TOPIC = 'coaches'
 BRAKE_CYLINDERS_TOPIC = 'brake_cylinders'
+#: brake_model pneumatic only (after OUTPUT_TOPICS): auxiliary and control reservoirs
+BRAKE_RESERVOIRS_TOPIC = 'brake_reservoirs'
 #: the JointState output topics, in the order they are published and recorded
 OUTPUT_TOPICS = (COUPLERS_TOPIC, COACHES_TOPIC, BRAKE_CYLINDERS_TOPIC)
 #: per-vehicle external forces, JointState ``coach_1..N`` (only for a train that has them):

@@ -5,12 +5,16 @@
     train-dynamics plot BAG --output DIR
     train-dynamics compare --params FILE --duration T --output DIR
                            [--scale-factors 100,1000,10000] [--steps 0.001,0.0001]
+    train-dynamics report BAG --output DIR [--params FILE]
+    train-dynamics sweep --params BASE --sweep SWEEP.yaml --output DIR
+                         [--scheduler ADDRESS] [--workers N] [--keep-bags]
 
 This module is the entry point (``main``; also ``python -m train_dynamics.cli.offline``): the
 parser, the exit statuses and the signals. The commands are :mod:`.simulate` (runs
 :class:`train_dynamics.physics.train.TrainSimulator`, the class ``sim_node`` runs, as fast as
 the machine allows, through :func:`train_dynamics.physics.runner.run_simulation`),
-:mod:`.plot` and :mod:`.compare`; the parameter file and brake inputs of a run are read by
+:mod:`.plot`, :mod:`.compare`, :mod:`.report` (run metrics of a bag) and :mod:`.sweep`
+(parameter studies on Dask); the parameter file and brake inputs of a run are read by
 :mod:`.scenario`. Brake input:
 
 * ``--input BAG`` (MCAP or sqlite3 rosbag2): the contract's input topics
@@ -40,7 +44,7 @@ import sys
 import threading
 
 from train_dynamics import __version__
-from train_dynamics.cli import compare, plot, simulate
+from train_dynamics.cli import compare, plot, report, simulate, sweep
 from train_dynamics.cli.errors import (CliError, error, EXIT_ERROR, EXIT_INTERRUPT,
                                        EXIT_TERMINATED, EXIT_USAGE, PROG, Terminated)
 
@@ -62,6 +66,8 @@ def build_parser() -> argparse.ArgumentParser:
     simulate.add_parser(sub)
     plot.add_parser(sub)
     compare.add_parser(sub)
+    report.add_parser(sub)
+    sweep.add_parser(sub)
     return p
 
 

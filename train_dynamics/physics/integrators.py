@@ -294,12 +294,13 @@ def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
                                                                a2 = r + g h b2
       x' = x + h (3/2 a1 + 1/2 a2),  v' = v + h (3/2 b1 + 1/2 b2),
 
-    g the net coupler force of eqs. (5)-(7), plus (``ext``) the external forces E: gradient,
-    traction and the speed-dependent resistance, evaluated at each stage's point (the brake
-    and the static resistance A + curve are in Fb). A held coach's row becomes b_i = 0; its
-    holding force is the mean over both stages of the residual its free row would leave.
-    Written as fused loops (one pass: assembly, LU factorisation and forward substitution)
-    in the caller's scratch rows: no allocation, no call per stage.
+    g the net coupler force of eqs. (5)-(7) (:func:`couplers.net_force`, summed here in the
+    same branches as the stage matrix: a call per coach cost ~5 % at 1000 coaches), plus
+    (``ext``) the external forces E: gradient, traction and the speed-dependent resistance
+    at each stage's point (the brake and the static resistance A + curve are in Fb). A held
+    coach's row becomes b_i = 0; its holding force is the mean over both stages of the
+    residual its free row would leave. Written as fused loops (one pass: assembly, LU
+    factorisation and forward substitution) in the caller's scratch rows: no allocation.
     """
     x = coach[COACH.X]
     v = ws[WORK.VSTART]
@@ -344,15 +345,18 @@ def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     # stage 1: assemble, factor and forward-substitute in one sweep
     for i in range(n):
         d = masses[i]
+        g = 0.0
         kv = 0.0
         if i > 0:
             d += kk[i - 1]
+            g += F0[i - 1]
             kv += dfdy[i - 1] * (v[i] - v[i - 1])
         if i < m:
             d += kk[i]
+            g -= F0[i]
             kv += dfdy[i] * (v[i] - v[i + 1])
         diag[i] = d
-        rhs1[i] = couplers.net_force(F0, i, m) - gh * kv
+        rhs1[i] = g - gh * kv
         if ext:
             rhs1[i] += e1[i]
         if held[i]:
@@ -384,13 +388,16 @@ def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
         _stage_external(coach, x, v, h, ws, gx, gv, gpc, track, WORK.GR2, WORK.RD2,
                         WORK.TR2, WORK.E2)
     for i in range(n):
+        g = 0.0
         kr = 0.0
         ri = hr * b1[i] - v[i]
         if i > 0:
+            g += F2[i - 1]
             kr += dfdy[i - 1] * (ri - (hr * b1[i - 1] - v[i - 1]))
         if i < m:
+            g -= F2[i]
             kr += dfdy[i] * (ri - (hr * b1[i + 1] - v[i + 1]))
-        rhs2[i] = couplers.net_force(F2, i, m) - 2.0 * masses[i] * b1[i] - gh * kr
+        rhs2[i] = g - 2.0 * masses[i] * b1[i] - gh * kr
         if ext:
             rhs2[i] += e2[i]
         r2 = 0.0 if held[i] else rhs2[i] - brake[i]
@@ -421,8 +428,6 @@ def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
 
 
 # ----------------------------------------------------------------------------- active set
-# The steps below run once per step: they take the packed arrays and index them per
-# element (coach[COACH.V, i]), which costs no reference counting (see the module's notes).
 @jit
 def _stops(v0, v1, fb):
     """
@@ -446,13 +451,17 @@ def _signed_brake(ws):
     From WORK.FB, positive retarding; a coach released from rest at this step
     (WORK.VSTART = 0) is braked against the direction WORK.RELDIR it slides in.
     """
-    for i in range(ws.shape[1]):
-        if ws[WORK.VSTART, i] > 0.0:
-            ws[WORK.SIGNED, i] = ws[WORK.FB, i]
-        elif ws[WORK.VSTART, i] < 0.0:
-            ws[WORK.SIGNED, i] = -ws[WORK.FB, i]
+    v_start = ws[WORK.VSTART]
+    fb = ws[WORK.FB]
+    rel_dir = ws[WORK.RELDIR]
+    signed = ws[WORK.SIGNED]
+    for i in range(v_start.shape[0]):
+        if v_start[i] > 0.0:
+            signed[i] = fb[i]
+        elif v_start[i] < 0.0:
+            signed[i] = -fb[i]
         else:
-            ws[WORK.SIGNED, i] = ws[WORK.RELDIR, i] * ws[WORK.FB, i]
+            signed[i] = rel_dir[i] * fb[i]
 
 
 @jit(inline=True)
@@ -460,21 +469,25 @@ def _release_slipping(held, ws):
     """
     Release the held coaches whose holding force exceeds the braking force [N].
 
-    Such a coach (WORK.HOLD > WORK.FB) slides, braked against its motion (WORK.RELDIR).
+    Such a coach (|WORK.HOLD| > WORK.FB) slides, braked against its motion (WORK.RELDIR).
     Return whether any was released.
     """
+    hold = ws[WORK.HOLD]
+    fb = ws[WORK.FB]
+    rel_dir = ws[WORK.RELDIR]
+    v_start = ws[WORK.VSTART]
     changed = False
     for i in range(held.shape[0]):
-        if held[i] and abs(ws[WORK.HOLD, i]) > ws[WORK.FB, i] * (1.0 + 1e-12):
+        if held[i] and abs(hold[i]) > fb[i] * (1.0 + 1e-12):
             held[i] = False
-            ws[WORK.RELDIR, i] = 1.0 if ws[WORK.HOLD, i] > 0.0 else -1.0
-            ws[WORK.VSTART, i] = 0.0
+            rel_dir[i] = 1.0 if hold[i] > 0.0 else -1.0
+            v_start[i] = 0.0
             changed = True
     return changed
 
 
 @jit(inline=True)
-def _hold_stopping(held, coach, ws, extra_work, sc):
+def _hold_stopping(held, masses, ws, extra_work, sc):
     """
     Hold the moving coaches that stop within the step from the step's start.
 
@@ -482,16 +495,17 @@ def _hold_stopping(held, coach, ws, extra_work, sc):
     stopped, ``extra_work`` plus that energy); their momentum m v [N s] is taken off the
     external impulse (SCALAR.PEXT, ``sc``).
     """
+    v_start = ws[WORK.VSTART]
+    v_new = ws[WORK.VNEW]
+    fb = ws[WORK.FB]
+    rel_dir = ws[WORK.RELDIR]
     changed = False
     for i in range(held.shape[0]):
-        if held[i] or ws[WORK.RELDIR, i] != 0.0:
-            continue
-        v0 = ws[WORK.VSTART, i]
-        if _stops(v0, ws[WORK.VNEW, i], ws[WORK.FB, i]):
+        if (not held[i]) and rel_dir[i] == 0.0 and _stops(v_start[i], v_new[i], fb[i]):
             held[i] = True
-            extra_work += 0.5 * coach[COACH.MASS, i] * v0 * v0
-            sc[SCALAR.PEXT] -= coach[COACH.MASS, i] * v0
-            ws[WORK.VSTART, i] = 0.0
+            extra_work += 0.5 * masses[i] * v_start[i] * v_start[i]
+            sc[SCALAR.PEXT] -= masses[i] * v_start[i]
+            v_start[i] = 0.0
             changed = True
     return changed, extra_work
 
@@ -509,22 +523,26 @@ def _active_set_step(coach, cpl, sc, iv, held, ws, gprof):
     """
     n = held.shape[0]
     h = sc[SCALAR.H]
+    u = sc[SCALAR.U]
     model = iv[FLAG.MODEL]
+    x = coach[COACH.X]
+    v = coach[COACH.V]
+    was_held = coach[COACH.HELD]
+    v_start = ws[WORK.VSTART]
+    rel_dir = ws[WORK.RELDIR]
     for i in range(n):
-        held[i] = coach[COACH.HELD, i] > 0.5
-        ws[WORK.RELDIR, i] = 0.0
-        ws[WORK.VSTART, i] = coach[COACH.V, i]
+        held[i] = was_held[i] > 0.5
+        rel_dir[i] = 0.0
+        v_start[i] = v[i]
     extra_work = 0.0
     for it in range(n + 2):
         if it > 0:   # the active set changed some starting velocities
-            _eval_couplers(coach[COACH.X], ws[WORK.VSTART], cpl, model, sc[SCALAR.U],
-                           GAMMA * h, ws)
+            _eval_couplers(x, v_start, cpl, model, u, GAMMA * h, ws)
         _signed_brake(ws)
-        _ros2_step(h, coach, cpl, model, sc[SCALAR.U], held, ws, iv[FLAG.EXT], iv[FLAG.TRACK],
-                   gprof)
+        _ros2_step(h, coach, cpl, model, u, held, ws, iv[FLAG.EXT], iv[FLAG.TRACK], gprof)
         changed = _release_slipping(held, ws)
         if not changed:
-            changed, extra_work = _hold_stopping(held, coach, ws, extra_work, sc)
+            changed, extra_work = _hold_stopping(held, coach[COACH.MASS], ws, extra_work, sc)
         if not changed:
             break
     return extra_work
@@ -543,21 +561,22 @@ def _brake_system_step(coach, sc, iv, ring, tables, ws):
     cylinder pressures are the inputs COACH.CYL_IN (see ``brakes``).
     """
     mode = iv[FLAG.MODE]
+    p_pipe = coach[COACH.PPIPE]
+    p_cyl = coach[COACH.PCYL]
+    target = ws[WORK.TARGET]
+    p_max = sc[SCALAR.PMAX]
     if mode == brakes.PIPE_HEAD:
         iv[FLAG.RING_POS] = brakes.delay_line_push(ring, iv[FLAG.RING_POS],
                                                    sc[SCALAR.HEAD_IN])
-        brakes.delay_line_read(ring, iv[FLAG.RING_POS], ws[WORK.K0], ws[WORK.FRAC],
-                               coach[COACH.PPIPE])
+        brakes.delay_line_read(ring, iv[FLAG.RING_POS], ws[WORK.K0], ws[WORK.FRAC], p_pipe)
     elif mode == brakes.PIPE_PER_COACH:
-        coach[COACH.PPIPE] = coach[COACH.PIPE_IN]
+        p_pipe[:] = coach[COACH.PIPE_IN]
     if mode == brakes.CYLINDER_PER_COACH:
-        coach[COACH.PCYL] = coach[COACH.CYL_IN]
+        p_cyl[:] = coach[COACH.CYL_IN]
     else:
-        brakes.distributor_target(coach[COACH.PPIPE], coach[COACH.APPLIED], sc[SCALAR.PNOM],
-                                  sc[SCALAR.PFS], sc[SCALAR.SENS], sc[SCALAR.PMAX],
-                                  ws[WORK.TARGET])
-        brakes.cylinder_advance(coach[COACH.PCYL], ws[WORK.TARGET], sc[SCALAR.H],
-                                sc[SCALAR.PMAX], tables)
+        brakes.distributor_target(p_pipe, coach[COACH.APPLIED], sc[SCALAR.PNOM],
+                                  sc[SCALAR.PFS], sc[SCALAR.SENS], p_max, target)
+        brakes.cylinder_advance(p_cyl, target, sc[SCALAR.H], p_max, tables)
 
 
 @jit(inline=True)
@@ -568,11 +587,14 @@ def _braking_force_trapezoid(coach, sc, ws):
     The mean of the available force (eq. 13, limited by eq. 12) at both ends of the step,
     second order; COACH.FB_AVAIL moves on to the step's end (WORK.FBNEXT).
     """
+    fb = ws[WORK.FB]
+    fb_next = ws[WORK.FBNEXT]
+    fb_avail = coach[COACH.FB_AVAIL]
     brakes.braking_force(coach[COACH.PCYL], sc[SCALAR.PMAX], sc[SCALAR.MU],
-                         coach[COACH.BMASS], sc[SCALAR.G], ws[WORK.FBNEXT])
-    for i in range(coach.shape[1]):
-        ws[WORK.FB, i] = 0.5 * (coach[COACH.FB_AVAIL, i] + ws[WORK.FBNEXT, i])
-        coach[COACH.FB_AVAIL, i] = ws[WORK.FBNEXT, i]
+                         coach[COACH.BMASS], sc[SCALAR.G], fb_next)
+    for i in range(fb.shape[0]):
+        fb[i] = 0.5 * (fb_avail[i] + fb_next[i])
+        fb_avail[i] = fb_next[i]
 
 
 @jit(inline=True)
@@ -615,13 +637,15 @@ def _fault_check(ws, y_limit):
     OUT_OF_RANGE: a coupler's |y| = |x_i - x_{i+1}| exceeds y_limit [m] (the displacement
     the vehicles physically allow); NON_FINITE wins.
     """
-    n = ws.shape[1]
+    x_new = ws[WORK.XNEW]
+    v_new = ws[WORK.VNEW]
+    n = x_new.shape[0]
     bad = OK
     for i in range(n):
-        if not (np.isfinite(ws[WORK.XNEW, i]) and np.isfinite(ws[WORK.VNEW, i])):
+        if not (np.isfinite(x_new[i]) and np.isfinite(v_new[i])):
             bad = NON_FINITE
             break
-        if i < n - 1 and abs(ws[WORK.XNEW, i] - ws[WORK.XNEW, i + 1]) > y_limit:
+        if i < n - 1 and abs(x_new[i] - x_new[i + 1]) > y_limit:
             bad = OUT_OF_RANGE
     return bad
 
@@ -635,16 +659,25 @@ def _accept_step(coach, held, extra_work, ws, ext):
     and WORK.SIGNED on the others, plus ``extra_work``; COACH.FB_APPLIED gets |Fb_i| [N],
     COACH.HELD the active set (1.0 = held), WORK.XOLD the positions at the step's start.
     """
+    x = coach[COACH.X]
+    v = coach[COACH.V]
+    fb_applied = coach[COACH.FB_APPLIED]
+    is_held = coach[COACH.HELD]
+    hold = ws[WORK.HOLD]
+    signed = ws[WORK.SIGNED]
+    x_new = ws[WORK.XNEW]
+    v_new = ws[WORK.VNEW]
+    x_old = ws[WORK.XOLD]
     wb = extra_work
-    for i in range(held.shape[0]):
+    for i in range(x.shape[0]):
         if not ext:       # else booked by _accept_external
-            b = ws[WORK.HOLD, i] if held[i] else ws[WORK.SIGNED, i]
-            wb += b * (ws[WORK.XNEW, i] - coach[COACH.X, i])
-            coach[COACH.FB_APPLIED, i] = abs(b)
-        ws[WORK.XOLD, i] = coach[COACH.X, i]
-        coach[COACH.X, i] = ws[WORK.XNEW, i]
-        coach[COACH.V, i] = ws[WORK.VNEW, i]
-        coach[COACH.HELD, i] = 1.0 if held[i] else 0.0
+            b = hold[i] if held[i] else signed[i]
+            wb += b * (x_new[i] - x[i])
+            fb_applied[i] = abs(b)
+        x_old[i] = x[i]
+        x[i] = x_new[i]
+        v[i] = v_new[i]
+        is_held[i] = 1.0 if held[i] else 0.0
     return wb
 
 

@@ -173,6 +173,35 @@ _PARAMS = [
     ParamSpec('on_input_timeout', 'hold', STRING,
               'On a stale input: "hold" the last value or apply an "emergency" brake.',
               choices=('hold', 'emergency'), dynamic=True),
+    # Pneumatic brake (issue 12; physics/pneumatic.py, README "Pneumatic brake").
+    ParamSpec('brake_model', 'empirical', STRING,
+              'Brake system model: "empirical" (propagation delay, distributor map, filling '
+              'tables) or "pneumatic" (brake-pipe gas dynamics, relay valve, UIC '
+              'distributors with reservoirs). In pneumatic, brake_pipe/pressure is the '
+              'pressure the brake valve of the driver regulates the pipe head to.',
+              choices=('empirical', 'pneumatic')),
+    ParamSpec('brake_pipe_leakage', 0.0, DOUBLE,
+              'Pneumatic: leakage of the brake pipe, as the pressure drop rate [Pa/s] of '
+              'the lapped pipe at the running pressure, spread evenly along the train.',
+              low=0.0, high=1.0e5),
+    ParamSpec('angle_cock_closed', 0, INTEGER,
+              'Pneumatic: coupling k (between vehicles k and k+1) whose angle cocks are '
+              'closed, cutting the brake pipe; 0 = all open.', low=0, high=100000),
+    ParamSpec('brake_pipe_diameter', 0.032, DOUBLE,
+              'Pneumatic: inner diameter of the brake pipe [m] (EN 15355: 25-32 mm).',
+              low=0.01, high=0.1),
+    ParamSpec('main_reservoir_pressure', 900000.0, DOUBLE,
+              'Pneumatic: main-reservoir pressure feeding the brake valve of the driver, gauge '
+              '[Pa].', low=1.0e5, high=2.0e6),
+    # Run metrics (issue 13, physics/metrics.py): a crossing is a WARN in /diagnostics.
+    ParamSpec('coupler_force_limit', 0.0, DOUBLE,
+              'Coupler force limit on abs(F) [N]: each excursion beyond it is a limit crossing '
+              '(coupler, value, time) in the run metrics; 0 = off.',
+              low=0.0, high=1.0e9, dynamic=True),
+    ParamSpec('jerk_limit', 0.0, DOUBLE,
+              'Jerk limit [m/s^3] on abs(jerk) of each vehicle, evaluated over 1 s windows '
+              '(EN 12299 practice): each excursion is a limit crossing; 0 = off.',
+              low=0.0, high=1000.0, dynamic=True),
     # Real trains (issue 11): consist, coupler travel, resistance, track, traction. Each
     # vehicle field of a consist (physics/consist.py) is also a parameter of the same name
     # (mass -> coach_mass, length -> coach_length): the value of the uniform train and the
@@ -444,6 +473,12 @@ class SimConfig:
                 < v['pipe_nominal_pressure']):
             raise ConfigError('full_service_pressure + distributor_sensitivity must be below '
                               'pipe_nominal_pressure')
+        if v['angle_cock_closed'] > self.n_coaches - 1:
+            raise ConfigError(f'angle_cock_closed: the couplings are 1..{self.n_coaches - 1} '
+                              f'(0 = none), got {v["angle_cock_closed"]}')
+        if (v['brake_model'] == 'pneumatic'
+                and v['main_reservoir_pressure'] <= v['pipe_nominal_pressure']):
+            raise ConfigError('main_reservoir_pressure must be above pipe_nominal_pressure')
         for kind in ('fill', 'release'):
             t_name, f_name = f'cylinder_{kind}_time', f'cylinder_{kind}_fraction'
             times, fracs = v[t_name], v[f_name]

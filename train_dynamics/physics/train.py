@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from train_dynamics.physics import brakes, consist, couplers, integrators, parameters
+from train_dynamics.physics import (brakes, consist, couplers, integrators, parameters,
+                                   pneumatic)
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.resistance import equivalent_mass
@@ -100,6 +101,20 @@ class TrainSimulator:
         #: p_max of each vehicle over the train's (eq. 13 works with p / p_max)
         self.pmax_ratio = train['max_cylinder_pressure'] / float(cfg.max_cylinder_pressure)
         self.ws = integrators.make_workspace(n)
+        # brake_model pneumatic: the pneumatic brake hands its cylinder pressures to the
+        # chain step by step (the chain then runs as in cylinder_per_coach); the bypass
+        # cylinder_per_coach keeps the input cylinders
+        self.pneu = None
+        if cfg.brake_model == 'pneumatic' and self.mode != brakes.CYLINDER_PER_COACH:
+            per_vehicle = {}
+            if cfg.consist_file:     # the consist's lengths, cylinder pressures and regimes
+                per_vehicle = {'lengths': np.array(train['length']),
+                               'p_max': np.array(train['max_cylinder_pressure']),
+                               'regimes': list(train.regimes)}
+            self.pneu = pneumatic.from_config(cfg, self.h,
+                                              external_pipe=self.mode == brakes.PIPE_PER_COACH,
+                                              **per_vehicle)
+            self._trace = np.zeros((0, n))
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
         self.reset()
@@ -131,6 +146,10 @@ class TrainSimulator:
         self.iv[FLAG.MODE] = self.mode
         self.iv[FLAG.EXT] = int(cfg.external_forces)
         self.iv[FLAG.TRACK] = int(not self.track.flat_and_straight)
+        if self.pneu is not None:
+            self.pneu.reset()
+            self.iv[FLAG.MODE] = brakes.CYLINDER_PER_COACH
+            c[COACH.CYL_IN] = self.pneu.cylinder_pressure
         self.set_model(self.model_type, self.u)
         self.fault: str | None = None
 
@@ -172,6 +191,8 @@ class TrainSimulator:
     def set_head_pipe_pressure(self, p: float) -> None:
         """Set the head-end brake-pipe pressure, gauge [Pa] (``pipe_head``)."""
         self.sc[SCALAR.HEAD_IN] = float(self._finite(p, 'head pipe'))
+        if self.pneu is not None:
+            self.pneu.set_command(self.sc[SCALAR.HEAD_IN])
 
     def set_pipe_pressure(self, p, index: int | None = None) -> None:
         """Set the local brake-pipe pressure(s), gauge [Pa] (``pipe_per_coach``); 0-based."""
@@ -180,6 +201,8 @@ class TrainSimulator:
             self.coach[COACH.PIPE_IN] = arr
         else:
             self.coach[COACH.PIPE_IN, index] = float(arr)
+        if self.pneu is not None:
+            self.pneu.set_pipe_pressure(arr, index)
 
     def set_cylinder_pressure(self, p, index: int | None = None) -> None:
         """Set the brake-cylinder pressure(s), gauge [Pa] (``cylinder_per_coach``); 0-based."""
@@ -216,9 +239,35 @@ class TrainSimulator:
         """Integrate ``n_steps`` fixed steps; return the steps done (fewer after a fault)."""
         if self.fault is not None or n_steps <= 0:
             return 0
+        if self.pneu is not None:
+            return self._advance_pneumatic(int(n_steps))
         done, status = integrators.advance_chain(int(n_steps), self.coach, self.cpl, self.sc,
                                                  self.iv, self.fill, self.rel, self.ring,
                                                  self.ws, self.gprof, self.cprof)
+        self.steps += done
+        if status != integrators.OK:
+            self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
+        return done
+
+    def _advance_pneumatic(self, n_steps: int) -> int:
+        """Advance the pneumatic brake n_steps ahead, then the chain under its cylinders."""
+        if self._trace.shape[0] < n_steps:
+            self._trace = np.zeros((n_steps, self.n))
+        trace = self._trace[:n_steps]
+        self.pneu.advance(n_steps, trace)
+        cyl_in = self.coach[COACH.CYL_IN]
+        done = 0
+        status = integrators.OK
+        scaled = bool(np.any(self.pmax_ratio != 1.0))   # vehicles' own p_max -> the train's
+        for k in range(n_steps):
+            cyl_in[:] = trace[k] / self.pmax_ratio if scaled else trace[k]
+            step, status = integrators.advance_chain(1, self.coach, self.cpl, self.sc, self.iv,
+                                                     self.fill, self.rel, self.ring, self.ws,
+                                                     self.gprof, self.cprof)
+            done += step
+            if status != integrators.OK:
+                break
+        self.coach[COACH.PPIPE] = self.pneu.pipe_pressure
         self.steps += done
         if status != integrators.OK:
             self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
@@ -315,6 +364,16 @@ class TrainSimulator:
     @property
     def pipe_pressure(self) -> np.ndarray:
         return self.coach[COACH.PPIPE].copy()
+
+    @property
+    def auxiliary_pressure(self) -> np.ndarray | None:
+        """Auxiliary-reservoir gauge pressures [Pa] (pneumatic brake), else None."""
+        return None if self.pneu is None else self.pneu.auxiliary_pressure
+
+    @property
+    def control_pressure(self) -> np.ndarray | None:
+        """Control-reservoir gauge pressures [Pa] (pneumatic brake), else None."""
+        return None if self.pneu is None else self.pneu.control_pressure
 
     @property
     def work_brake(self) -> float:

@@ -29,6 +29,7 @@ ATMOSPHERIC_PRESSURE = float(PARAMETERS['atmospheric_pressure'].default)
 _HISTORY_TOPICS = {name: msgtype.rsplit('/', 1)[-1] for name, msgtype in (
     (topics.COUPLERS_TOPIC, topics.JOINT_STATE), (topics.COACHES_TOPIC, topics.JOINT_STATE),
     (topics.BRAKE_CYLINDERS_TOPIC, topics.JOINT_STATE),
+    (topics.BRAKE_RESERVOIRS_TOPIC, topics.JOINT_STATE),
     (topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE),
     (topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE))}
 
@@ -54,6 +55,7 @@ class History:
     couplers: JointSeries | None = None
     coaches: JointSeries | None = None
     cylinders: JointSeries | None = None            # ``brake_cylinders`` topic
+    reservoirs: JointSeries | None = None           # ``brake_reservoirs`` (pneumatic)
     forces: JointSeries | None = None               # ``vehicle_forces`` topic
     head_pressure: tuple[np.ndarray, np.ndarray] | None = None   # t [s], gauge [Pa]
     label: str = ''                                 # e.g. bag name, for titles
@@ -141,6 +143,7 @@ def load_history(bag: str | os.PathLike, *, namespace: str = '',
         data[wanted[topic]].append((t_ns, msg))
     for name, attr in ((topics.COUPLERS_TOPIC, 'couplers'), (topics.COACHES_TOPIC, 'coaches'),
                        (topics.BRAKE_CYLINDERS_TOPIC, 'cylinders'),
+                       (topics.BRAKE_RESERVOIRS_TOPIC, 'reservoirs'),
                        (topics.VEHICLE_FORCES_TOPIC, 'forces')):
         setattr(hist, attr, joint_series(data[name], name, hist.notes))
     if data[topics.HEAD_PIPE_TOPIC]:

@@ -8,6 +8,9 @@ writes them to its bag. One definition of what each output topic carries:
 - ``coaches``: JointState ``coach_1..N``: position x [m], velocity v [m/s], effort Fb [N];
 - ``brake_cylinders``: JointState ``coach_1..N``: position = brake-cylinder gauge pressure
   [Pa], velocity empty, effort = local brake-pipe gauge pressure [Pa];
+- ``brake_reservoirs`` (``brake_model: pneumatic`` only): JointState ``coach_1..N``:
+  position = auxiliary-reservoir gauge pressure [Pa], velocity empty, effort =
+  control-reservoir gauge pressure [Pa].
 - ``vehicle_forces`` (a train with resistance, gradients, curves or traction only):
   JointState ``coach_1..N``: position = traction / dynamic-brake force, velocity = running
   + curve resistance, effort = gradient force [N, on the vehicle, forward > 0].
@@ -26,22 +29,41 @@ def time_ns(t: float) -> int:
     return int(round(t * 1e9))
 
 
+def has_reservoirs(cfg: Any) -> bool:
+    """Return whether a run of ``cfg`` has reservoirs to publish (pneumatic brake)."""
+    return (getattr(cfg, 'brake_model', 'empirical') == 'pneumatic'
+            and cfg.brake_input != topics.CYLINDER_PER_COACH)
+
+
+def output_topics(cfg: Any) -> tuple[str, ...]:
+    """Return the JointState output topics of a run of ``cfg``, in publishing order."""
+    if has_reservoirs(cfg):
+        return topics.OUTPUT_TOPICS + (topics.BRAKE_RESERVOIRS_TOPIC,)
+    return topics.OUTPUT_TOPICS
+
+
 class OutputEncoder:
     """CDR bytes of the output topics for a train of ``n_coaches`` (names encoded once)."""
 
-    def __init__(self, n_coaches: int) -> None:
+    def __init__(self, n_coaches: int, reservoirs: bool = False) -> None:
         self._couplers = JointStateEncoder(topics.coupler_names(n_coaches))
         self._coaches = JointStateEncoder(topics.coach_names(n_coaches))
+        self.reservoirs = bool(reservoirs)
+        self.topics = topics.OUTPUT_TOPICS + (
+            (topics.BRAKE_RESERVOIRS_TOPIC,) if reservoirs else ())
 
-    def encode(self, t_ns: int, sim: Any) -> tuple[bytes, bytes, bytes]:
+    def encode(self, t_ns: int, sim: Any) -> tuple[bytes, ...]:
         """
         Return (couplers, coaches, brake_cylinders) of ``sim``'s present state at ``t_ns``.
 
-        In the order of :data:`train_dynamics.topics.OUTPUT_TOPICS`.
+        In the order of :attr:`topics`; ``brake_reservoirs`` last when it is published.
         """
-        return (self._couplers(t_ns, sim.y, sim.ydot, sim.coupler_force),
-                self._coaches(t_ns, sim.x, sim.v, sim.brake_force),
-                self._coaches(t_ns, sim.cylinder_pressure, None, sim.pipe_pressure))
+        out = (self._couplers(t_ns, sim.y, sim.ydot, sim.coupler_force),
+               self._coaches(t_ns, sim.x, sim.v, sim.brake_force),
+               self._coaches(t_ns, sim.cylinder_pressure, None, sim.pipe_pressure))
+        if self.reservoirs:
+            out += (self._coaches(t_ns, sim.auxiliary_pressure, None, sim.control_pressure),)
+        return out
 
     def encode_forces(self, t_ns: int, sim: Any) -> bytes:
         """

@@ -38,7 +38,7 @@ from train_dynamics.recording.history import History, load_history
 #: Figure sizes [inch] and resolution [dpi]; SIZE_PX gives the PNG sizes in pixels.
 DPI = 120
 FIGSIZE = {'single': (11.0, 6.0), 'stack': (11.0, 11.0), 'coaches': (11.0, 11.0),
-           'compare': (15.0, 9.0), 'zoom': (11.0, 8.0)}
+           'compare': (15.0, 9.0), 'zoom': (11.0, 8.0), 'brake_pressures': (11.0, 12.0)}
 SIZE_PX = {k: (int(round(w * DPI)), int(round(h * DPI))) for k, (w, h) in FIGSIZE.items()}
 
 MAX_LEGEND_ENTRIES = 10          # more curves than this: colour map + colour bar instead
@@ -183,6 +183,8 @@ def plot_history(hist: History, outdir: str | os.PathLike, *, title: str | None 
         paths.append(_plot_coaches(hist, out / 'coaches.png', sub))
     if hist.forces is not None and len(hist.forces):
         paths.append(_plot_forces(hist, out / 'vehicle_forces.png', sub))
+    if hist.reservoirs is not None and len(hist.reservoirs) and hist.cylinders is not None:
+        paths.append(_plot_brake_pressures(hist, out / 'brake_pressures.png', sub))
     return paths
 
 
@@ -202,6 +204,25 @@ def _plot_forces(hist: History, path: Path, sub: str) -> Path:
         _set_xlim(ax, fo.t)
     axes[-1].set_xlabel('time t [s]', fontsize=11)
     fig.suptitle('External forces per vehicle' + (f'\n{sub}' if sub else ''), fontsize=13)
+    return _save(fig, path)
+
+
+def _plot_brake_pressures(hist: History, path: Path, sub: str) -> Path:
+    """Pipe, control reservoir, auxiliary reservoir and cylinder of every vehicle [bar]."""
+    cy, rs = hist.cylinders, hist.reservoirs
+    panels = ((cy, 'effort', 'brake pipe'), (rs, 'effort', 'control reservoir'),
+              (rs, 'position', 'auxiliary reservoir'), (cy, 'position', 'brake cylinder'))
+    fig = _new_figure('brake_pressures')
+    axes = fig.subplots(len(panels), 1, sharex=True)
+    for k, (ax, (series, fld, name)) in enumerate(zip(axes, panels)):
+        _style(ax)
+        _plot_lines(ax, series.t, getattr(series, fld) * 1e-5, series.names, 'coach',
+                    legend=(k == 0))
+        ax.set_ylabel('[bar gauge]', fontsize=11)
+        ax.set_title(f'{name.capitalize()} pressure per vehicle (pneumatic brake)', fontsize=11)
+        _set_xlim(ax, series.t)
+    axes[-1].set_xlabel('time t [s]', fontsize=11)
+    fig.suptitle('Brake pressures' + (f'\n{sub}' if sub else ''), fontsize=13)
     return _save(fig, path)
 
 

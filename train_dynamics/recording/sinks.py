@@ -19,7 +19,7 @@ from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.cdr import encode_float64, encode_fluid_pressure
 from train_dynamics.recording.history import History, JointSeries
 from train_dynamics.recording.messages import stamp
-from train_dynamics.recording.outputs import OutputEncoder, time_ns
+from train_dynamics.recording.outputs import has_reservoirs, OutputEncoder, time_ns
 
 
 class BagSink:
@@ -34,8 +34,8 @@ class BagSink:
     def __init__(self, rec: BagRecorder, cfg: Any) -> None:
         self.rec = rec
         self.atm = float(cfg.atmospheric_pressure)
-        self.encoder = OutputEncoder(cfg.n_coaches)
-        for topic in topics.OUTPUT_TOPICS:
+        self.encoder = OutputEncoder(cfg.n_coaches, has_reservoirs(cfg))
+        for topic in self.encoder.topics:
             rec.add_topic(topic, topics.JOINT_STATE)
         self.forces = bool(cfg.external_forces)
         if self.forces:
@@ -45,7 +45,7 @@ class BagSink:
         """Write the outputs at an output step (and the head-pipe pressure of a valve run)."""
         write = self.rec.write
         t_ns = time_ns(s.t)
-        for topic, data in zip(topics.OUTPUT_TOPICS, self.encoder.encode(t_ns, s.sim)):
+        for topic, data in zip(self.encoder.topics, self.encoder.encode(t_ns, s.sim)):
             write(topic, t_ns, data)
         if self.forces:
             write(topics.VEHICLE_FORCES_TOPIC, t_ns, self.encoder.encode_forces(t_ns, s.sim))

@@ -58,7 +58,7 @@ class Outputs:
 
     def __init__(self, node: Node) -> None:
         self._pubs = [node.create_publisher(JointState, topic, OUTPUT_QOS)
-                      for topic in topics.OUTPUT_TOPICS]
+                      for topic in topics.OUTPUT_TOPICS + (topics.BRAKE_RESERVOIRS_TOPIC,)]
         self._pub_clock = node.create_publisher(Clock, topics.CLOCK_TOPIC, OUTPUT_QOS)
         self._node = node
         self._pub_forces = None         # vehicle_forces, created for a train that has them
@@ -72,13 +72,15 @@ class Outputs:
         self._encoder: OutputEncoder | None = None
 
     def start(self, n: int, rate: float, h: float, publish_clock: bool,
-              writer: BagWriter | None, forces: bool = False) -> None:
+              writer: BagWriter | None, reservoirs: bool = False,
+              forces: bool = False) -> None:
         """
         Begin a run of ``n`` coaches at t = 0: outputs at ``rate`` [Hz] on steps ``h``.
 
-        ``forces``: publish ``vehicle_forces`` too.
+        ``reservoirs``: also publish ``brake_reservoirs`` (pneumatic brake); ``forces``:
+        also publish ``vehicle_forces`` (a train with resistance, track or traction).
         """
-        self._encoder = OutputEncoder(n)
+        self._encoder = OutputEncoder(n, reservoirs)
         self._forces = bool(forces)
         if self._forces and self._pub_forces is None:
             self._pub_forces = self._node.create_publisher(
@@ -125,7 +127,7 @@ class Outputs:
             self._pub_clock.publish(clock)
         w = self.writer
         if w is not None:
-            for topic, data in zip(topics.OUTPUT_TOPICS, encoded):
+            for topic, data in zip(self._encoder.topics, encoded):
                 w.write(topic, topics.JOINT_STATE, t_ns, data)
             if forces is not None:
                 w.write(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE, t_ns, forces)

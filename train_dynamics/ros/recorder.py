@@ -20,7 +20,7 @@ from typing import Any
 from train_dynamics import topics
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.recording.bags import BagRecorder
-from train_dynamics.recording.outputs import parameters_json, run_metadata
+from train_dynamics.recording.outputs import output_topics, parameters_json, run_metadata
 
 #: messages queued for the bag writer before the simulation waits (the disk cannot keep up)
 MAX_RECORD_BACKLOG = 20000
@@ -50,7 +50,7 @@ def open_bag(path: Path, cfg: SimConfig, node_name: str, logger: Any,
         info = run_metadata(cfg, 'sim_node', node=node_name, parameters=parameters_json(cfg))
         for key, value in info.items():
             rec.set_custom_data(key, value)
-        for topic in topics.OUTPUT_TOPICS:
+        for topic in output_topics(cfg):
             rec.add_topic(topic, topics.JOINT_STATE)
     except Exception:
         rec.abort()

@@ -58,7 +58,7 @@ from train_dynamics.physics.parameters import (ConfigError, PARAMETERS, SIM_NODE
                                                SimConfig)
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import BagError
-from train_dynamics.recording.outputs import time_ns
+from train_dynamics.recording.outputs import has_reservoirs, time_ns
 from train_dynamics.ros import parameters as ros_parameters
 from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INPUT_QOS,
                                              MAX_ABSOLUTE_PRESSURE, REJECT_REASONS)
@@ -180,7 +180,7 @@ class SimNode(Node):
         TrainSimulator(cfg).advance(1)
         sim = TrainSimulator(cfg)
         self._outputs.start(sim.n, cfg.publish_rate, sim.h, cfg.publish_clock, writer,
-                            forces=cfg.external_forces)
+                            has_reservoirs(cfg), forces=cfg.external_forces)
         self._inputs.start(cfg, sim.n, recording=writer is not None)
         self._pacer.start(sim, cfg.real_time_factor)
         rtf, duration = cfg.real_time_factor, self._pacer.duration

@@ -1,0 +1,112 @@
+"""
+``train-dynamics report``: the metrics of a recorded run, as summary.json, summary.md, figures.
+
+Reads ``couplers`` and ``coaches`` from a bag written by ``train-dynamics simulate``, by the
+node's ``record_bag`` or by ``ros2 bag record`` (the same topics), feeds them into
+:class:`train_dynamics.physics.metrics.RunMetrics` (the code the sweep and the node run)
+and writes :func:`train_dynamics.recording.report.write_report`'s files. The run's
+parameters (limits, strokes and slacks, coupler stiffness for the dissipated energy) come
+from ``--params``, else from the bag's ``custom_data`` ``parameters`` (recorded by the node),
+else the limits are off and the dissipated energy is not given.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+from typing import Any
+
+from train_dynamics.cli.errors import CliError, EXIT_ERROR, EXIT_OK
+from train_dynamics.cli.scenario import load_config
+from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
+from train_dynamics.physics.parameters import ConfigError, SimConfig
+from train_dynamics.recording.bags import BagError
+from train_dynamics.recording.history import History, load_history
+from train_dynamics.recording.report import write_report
+
+
+def add_parser(sub: argparse._SubParsersAction) -> None:
+    """Add the ``report`` command and its options."""
+    r = sub.add_parser('report', help='metrics of a recorded run: summary.json, summary.md, '
+                       'figures', description='Compute the run metrics of a bag (largest '
+                       'tension/compression per coupler, blocking, decelerations, jerk, '
+                       'stopping, energies, limit crossings) and write summary.json, '
+                       'summary.md and figures.')
+    r.add_argument('bag', metavar='BAG', help='rosbag2 holding couplers and coaches')
+    r.add_argument('--output', required=True, metavar='DIR', help='directory for the report')
+    r.add_argument('--params', metavar='FILE', help='parameter file of the run (default: the '
+                   "bag's recorded parameters, when the node recorded it)")
+    r.add_argument('--namespace', default='', metavar='NS', help='topics under this namespace')
+    r.add_argument('--coupler-force-limit', type=float, metavar='N',
+                   help='override coupler_force_limit [N] (0 = off)')
+    r.add_argument('--jerk-limit', type=float, metavar='J',
+                   help='override jerk_limit [m/s^3] (0 = off)')
+    r.add_argument('-q', '--quiet', action='store_true', help='print nothing')
+    r.set_defaults(func=cmd_report)
+
+
+def run_config(args: argparse.Namespace, hist: History) -> tuple[SimConfig | None, str]:
+    """Return the run's parameters and where they came from (None: unknown)."""
+    if args.params:
+        return load_config(args.params), args.params
+    text = hist.info.get('parameters')
+    if text:
+        try:
+            return SimConfig.from_dict(json.loads(text), ignore_unknown=True), 'bag custom_data'
+        except (ValueError, ConfigError) as exc:
+            raise CliError(f'{args.bag}: recorded parameters unusable ({exc}); give '
+                           '--params') from None
+    return None, 'none (limits off; give --params for limits and dissipated energy)'
+
+
+def report_metrics(hist: History, cfg: SimConfig | None, **overrides: Any) -> RunMetrics:
+    """Return the metrics of a loaded run (``overrides``: RunMetrics keyword arguments)."""
+    n = len(hist.coaches.names)
+    if cfg is not None and cfg.n_coaches != n:
+        raise CliError(f'the bag has {n} vehicles, the parameters {cfg.n_coaches}')
+    metrics = (RunMetrics.for_run(cfg, **overrides) if cfg is not None
+               else RunMetrics(n, **overrides))
+    return metrics_of_history(hist, metrics)
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """Run ``report``; return the exit status."""
+    if not Path(args.bag).exists():
+        raise CliError(f'bag not found: {args.bag}')
+    try:
+        hist = load_history(args.bag, namespace=args.namespace)
+    except BagError as exc:
+        raise CliError(str(exc)) from None
+    if hist.couplers is None or hist.coaches is None or not len(hist.coaches):
+        raise CliError(f'{args.bag}: needs the couplers and coaches topics (JointState)')
+    cfg, origin = run_config(args, hist)
+    overrides = {}
+    for name in ('coupler_force_limit', 'jerk_limit'):
+        value = getattr(args, name)
+        if value is not None:
+            if not value >= 0.0:
+                raise CliError(f'--{name.replace("_", "-")} must be >= 0, got {value:g}')
+            overrides[name] = value
+    metrics = report_metrics(hist, cfg, **overrides)
+    result = metrics.result()
+    keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
+    model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
+    source = {'bag': str(args.bag), 'parameters': origin, 'model': model,
+              'notes': list(hist.notes)}
+    try:
+        paths = write_report(result, hist, args.output, source=source)
+    except OSError as exc:
+        raise CliError(f'cannot write the report to {args.output}: {exc.strerror or exc}',
+                       EXIT_ERROR) from None
+    if not args.quiet:
+        tr = result['train']
+        print(f"max tension {tr['max_tension'] * 1e-3:.2f} kN (coupler "
+              f"{tr['max_tension_coupler']}), max compression "
+              f"{tr['max_compression'] * 1e-3:.2f} kN (coupler "
+              f"{tr['max_compression_coupler']}), "
+              + (f"stopped after {tr['stopping_time']:.2f} s / {tr['stopping_distance']:.1f} m"
+                 if tr['stopped'] else 'not stopped')
+              + f", {tr['limit_crossings']} limit crossing(s)")
+        for p in paths:
+            print(p)
+    return EXIT_OK
