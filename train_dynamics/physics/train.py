@@ -20,7 +20,7 @@ from __future__ import annotations
 import numpy as np
 
 from train_dynamics.physics import (brakes, consist, couplers, integrators, parameters,
-                                   pneumatic)
+                                    pneumatic)
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.resistance import equivalent_mass
