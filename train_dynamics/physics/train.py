@@ -321,6 +321,26 @@ class TrainSimulator:
         return p
 
     @property
+    def buffer_stroke(self) -> np.ndarray:
+        """Return each coupler's buffer stroke S_c [m] (the connection's, N-1 values)."""
+        return self.cpl[COUPLER.SC].copy()
+
+    @property
+    def draw_gear_stroke(self) -> np.ndarray:
+        """Return each coupler's draw-gear stroke S_t [m]."""
+        return self.cpl[COUPLER.ST].copy()
+
+    @property
+    def buffer_slack(self) -> np.ndarray:
+        """Return each coupler's buffer free play g_c [m]."""
+        return self.cpl[COUPLER.GC].copy()
+
+    @property
+    def draw_gear_slack(self) -> np.ndarray:
+        """Return each coupler's draw-gear free play g_t [m]."""
+        return self.cpl[COUPLER.GT].copy()
+
+    @property
     def traction_force(self) -> np.ndarray:
         """Return each vehicle's traction / dynamic-brake force [N, forward > 0]."""
         return self.coach[COACH.F_TRAC].copy()
