@@ -84,7 +84,7 @@ def make_workspace(n: int) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- couplers
 @jit
-def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u):
+def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h):
     """
     Return one coupler's F [N], dF/dy [N/m] and the dF/dydot [N s/m] of the stage matrix.
 
@@ -109,7 +109,7 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u):
         s = np.sign(ydot)
         ratio = 0.0
     f, stiff, amp = couplers.coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb)
-    return f, stiff, amp * u * ratio
+    return f, _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb), amp * u * ratio
 
 
 @jit
@@ -124,7 +124,7 @@ def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb):
     return 0.0
 
 
-@jit
+@jit(inline=True)
 def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
     """
     Return the dF/dy [N/m] of the stage matrix: the secant over the step's predicted move.
@@ -175,8 +175,7 @@ def _eval_couplers(x, v, cpl, model, u, gh, ws):
         y = x[j] - x[j + 1]
         ydot = v[j] - v[j + 1]
         f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j],
-                               sc[j], kb[j], model, u)
-        dy = _travel_slope(y, ydot, h, dy, ke[j], kec[j], gt[j], gc[j], st[j], sc[j], kb[j])
+                               sc[j], kb[j], model, u, h)
         F0[j] = f
         dfdy[j] = dy
         kk[j] = gh * dv + gh * gh * dy
@@ -211,8 +210,7 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
         y = x[j] - x[j + 1]
         ydot = v[j] - v[j + 1]
         f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j],
-                               sc[j], kb[j], model, u)
-        dy = _travel_slope(y, ydot, h, dy, ke[j], kec[j], gt[j], gc[j], st[j], sc[j], kb[j])
+                               sc[j], kb[j], model, u, h)
         wc += 0.5 * (F0[j] + f) * (y - (x_old[j] - x_old[j + 1]))
         F0[j] = f
         dfdy[j] = dy
@@ -222,24 +220,13 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
 
 # ----------------------------------------------------------------------------- external
 @jit(inline=True)
-def _friction_direction(ws, i):
-    """Return the direction the brake and resistance of vehicle i act in (+1, -1, 0)."""
-    vs = ws[WORK.VSTART, i]
-    if vs > 0.0:
-        return 1.0
-    if vs < 0.0:
-        return -1.0
-    return ws[WORK.RELDIR, i]
-
-
-@jit(inline=True)
 def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_tr, row_e):
     """
     Write the external forces of every vehicle at a stage's point to four WORK rows.
 
     The point is (x + h (v + g h b1), v + h b1) with b1 = WORK.B1: stage 1 for h = 0,
-    stage 2 for the step h [s]. Gradient, resistance and traction [N] of
-    gradient -m g (mean gradient over the vehicle) / 1000 (``track``), the speed-dependent
+    stage 2 for the step h [s]. Forces [N]:
+    the gradient -m g (mean gradient over the vehicle) / 1000 (``track``), the speed-dependent
     resistance d (B |v| + C v^2) against the friction's direction d (Davis; A is with the
     brake), traction (``traction.traction_force``), and E = gradient + traction -
     resistance. (Written out here, not in a called function: a per-vehicle call cost the
@@ -247,33 +234,43 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
     """
     gh = GAMMA * h
     grades = track and gx.shape[0] > 0
+    b1 = ws[WORK.B1]
+    v_start = ws[WORK.VSTART]
+    rel_dir = ws[WORK.RELDIR]
+    t_eff = ws[WORK.TEFF]
+    davis_b = coach[COACH.DAVIS_B]
+    davis_c = coach[COACH.DAVIS_C]
+    out_gr = ws[row_gr]
+    out_rd = ws[row_rd]
+    out_tr = ws[row_tr]
+    out_e = ws[row_e]
     for i in range(x.shape[0]):
         xi = x[i]
         vi = v[i]
         if h != 0.0:
-            b = ws[WORK.B1, i]
+            b = b1[i]
             xi += h * (vi + gh * b)
             vi += h * b
-        vs = ws[WORK.VSTART, i]      # the friction's direction (see _friction_direction)
-        d = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else ws[WORK.RELDIR, i])
+        vs = v_start[i]      # the friction acts against this (the brake's direction)
+        d = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else rel_dir[i])
         sv = abs(vi)
-        rd = d * (coach[COACH.DAVIS_B, i] + coach[COACH.DAVIS_C, i] * sv) * sv
+        rd = d * (davis_b[i] + davis_c[i] * sv) * sv
         gr = 0.0
         if grades:
             hi = coach[COACH.FRONT0, i] + xi
             gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
                 hi - coach[COACH.LENGTH, i], hi, gx, gv, gc)
         tr = 0.0
-        teff = ws[WORK.TEFF, i]
+        teff = t_eff[i]
         if teff != 0.0:
             tr = traction.traction_force(
                 teff, vi, coach[COACH.T_FORCE, i], coach[COACH.T_POWER, i],
                 coach[COACH.DB_FORCE, i], coach[COACH.DB_POWER, i], coach[COACH.DB_FADE, i],
                 coach[COACH.T_ADH, i], coach[COACH.WEIGHT, i])
-        ws[row_gr, i] = gr
-        ws[row_rd, i] = rd
-        ws[row_tr, i] = tr
-        ws[row_e, i] = gr + tr - rd
+        out_gr[i] = gr
+        out_rd[i] = rd
+        out_tr[i] = tr
+        out_e[i] = gr + tr - rd
 
 
 # ----------------------------------------------------------------------------- ROS2
@@ -612,21 +609,28 @@ def _external_step(coach, sc, iv, cprof, ws):
     cv = cprof[1]
     cc = cprof[2]
     curves = iv[FLAG.TRACK] and cx.shape[0] > 0
-    for i in range(coach.shape[1]):
-        r = coach[COACH.DAVIS_A, i]
+    davis_a = coach[COACH.DAVIS_A]
+    cmd = coach[COACH.T_CMD]
+    eff = coach[COACH.T_EFF]
+    rstat = ws[WORK.RSTAT]
+    fb = ws[WORK.FB]
+    fbrake = ws[WORK.FBRAKE]
+    t_eff = ws[WORK.TEFF]
+    for i in range(fb.shape[0]):
+        r = davis_a[i]
         if curves:
             hi = coach[COACH.FRONT0, i] + coach[COACH.X, i]
             r += coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
                 hi - coach[COACH.LENGTH, i], hi, cx, cv, cc)
-        ws[WORK.RSTAT, i] = r
-        ws[WORK.FBRAKE, i] = ws[WORK.FB, i]
-        ws[WORK.FB, i] += r
-        old = coach[COACH.T_EFF, i]
+        rstat[i] = r
+        fbrake[i] = fb[i]
+        fb[i] += r
+        old = eff[i]
         new = old
-        if coach[COACH.T_CMD, i] != old:
-            new = traction.ramp(old, coach[COACH.T_CMD, i], h, coach[COACH.T_BUILD, i])
-        coach[COACH.T_EFF, i] = new
-        ws[WORK.TEFF, i] = 0.5 * (old + new)
+        if cmd[i] != old:
+            new = traction.ramp(old, cmd[i], h, coach[COACH.T_BUILD, i])
+            eff[i] = new
+        t_eff[i] = 0.5 * (old + new)
 
 
 @jit(inline=True)
@@ -698,28 +702,39 @@ def _accept_external(coach, sc, held, ws):
     wt = 0.0
     wg = 0.0
     pext = 0.0
+    x = coach[COACH.X]
+    x_new = ws[WORK.XNEW]
+    rstat = ws[WORK.RSTAT]
+    hold = ws[WORK.HOLD]
+    signed = ws[WORK.SIGNED]
+    v_start = ws[WORK.VSTART]
+    rel_dir = ws[WORK.RELDIR]
+    rd1, rd2 = ws[WORK.RD1], ws[WORK.RD2]
+    tr1, tr2 = ws[WORK.TR1], ws[WORK.TR2]
+    gr1, gr2 = ws[WORK.GR1], ws[WORK.GR2]
+    e1, e2 = ws[WORK.E1], ws[WORK.E2]
+    fb_applied = coach[COACH.FB_APPLIED]
+    f_trac, f_grade, f_res = coach[COACH.F_TRAC], coach[COACH.F_GRADE], coach[COACH.F_RES]
     for i in range(held.shape[0]):
-        dx = ws[WORK.XNEW, i] - coach[COACH.X, i]
-        rstat = ws[WORK.RSTAT, i]
+        dx = x_new[i] - x[i]
+        r = rstat[i]
         if held[i]:
-            b = ws[WORK.HOLD, i]
-            res = min(max(b, -rstat), rstat)
+            b = hold[i]
+            res = min(max(b, -r), r)
         else:
-            b = ws[WORK.SIGNED, i]
-            res = _friction_direction(ws, i) * rstat
+            b = signed[i]
+            vs = v_start[i]
+            res = r if vs > 0.0 else (-r if vs < 0.0 else rel_dir[i] * r)
         brake = b - res
         wb += brake * dx
-        coach[COACH.FB_APPLIED, i] = abs(brake)
-        rd2 = ws[WORK.RD2, i]
-        tr2 = ws[WORK.TR2, i]
-        gr2 = ws[WORK.GR2, i]
-        wr += (res + 0.5 * (ws[WORK.RD1, i] + rd2)) * dx
-        wt += 0.5 * (ws[WORK.TR1, i] + tr2) * dx
-        wg += 0.5 * (ws[WORK.GR1, i] + gr2) * dx
-        pext += 0.5 * (ws[WORK.E1, i] + ws[WORK.E2, i]) - b
-        coach[COACH.F_TRAC, i] = tr2
-        coach[COACH.F_GRADE, i] = gr2
-        coach[COACH.F_RES, i] = -(res + rd2)
+        fb_applied[i] = abs(brake)
+        wr += (res + 0.5 * (rd1[i] + rd2[i])) * dx
+        wt += 0.5 * (tr1[i] + tr2[i]) * dx
+        wg += 0.5 * (gr1[i] + gr2[i]) * dx
+        pext += 0.5 * (e1[i] + e2[i]) - b
+        f_trac[i] = tr2[i]
+        f_grade[i] = gr2[i]
+        f_res[i] = -(res + rd2[i])
     sc[SCALAR.WR] += wr
     sc[SCALAR.WT] += wt
     sc[SCALAR.WG] += wg
