@@ -25,6 +25,7 @@ sys.path.insert(1, os.path.dirname(HERE))
 
 import core  # noqa: E402
 from memory import MEMORY_BEGIN, MEMORY_END, MEMORY_MD  # noqa: E402  (memory.py's section)
+import freight  # noqa: E402  (the real-train case: 750 m freight)
 from soak import SOAK_BEGIN, SOAK_END, SOAK_MD as SOAK  # noqa: E402  (soak.py owns its section)
 import sweep as sweepbench  # noqa: E402  (sweep.py owns its section)
 
@@ -336,6 +337,7 @@ def main(argv=None) -> int:
     ap.add_argument('--no-node', action='store_true')
     ap.add_argument('--no-sweep', action='store_true', help='skip bench/sweep.py')
     ap.add_argument('--no-memory', action='store_true')
+    ap.add_argument('--no-freight', action='store_true')
     ap.add_argument('--ref-max-n', type=int, default=100)
     ap.add_argument('--no-write', action='store_true')
     ap.add_argument('--no-pneumatic', action='store_true', help='skip bench/pneumatic.py')
@@ -400,15 +402,24 @@ def main(argv=None) -> int:
         memory.MEMORY_MD.write_text(f'{MEMORY_BEGIN}\n{text}\n{MEMORY_END}\n')
     load['after'] = os.getloadavg()[0]
     load['others_cores'] = meter.others_cores()
+    freight_res = None
+    if not args.no_freight:
+        try:
+            freight_res = freight.run(log=log)
+        except Exception as exc:  # noqa: BLE001 - report and keep the other results
+            log(f'freight benchmark failed: {exc}')
     text = render(mach, load, core_res, node_res)
     if pneu_md:
         text = text.rstrip('\n') + '\n\n' + pneu_md
+    if freight_res is not None:
+        text = text.rstrip('\n') + '\n\n' + freight.render(freight_res) + '\n'
     print(text)
     log(f'bench: {time.monotonic() - t0:.0f} s')
     if not args.no_write:
         with open(RESULTS, 'w') as fh:
             fh.write(text)
-        raw = {'machine': mach, 'load': load, 'core': core_res, 'node': node_res}
+        raw = {'machine': mach, 'load': load, 'core': core_res, 'node': node_res,
+               'freight': freight_res}
         with open(RAW, 'w') as fh:
             json.dump(raw, fh, indent=1, default=str)
         log(f'wrote {RESULTS} and {RAW}')

@@ -37,11 +37,14 @@ def test_stage_solve_matches_dense_solve_with_held_coaches():
     held[[0, 4, 5]] = True
     coach = np.zeros((len(COACH), n))
     coach[COACH.MASS] = masses
-    cpl = np.tile(np.array([[2.8e6], [1.4e6], [5.46e6], [2.43e6]]), (1, m))
+    # k_e, k_f, k_ec, k_fc, no slack, strokes never reached, K_b
+    cpl = np.tile(np.array([[2.8e6], [1.4e6], [5.46e6], [2.43e6], [0.0], [0.0], [1.0], [1.0],
+                            [1e8]]), (1, m))
     ws = integrators.make_workspace(n)
     ws[WORK.F, :m], ws[WORK.DFDY, :m], ws[WORK.KK, :m] = F, dfdy, kk
     ws[WORK.VSTART], ws[WORK.SIGNED] = v, brake
-    integrators._ros2_step(h, coach, cpl, couplers.TANH, 1000.0, held, ws)
+    integrators._ros2_step(h, coach, cpl, couplers.TANH, 1000.0, held, ws, 0, 0,
+                           np.zeros((3, 0)))
     D = np.eye(n)[:-1] - np.eye(n, k=1)[:-1]          # y = D x
     A = np.diag(masses) + D.T @ np.diag(kk) @ D
     rhs = -D.T @ F - gh * D.T @ (dfdy * (D @ v))

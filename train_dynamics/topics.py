@@ -18,6 +18,7 @@ FLUID_PRESSURE = 'sensor_msgs/msg/FluidPressure'
 JOINT_STATE = 'sensor_msgs/msg/JointState'
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
+FLOAT64 = 'std_msgs/msg/Float64'
 
 # -- brake inputs (sensor_msgs/FluidPressure, ABSOLUTE Pa) ---------------------------------------
 PIPE_HEAD = 'pipe_head'
@@ -42,6 +43,12 @@ INPUT_TOPIC_DISPLAY = {PIPE_HEAD: HEAD_PIPE_TOPIC,
 #: Inputs above this ABSOLUTE pressure [Pa] (20 bar) are rejected as implausible.
 MAX_ABSOLUTE_PRESSURE = 2.0e6
 
+# -- traction inputs (std_msgs/Float64, a fraction in [-1, 1]) ------------------------------------
+#: traction / dynamic-brake command of locomotive i, ``.format(i=<1-based vehicle>)``
+TRACTION_TOPIC = 'coach_{i}/traction/command'
+TRACTION_TOPIC_PATTERN = re.compile(r'coach_(\d+)/traction/command')
+TRACTION_TOPIC_DISPLAY = 'coach_<i>/traction/command'
+
 # -- outputs (sensor_msgs/JointState, header.stamp = simulation time) ----------------------------
 COUPLERS_TOPIC = 'couplers'
 COACHES_TOPIC = 'coaches'
@@ -50,6 +57,10 @@ BRAKE_CYLINDERS_TOPIC = 'brake_cylinders'
 BRAKE_RESERVOIRS_TOPIC = 'brake_reservoirs'
 #: the JointState output topics, in the order they are published and recorded
 OUTPUT_TOPICS = (COUPLERS_TOPIC, COACHES_TOPIC, BRAKE_CYLINDERS_TOPIC)
+#: per-vehicle external forces, JointState ``coach_1..N`` (only for a train that has them):
+#: position = traction / dynamic-brake force, velocity = running + curve resistance,
+#: effort = gradient force; all [N] on the vehicle, forward > 0
+VEHICLE_FORCES_TOPIC = 'vehicle_forces'
 CLOCK_TOPIC = '/clock'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 
@@ -59,6 +70,11 @@ def input_topic(mode: str, coach: int | None = None) -> str:
     if mode == PIPE_HEAD:
         return HEAD_PIPE_TOPIC
     return COACH_INPUT_TOPIC[mode].format(i=coach)
+
+
+def traction_topic(vehicle: int) -> str:
+    """Return the traction-command topic of ``vehicle`` (1-based)."""
+    return TRACTION_TOPIC.format(i=vehicle)
 
 
 def coupler_names(n_coaches: int) -> list[str]:

@@ -22,8 +22,8 @@ from train_dynamics.cli.errors import CliError, warn
 from train_dynamics.physics.brake_valve import BrakeValveModel, VALVE_PARAMETERS
 from train_dynamics.physics.parameters import (ConfigError, load_param_file, node_sections,
                                                read_param_sections, SimConfig)
-from train_dynamics.physics.runner import BrakeInputs
-from train_dynamics.recording.inputs import InputBagError, read_input_bag
+from train_dynamics.physics.runner import BrakeInputs, traction_schedule
+from train_dynamics.recording.inputs import InputBagError, read_input_bag, read_traction_bag
 
 #: the brake valve without a ``schedule`` or ``position`` in the parameter file
 DEFAULT_VALVE_SCHEDULE = ['0.0:release', '1.0:emergency']
@@ -47,6 +47,24 @@ def check_duration(duration: float) -> float:
 
 
 def brake_inputs(args: argparse.Namespace, cfg: SimConfig) -> BrakeInputs:
+    """
+    Return the inputs of the run: the ``--input`` bag or the brake-valve schedule.
+
+    Traction commands: the bag's ``coach_<i>/traction/command`` when it has any, else the
+    parameter file's ``traction_schedule_*``.
+    """
+    inputs = _brake_only(args, cfg)
+    traction = []
+    if args.input:
+        try:
+            traction = read_traction_bag(args.input, cfg, namespace=args.namespace, warn=warn)
+        except InputBagError as exc:
+            raise CliError(str(exc)) from None
+    inputs.traction = traction or traction_schedule(cfg)
+    return inputs
+
+
+def _brake_only(args: argparse.Namespace, cfg: SimConfig) -> BrakeInputs:
     """Return the brake input of the run: the ``--input`` bag or the brake-valve schedule."""
     if args.input:
         try:

@@ -77,6 +77,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             rec.add_topic(topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE)
         for topic in dict.fromkeys(e.topic for e in inputs.events):
             rec.add_topic(topic, topics.FLUID_PRESSURE)
+        for topic in dict.fromkeys(e.topic for e in inputs.traction):
+            rec.add_topic(topic, topics.FLOAT64)
         sim = run_simulation(cfg, duration, inputs, on_sample=sink.sample, on_input=sink.input,
                              progress=progress_bar('simulate', duration, args.quiet))
         rec.close()

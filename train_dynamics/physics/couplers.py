@@ -159,3 +159,117 @@ def force_law(y, ydot, *, ke=2.8e6, kf=1.4e6, kec=5.46e6, kfc=2.43e6, model='tan
     full = [np.broadcast_to(np.asarray(k, dtype=float), y.shape).copy()
             for k in (ke, kf, kec, kfc)]
     return coupler_force(y, ydot, *full, MODEL_CODES[model], float(u))
+
+
+# ------------------------------------------------------------------ free play and blocking
+@jit
+def coupler_branch_travel(y: float, s: float, ke: float, kf: float, kec: float, kfc: float,
+                          gt: float, gc: float, st: float, sc: float, kb: float):
+    """
+    Return the branch of the extended law at y [m]: (F [N], dF/dy [N/m], k_fr d [N/m * m]).
+
+    Slack g_t (draw gear), g_c (buffers) [m], strokes S_t, S_c [m], blocked stiffness K_b
+    [N/m]; the friction part of F is k_fr d s, so k_fr d is its amplitude:
+
+    - y > g_t: d = y - g_t, F = (k_ec + k_fc s) d + K_b max(d - S_t, 0)
+    - y < -g_c: d = y + g_c, F = (k_e - k_f s) d + K_b min(d + S_c, 0)
+    - otherwise free play: F = 0, dF/dy = 0.
+
+    With no slack at all it is :func:`coupler_branch` (eqs. 2-4 / 15-16) with the same
+    arithmetic (bit for bit below the strokes), y = 0 included. Blocking adds K_b to the
+    slope, so the integrator's stage matrix sees the stiff block.
+    """
+    if y > gt:
+        d = y - gt
+        k = kec
+        kfr = kfc
+    elif y < -gc:
+        d = y + gc
+        k = ke
+        kfr = -kf
+    else:
+        if gt == 0.0 and gc == 0.0:      # y == 0 of the tight coupling: the paper's law
+            stiff = 0.5 * (ke - kf * s) + 0.5 * (kec + kfc * s)
+            return stiff * y, stiff, 0.0
+        return 0.0, 0.0, 0.0
+    stiff = k + kfr * s
+    f = stiff * d
+    if d > st:
+        f += kb * (d - st)
+        stiff += kb
+    elif d < -sc:
+        f += kb * (d + sc)
+        stiff += kb
+    return f, stiff, kfr * d
+
+
+@jit
+def coupler_force_travel_scalar(y: float, ydot: float, ke: float, kf: float, kec: float,
+                                kfc: float, gt: float, gc: float, st: float, sc: float,
+                                kb: float, model: int, u: float):
+    """
+    Return (F [N], dF/dy [N/m], dF/dydot [N s/m]) of one coupler with free play and blocking.
+
+    s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14) in :func:`coupler_branch_travel`.
+    """
+    if model == TANH:
+        s = fast_tanh(u * ydot)
+        dsdv = u * (1.0 - s * s)
+    else:
+        s = np.sign(ydot)
+        dsdv = 0.0
+    f, stiff, amp = coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb)
+    return f, stiff, amp * dsdv
+
+
+@jit
+def coupler_force_travel(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf: np.ndarray,
+                         kec: np.ndarray, kfc: np.ndarray, gt: np.ndarray, gc: np.ndarray,
+                         st: np.ndarray, sc: np.ndarray, kb: np.ndarray, model: int,
+                         u: float) -> np.ndarray:
+    """Return the force F [N] of every coupler with free play and blocking (arrays of N-1)."""
+    out = np.empty(y.shape[0])
+    for j in range(y.shape[0]):
+        out[j] = coupler_force_travel_scalar(y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j],
+                                             gt[j], gc[j], st[j], sc[j], kb[j], model, u)[0]
+    return out
+
+
+@jit
+def coupler_jacobian_travel(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf: np.ndarray,
+                            kec: np.ndarray, kfc: np.ndarray, gt: np.ndarray, gc: np.ndarray,
+                            st: np.ndarray, sc: np.ndarray, kb: np.ndarray, model: int,
+                            u: float):
+    """Return (dF/dy [N/m], dF/dydot [N s/m]) of every coupler with free play and blocking."""
+    dfdy = np.empty(y.shape[0])
+    dfdv = np.empty(y.shape[0])
+    for j in range(y.shape[0]):
+        _, dfdy[j], dfdv[j] = coupler_force_travel_scalar(
+            y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j], sc[j], kb[j],
+            model, u)
+    return dfdy, dfdv
+
+
+def elastic_energy_travel(y, ke, kec, gt, gc, st, sc, kb) -> np.ndarray:
+    """
+    Return the energy stored in each coupler [J] with free play and blocking.
+
+    k d^2 / 2 on the spring's deflection d beyond the slack, plus K_b (|d| - S)^2 / 2 beyond
+    the stroke; 0 in free play (arrays of N-1, or scalars).
+    """
+    y = np.asarray(y, dtype=float)
+    dt = np.maximum(y - gt, 0.0)
+    dc = np.maximum(-y - gc, 0.0)
+    return (0.5 * kec * dt * dt + 0.5 * kb * np.maximum(dt - st, 0.0) ** 2
+            + 0.5 * ke * dc * dc + 0.5 * kb * np.maximum(dc - sc, 0.0) ** 2)
+
+
+def deflection_bounds(force, gt, gc, st, sc, kb):
+    """
+    Return (lowest, highest) y [m] a coupler carrying ``force`` [N] can have.
+
+    -(g_c + S_c + |F| / K_b) <= y <= g_t + S_t + |F| / K_b: beyond slack and stroke only
+    the blocked stiffness gives (the springs' own force has the sign of F).
+    """
+    extra = np.abs(np.asarray(force, dtype=float)) / kb
+    return -(gc + sc + extra), gt + st + extra

@@ -56,9 +56,10 @@ import math
 
 import numpy as np
 
-from train_dynamics.physics import brakes, couplers
+from train_dynamics.physics import brakes, couplers, traction
 from train_dynamics.physics._jit import jit
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
+from train_dynamics.physics.track import profile_mean
 
 GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 
@@ -83,7 +84,7 @@ def make_workspace(n: int) -> np.ndarray:
 
 # ----------------------------------------------------------------------------- couplers
 @jit
-def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
+def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h):
     """
     Return one coupler's F [N], dF/dy [N/m] and the dF/dydot [N s/m] of the stage matrix.
 
@@ -93,7 +94,10 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
     still sees the friction's damping (the tangent is ~0 outside the band, which made the
     friction explicit exactly there and overshot the peak force of long trains by 10 % at
     5 ms). ROS2 is a W-method: order 2 holds for any matrix. Both slopes agree as
-    ydot -> 0. The sign model keeps 0.
+    ydot -> 0. The sign model keeps 0. The law has free play (slack g_t, g_c [m]) and blocks
+    at the strokes S_t, S_c [m] with stiffness K_b [N/m], which dF/dy then includes
+    (:func:`couplers.coupler_branch_travel`; with no slack and below the strokes it is the
+    paper's law bit for bit).
     """
     if model == couplers.TANH:
         z = u * ydot
@@ -104,8 +108,45 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, model, u):
     else:
         s = np.sign(ydot)
         ratio = 0.0
-    f, stiff, kfr = couplers.coupler_branch(y, s, ke, kf, kec, kfc)
-    return f, stiff, kfr * y * u * ratio
+    f, stiff, amp = couplers.coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb)
+    return f, _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb), amp * u * ratio
+
+
+@jit
+def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb):
+    """Return the elastic (friction-free) force [N] of the law with free play and blocking."""
+    if y > gt:
+        d = y - gt
+        return kec * d + kb * max(d - st, 0.0)
+    if y < -gc:
+        d = y + gc
+        return ke * d + kb * min(d + sc, 0.0)
+    return 0.0
+
+
+@jit(inline=True)
+def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
+    """
+    Return the dF/dy [N/m] of the stage matrix: the secant over the step's predicted move.
+
+    When y + h ydot crosses the end of the free play (g_t or g_c > 0) or a stroke, the
+    tangent at y (0 in free play, k before blocking) would leave the stiff contact
+    explicit for the whole step: the secant of the elastic force between y and y + h ydot
+    puts it in the matrix (K_b when the step blocks). ROS2 is a W-method, so any slope keeps
+    order two. Without a crossing: the tangent ``stiff``.
+    """
+    yp = y + h * ydot
+    lo = min(y, yp)
+    hi = max(y, yp)
+    cross = (lo < gt + st < hi) or (lo < -(gc + sc) < hi)
+    if gt > 0.0:
+        cross = cross or (lo < gt < hi)
+    if gc > 0.0:
+        cross = cross or (lo < -gc < hi)
+    if not cross:
+        return stiff
+    return (_elastic_travel(yp, ke, kec, gt, gc, st, sc, kb)
+            - _elastic_travel(y, ke, kec, gt, gc, st, sc, kb)) / (yp - y)
 
 
 @jit(inline=True)
@@ -121,12 +162,20 @@ def _eval_couplers(x, v, cpl, model, u, gh, ws):
     kf = cpl[COUPLER.KF]
     kec = cpl[COUPLER.KEC]
     kfc = cpl[COUPLER.KFC]
+    gt = cpl[COUPLER.GT]
+    gc = cpl[COUPLER.GC]
+    st = cpl[COUPLER.ST]
+    sc = cpl[COUPLER.SC]
+    kb = cpl[COUPLER.KB]
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
+    h = gh / GAMMA
     for j in range(x.shape[0] - 1):
-        f, dy, dv = _coupler_w(x[j] - x[j + 1], v[j] - v[j + 1], ke[j], kf[j], kec[j], kfc[j],
-                               model, u)
+        y = x[j] - x[j + 1]
+        ydot = v[j] - v[j + 1]
+        f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j],
+                               sc[j], kb[j], model, u, h)
         F0[j] = f
         dfdy[j] = dy
         kk[j] = gh * dv + gh * gh * dy
@@ -147,13 +196,21 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     kf = cpl[COUPLER.KF]
     kec = cpl[COUPLER.KEC]
     kfc = cpl[COUPLER.KFC]
+    gt = cpl[COUPLER.GT]
+    gc = cpl[COUPLER.GC]
+    st = cpl[COUPLER.ST]
+    sc = cpl[COUPLER.SC]
+    kb = cpl[COUPLER.KB]
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
     wc = 0.0
+    h = gh / GAMMA
     for j in range(x.shape[0] - 1):
         y = x[j] - x[j + 1]
-        f, dy, dv = _coupler_w(y, v[j] - v[j + 1], ke[j], kf[j], kec[j], kfc[j], model, u)
+        ydot = v[j] - v[j + 1]
+        f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j],
+                               sc[j], kb[j], model, u, h)
         wc += 0.5 * (F0[j] + f) * (y - (x_old[j] - x_old[j + 1]))
         F0[j] = f
         dfdy[j] = dy
@@ -161,9 +218,64 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     return wc
 
 
+# ----------------------------------------------------------------------------- external
+@jit(inline=True)
+def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_tr, row_e):
+    """
+    Write the external forces of every vehicle at a stage's point to four WORK rows.
+
+    The point is (x + h (v + g h b1), v + h b1) with b1 = WORK.B1: stage 1 for h = 0,
+    stage 2 for the step h [s]. Forces [N]:
+    the gradient -m g (mean gradient over the vehicle) / 1000 (``track``), the speed-dependent
+    resistance d (B |v| + C v^2) against the friction's direction d (Davis; A is with the
+    brake), traction (``traction.traction_force``), and E = gradient + traction -
+    resistance. (Written out here, not in a called function: a per-vehicle call cost the
+    step more than the forces themselves.)
+    """
+    gh = GAMMA * h
+    grades = track and gx.shape[0] > 0
+    b1 = ws[WORK.B1]
+    v_start = ws[WORK.VSTART]
+    rel_dir = ws[WORK.RELDIR]
+    t_eff = ws[WORK.TEFF]
+    davis_b = coach[COACH.DAVIS_B]
+    davis_c = coach[COACH.DAVIS_C]
+    out_gr = ws[row_gr]
+    out_rd = ws[row_rd]
+    out_tr = ws[row_tr]
+    out_e = ws[row_e]
+    for i in range(x.shape[0]):
+        xi = x[i]
+        vi = v[i]
+        if h != 0.0:
+            b = b1[i]
+            xi += h * (vi + gh * b)
+            vi += h * b
+        vs = v_start[i]      # the friction acts against this (the brake's direction)
+        d = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else rel_dir[i])
+        sv = abs(vi)
+        rd = d * (davis_b[i] + davis_c[i] * sv) * sv
+        gr = 0.0
+        if grades:
+            hi = coach[COACH.FRONT0, i] + xi
+            gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
+                hi - coach[COACH.LENGTH, i], hi, gx, gv, gc)
+        tr = 0.0
+        teff = t_eff[i]
+        if teff != 0.0:
+            tr = traction.traction_force(
+                teff, vi, coach[COACH.T_FORCE, i], coach[COACH.T_POWER, i],
+                coach[COACH.DB_FORCE, i], coach[COACH.DB_POWER, i], coach[COACH.DB_FADE, i],
+                coach[COACH.T_ADH, i], coach[COACH.WEIGHT, i])
+        out_gr[i] = gr
+        out_rd[i] = rd
+        out_tr[i] = tr
+        out_e[i] = gr + tr - rd
+
+
 # ----------------------------------------------------------------------------- ROS2
 @jit(inline=True)
-def _ros2_step(h, coach, cpl, model, u, held, ws):
+def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     """
     Do one ROS2 step of eqs. (5)-(7) from (x, v) with the coaches in ``held`` at rest.
 
@@ -180,7 +292,9 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
       x' = x + h (3/2 a1 + 1/2 a2),  v' = v + h (3/2 b1 + 1/2 b2),
 
     g the net coupler force of eqs. (5)-(7) (:func:`couplers.net_force`, summed here in the
-    same branches as the stage matrix: a call per coach cost ~5 % at 1000 coaches). A held
+    same branches as the stage matrix: a call per coach cost ~5 % at 1000 coaches), plus
+    (``ext``) the external forces E: gradient, traction and the speed-dependent resistance
+    at each stage's point (the brake and the static resistance A + curve are in Fb). A held
     coach's row becomes b_i = 0; its holding force is the mean over both stages of the
     residual its free row would leave. Written as fused loops (one pass: assembly, LU
     factorisation and forward substitution) in the caller's scratch rows: no allocation.
@@ -193,6 +307,14 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
     kf = cpl[COUPLER.KF]
     kec = cpl[COUPLER.KEC]
     kfc = cpl[COUPLER.KFC]
+    gt = cpl[COUPLER.GT]
+    gc = cpl[COUPLER.GC]
+    st = cpl[COUPLER.ST]
+    scs = cpl[COUPLER.SC]
+    kb = cpl[COUPLER.KB]
+    gx = gprof[0]
+    gv = gprof[1]
+    gpc = gprof[2]
     n = x.shape[0]
     m = n - 1
     gh = GAMMA * h
@@ -212,6 +334,11 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
     x_new = ws[WORK.XNEW]
     v_new = ws[WORK.VNEW]
     hold = ws[WORK.HOLD]
+    e1 = ws[WORK.E1]
+    e2 = ws[WORK.E2]
+    if ext:       # the external forces at stage 1, (x, v)
+        _stage_external(coach, x, v, 0.0, ws, gx, gv, gpc, track, WORK.GR1, WORK.RD1,
+                        WORK.TR1, WORK.E1)
     # stage 1: assemble, factor and forward-substitute in one sweep
     for i in range(n):
         d = masses[i]
@@ -227,6 +354,8 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
             kv += dfdy[i] * (v[i] - v[i + 1])
         diag[i] = d
         rhs1[i] = g - gh * kv
+        if ext:
+            rhs1[i] += e1[i]
         if held[i]:
             d = 1.0
             r1 = 0.0
@@ -248,10 +377,13 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
     for j in range(m):
         dv = v[j] - v[j + 1]
         db = b1[j] - b1[j + 1]
-        f, _, _ = couplers.coupler_force_scalar(
+        f, _, _ = couplers.coupler_force_travel_scalar(
             x[j] - x[j + 1] + h * (dv + gh * db), dv + h * db, ke[j], kf[j], kec[j], kfc[j],
-            model, u)
+            gt[j], gc[j], st[j], scs[j], kb[j], model, u)
         F2[j] = f
+    if ext:       # the external forces at stage 2, (x + h a1, v + h b1)
+        _stage_external(coach, x, v, h, ws, gx, gv, gpc, track, WORK.GR2, WORK.RD2,
+                        WORK.TR2, WORK.E2)
     for i in range(n):
         g = 0.0
         kr = 0.0
@@ -263,6 +395,8 @@ def _ros2_step(h, coach, cpl, model, u, held, ws):
             g -= F2[i]
             kr += dfdy[i] * (ri - (hr * b1[i + 1] - v[i + 1]))
         rhs2[i] = g - 2.0 * masses[i] * b1[i] - gh * kr
+        if ext:
+            rhs2[i] += e2[i]
         r2 = 0.0 if held[i] else rhs2[i] - brake[i]
         if i == 0:
             b2[0] = r2 * winv[0]
@@ -350,12 +484,13 @@ def _release_slipping(held, ws):
 
 
 @jit(inline=True)
-def _hold_stopping(held, masses, ws, extra_work):
+def _hold_stopping(held, masses, ws, extra_work, sc):
     """
     Hold the moving coaches that stop within the step from the step's start.
 
     Their kinetic energy m v^2 / 2 [J] goes to the brakes' work: return (whether any
-    stopped, ``extra_work`` plus that energy).
+    stopped, ``extra_work`` plus that energy); their momentum m v [N s] is taken off the
+    external impulse (SCALAR.PEXT, ``sc``).
     """
     v_start = ws[WORK.VSTART]
     v_new = ws[WORK.VNEW]
@@ -366,13 +501,14 @@ def _hold_stopping(held, masses, ws, extra_work):
         if (not held[i]) and rel_dir[i] == 0.0 and _stops(v_start[i], v_new[i], fb[i]):
             held[i] = True
             extra_work += 0.5 * masses[i] * v_start[i] * v_start[i]
+            sc[SCALAR.PEXT] -= masses[i] * v_start[i]
             v_start[i] = 0.0
             changed = True
     return changed, extra_work
 
 
 @jit(inline=True)
-def _active_set_step(coach, cpl, sc, iv, held, ws):
+def _active_set_step(coach, cpl, sc, iv, held, ws, gprof):
     """
     Do one ROS2 step of the chain with the active set of held coaches; return work [J].
 
@@ -400,10 +536,10 @@ def _active_set_step(coach, cpl, sc, iv, held, ws):
         if it > 0:   # the active set changed some starting velocities
             _eval_couplers(x, v_start, cpl, model, u, GAMMA * h, ws)
         _signed_brake(ws)
-        _ros2_step(h, coach, cpl, model, u, held, ws)
+        _ros2_step(h, coach, cpl, model, u, held, ws, iv[FLAG.EXT], iv[FLAG.TRACK], gprof)
         changed = _release_slipping(held, ws)
         if not changed:
-            changed, extra_work = _hold_stopping(held, coach[COACH.MASS], ws, extra_work)
+            changed, extra_work = _hold_stopping(held, coach[COACH.MASS], ws, extra_work, sc)
         if not changed:
             break
     return extra_work
@@ -452,10 +588,49 @@ def _braking_force_trapezoid(coach, sc, ws):
     fb_next = ws[WORK.FBNEXT]
     fb_avail = coach[COACH.FB_AVAIL]
     brakes.braking_force(coach[COACH.PCYL], sc[SCALAR.PMAX], sc[SCALAR.MU],
-                         coach[COACH.MASS], sc[SCALAR.G], fb_next)
+                         coach[COACH.BMASS], sc[SCALAR.G], fb_next)
     for i in range(fb.shape[0]):
         fb[i] = 0.5 * (fb_avail[i] + fb_next[i])
         fb_avail[i] = fb_next[i]
+
+
+@jit(inline=True)
+def _external_step(coach, sc, iv, cprof, ws):
+    """
+    Add the static resistance to the friction of the step; ramp the traction command.
+
+    WORK.FBRAKE keeps the braking force [N]; WORK.RSTAT = A + curve resistance at the step's
+    start [N] (Davis A, Roeckl over the vehicle's length) joins it in WORK.FB: like the
+    brake it holds a vehicle at rest and never pushes it. COACH.T_EFF moves toward the
+    command COACH.T_CMD (build-up rate limit); WORK.TEFF is the mean over the step.
+    """
+    h = sc[SCALAR.H]
+    cx = cprof[0]
+    cv = cprof[1]
+    cc = cprof[2]
+    curves = iv[FLAG.TRACK] and cx.shape[0] > 0
+    davis_a = coach[COACH.DAVIS_A]
+    cmd = coach[COACH.T_CMD]
+    eff = coach[COACH.T_EFF]
+    rstat = ws[WORK.RSTAT]
+    fb = ws[WORK.FB]
+    fbrake = ws[WORK.FBRAKE]
+    t_eff = ws[WORK.TEFF]
+    for i in range(fb.shape[0]):
+        r = davis_a[i]
+        if curves:
+            hi = coach[COACH.FRONT0, i] + coach[COACH.X, i]
+            r += coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
+                hi - coach[COACH.LENGTH, i], hi, cx, cv, cc)
+        rstat[i] = r
+        fbrake[i] = fb[i]
+        fb[i] += r
+        old = eff[i]
+        new = old
+        if cmd[i] != old:
+            new = traction.ramp(old, cmd[i], h, coach[COACH.T_BUILD, i])
+            eff[i] = new
+        t_eff[i] = 0.5 * (old + new)
 
 
 @jit(inline=True)
@@ -480,7 +655,7 @@ def _fault_check(ws, y_limit):
 
 
 @jit(inline=True)
-def _accept_step(coach, held, extra_work, ws):
+def _accept_step(coach, held, extra_work, ws, ext):
     """
     Move the coaches to the new state; return the brakes' work over the step [J].
 
@@ -499,9 +674,10 @@ def _accept_step(coach, held, extra_work, ws):
     x_old = ws[WORK.XOLD]
     wb = extra_work
     for i in range(x.shape[0]):
-        b = hold[i] if held[i] else signed[i]
-        wb += b * (x_new[i] - x[i])
-        fb_applied[i] = abs(b)
+        if not ext:       # else booked by _accept_external
+            b = hold[i] if held[i] else signed[i]
+            wb += b * (x_new[i] - x[i])
+            fb_applied[i] = abs(b)
         x_old[i] = x[i]
         x[i] = x_new[i]
         v[i] = v_new[i]
@@ -509,14 +685,73 @@ def _accept_step(coach, held, extra_work, ws):
     return wb
 
 
+@jit(inline=True)
+def _accept_external(coach, sc, held, ws):
+    """
+    Book the external forces of the accepted step; return the brakes' work [J].
+
+    Splits the friction applied (WORK.HOLD on held vehicles, WORK.SIGNED on the others) into
+    brake and static resistance, books the work of brake, resistance, traction and gravity
+    (SCALAR.WR, WT, WG: the stage mean of each force times the displacement, as the ROS2
+    update weights them) and the impulse of all external forces (SCALAR.PEXT), and leaves
+    the forces at the step's end in COACH.F_TRAC, F_RES, F_GRADE [N, forward > 0].
+    """
+    h = sc[SCALAR.H]
+    wb = 0.0
+    wr = 0.0
+    wt = 0.0
+    wg = 0.0
+    pext = 0.0
+    x = coach[COACH.X]
+    x_new = ws[WORK.XNEW]
+    rstat = ws[WORK.RSTAT]
+    hold = ws[WORK.HOLD]
+    signed = ws[WORK.SIGNED]
+    v_start = ws[WORK.VSTART]
+    rel_dir = ws[WORK.RELDIR]
+    rd1, rd2 = ws[WORK.RD1], ws[WORK.RD2]
+    tr1, tr2 = ws[WORK.TR1], ws[WORK.TR2]
+    gr1, gr2 = ws[WORK.GR1], ws[WORK.GR2]
+    e1, e2 = ws[WORK.E1], ws[WORK.E2]
+    fb_applied = coach[COACH.FB_APPLIED]
+    f_trac, f_grade, f_res = coach[COACH.F_TRAC], coach[COACH.F_GRADE], coach[COACH.F_RES]
+    for i in range(held.shape[0]):
+        dx = x_new[i] - x[i]
+        r = rstat[i]
+        if held[i]:
+            b = hold[i]
+            res = min(max(b, -r), r)
+        else:
+            b = signed[i]
+            vs = v_start[i]
+            res = r if vs > 0.0 else (-r if vs < 0.0 else rel_dir[i] * r)
+        brake = b - res
+        wb += brake * dx
+        fb_applied[i] = abs(brake)
+        wr += (res + 0.5 * (rd1[i] + rd2[i])) * dx
+        wt += 0.5 * (tr1[i] + tr2[i]) * dx
+        wg += 0.5 * (gr1[i] + gr2[i]) * dx
+        pext += 0.5 * (e1[i] + e2[i]) - b
+        f_trac[i] = tr2[i]
+        f_grade[i] = gr2[i]
+        f_res[i] = -(res + rd2[i])
+    sc[SCALAR.WR] += wr
+    sc[SCALAR.WT] += wt
+    sc[SCALAR.WG] += wg
+    sc[SCALAR.PEXT] += h * pext
+    return wb
+
+
 @jit
-def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
+def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof):
     """
     Advance brakes and chain ``n_steps`` fixed steps, in place; return (steps, status).
 
-    coach: (len(COACH), N); cpl: (len(COUPLER), N-1) k_e, k_f, k_ec, k_fc [N/m]; sc, iv:
-    float and integer scalars (SCALAR, FLAG); fill, rel: (2, L) cylinder tables (times [s],
-    p/p_max); ring: head-pressure history [Pa]; ws: :func:`make_workspace`. The layouts are
+    coach: (len(COACH), N); cpl: (len(COUPLER), N-1) k_e, k_f, k_ec, k_fc [N/m], slack,
+    strokes [m], K_b [N/m]; sc, iv: float and integer scalars (SCALAR, FLAG); fill, rel:
+    (2, L) cylinder tables (times [s], p/p_max); ring: head-pressure history [Pa]; ws:
+    :func:`make_workspace`; gprof, cprof: (3, K) gradient and curve-resistance profiles
+    (breakpoints, values, integrals; ``track``), used when FLAG.TRACK is set. The layouts are
     in :mod:`train_dynamics.physics.layout`. Each step: the brake system to the step's end,
     the braking force over the step (trapezoid), one ROS2 step with the active set of held
     coaches, the fault check, then the new state is accepted and the work booked.
@@ -535,11 +770,15 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws):
     for step in range(n_steps):
         _brake_system_step(coach, sc, iv, ring, tables, ws)
         _braking_force_trapezoid(coach, sc, ws)
-        extra_work = _active_set_step(coach, cpl, sc, iv, held, ws)
+        if iv[FLAG.EXT]:
+            _external_step(coach, sc, iv, cprof, ws)
+        extra_work = _active_set_step(coach, cpl, sc, iv, held, ws, gprof)
         status = _fault_check(ws, sc[SCALAR.YLIM])
         if status != OK:
             return step, status
-        sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws)
+        if iv[FLAG.EXT]:
+            sc[SCALAR.WB] += _accept_external(coach, sc, held, ws)
+        sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws, iv[FLAG.EXT])
         # the couplers at the new state: their work over the step, and the next step's start
         sc[SCALAR.WC] += _eval_couplers_work(coach, cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh, ws)
     return n_steps, OK

@@ -36,6 +36,26 @@ CoachRows = namedtuple('CoachRows', [
     'DELAY',        # brake-pipe delay of the coach [steps]
     'APPLIED',      # distributor state: 1.0 applied, 0.0 released
     'HELD',         # 1.0 while the brake holds the coach at rest
+    # real trains (issue 11); MASS above is the mass for inertia, m (1 + rotating_mass_factor)
+    'BMASS',        # m mu_i / mu_a [kg]: eq. (13) with the vehicle's own adhesion coefficient
+    'WEIGHT',       # m g [N]: gravity, curve resistance, traction adhesion
+    'LENGTH',       # vehicle length [m]
+    'FRONT0',       # track position of the vehicle's front at t = 0 [m]
+    'DAVIS_A',      # running resistance A [N]
+    'DAVIS_B',      # running resistance B [N s/m]
+    'DAVIS_C',      # running resistance C [N s^2/m^2]
+    'T_FORCE',      # locomotive: maximum tractive force [N]
+    'T_POWER',      # locomotive: traction power [W]
+    'DB_FORCE',     # locomotive: maximum dynamic braking force [N]
+    'DB_POWER',     # locomotive: dynamic braking power [W]
+    'DB_FADE',      # locomotive: dynamic brake fade speed [m/s]
+    'T_ADH',        # locomotive: traction adhesion at rest
+    'T_BUILD',      # locomotive: force build-up time [s]
+    'T_CMD',        # input: traction command in [-1, 1]
+    'T_EFF',        # effective (rate-limited) command at the end of the last step
+    'F_TRAC',       # output: traction / dynamic-brake force at the step's end [N, fwd > 0]
+    'F_RES',        # output: running + curve resistance at the step's end [N, fwd > 0]
+    'F_GRADE',      # output: gradient force at the step's end [N, fwd > 0]
 ])
 COACH = _indices(CoachRows)
 
@@ -44,6 +64,11 @@ CouplerRows = namedtuple('CouplerRows', [
     'KF',           # buffer friction k_f [N/m]
     'KEC',          # draw-gear stiffness k_ec [N/m]
     'KFC',          # draw-gear friction k_fc [N/m]
+    'GT',           # draw-gear slack g_t [m]
+    'GC',           # buffer slack g_c [m]
+    'ST',           # draw-gear stroke S_t [m]
+    'SC',           # buffer stroke S_c [m]
+    'KB',           # blocked stiffness K_b [N/m]
 ])
 COUPLER = _indices(CouplerRows)
 
@@ -60,6 +85,10 @@ ScalarSlots = namedtuple('ScalarSlots', [
     'YLIM',         # largest physically possible |y| [m]
     'WB',           # work of the brakes since t = 0 [J]
     'WC',           # work on the couplers since t = 0 [J]
+    'WR',           # work of the running and curve resistance since t = 0 [J]
+    'WT',           # work of traction and dynamic braking since t = 0 [J]
+    'WG',           # work of gravity on gradients since t = 0 [J]
+    'PEXT',         # impulse of all external forces since t = 0 [N s]
 ])
 SCALAR = _indices(ScalarSlots)
 
@@ -68,6 +97,8 @@ FlagSlots = namedtuple('FlagSlots', [
     'MODE',         # brake input: brakes.PIPE_HEAD, PIPE_PER_COACH or CYLINDER_PER_COACH
     'RING_POS',     # write position of the head-pressure ring buffer
     'WS_VALID',     # 1 when the WORK rows F, DFDY, KK, K0, FRAC hold the present state
+    'EXT',          # 1: external forces (resistance, track, traction) act; 0: the paper's
+    'TRACK',        # 1: the line has gradients or curves
 ])
 FLAG = _indices(FlagSlots)
 
@@ -96,5 +127,16 @@ WorkRows = namedtuple('WorkRows', [
     'XNEW',         # positions at the step's end [m]
     'VNEW',         # speeds at the step's end [m/s]
     'XOLD',         # positions at the step's start [m]
+    'FBRAKE',       # braking force over the step, eq. (13) [N] (FB adds the resistance)
+    'RSTAT',        # static resistance over the step: A + curve resistance [N]
+    'TEFF',         # traction command over the step (mean of its ends)
+    'E1',           # external non-friction force at stage 1 [N, forward > 0]
+    'E2',           # external non-friction force at stage 2 [N, forward > 0]
+    'RD1',          # speed-dependent resistance at stage 1 [N, signed retarding]
+    'RD2',          # speed-dependent resistance at stage 2 [N, signed retarding]
+    'TR1',          # traction force at stage 1 [N]
+    'TR2',          # traction force at stage 2 [N]
+    'GR1',          # gradient force at stage 1 [N]
+    'GR2',          # gradient force at stage 2 [N]
 ])
 WORK = _indices(WorkRows)

@@ -17,10 +17,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
+import os
 import re
 from typing import Any, Callable, Mapping
 
 from train_dynamics import topics
+# consist uses this module's table at call time only (a circular import that is safe)
+from train_dynamics.physics import consist, track
 import yaml
 
 # Kinds of value, named after the ROS 2 parameter types they map to.
@@ -207,6 +210,78 @@ _PARAMS = [
               'Jerk limit [m/s^3] on abs(jerk) of each vehicle, evaluated over 1 s windows '
               '(EN 12299 practice): each excursion is a limit crossing; 0 = off.',
               low=0.0, high=1000.0, dynamic=True),
+    # Real trains (issue 11): consist, coupler travel, resistance, track, traction. Each
+    # vehicle field of a consist (physics/consist.py) is also a parameter of the same name
+    # (mass -> coach_mass, length -> coach_length): the value of the uniform train and the
+    # default of a vehicle type that leaves it out. Defaults are the paper's idealisation.
+    ParamSpec('consist_file', '', STRING,
+              'YAML consist (vehicle_types, vehicles front to rear); empty = the uniform train '
+              'of num_coaches/masses. Relative: to the parameter file, then config/.'),
+    ParamSpec('rotating_mass_factor', 0.0, DOUBLE,
+              'Rotating-mass allowance: the inertia of a vehicle is m (1 + factor).',
+              low=0.0, high=2.0),
+    ParamSpec('davis_a', 0.0, DOUBLE, 'Running resistance (Davis) constant term A [N].',
+              low=0.0, high=1.0e6),
+    ParamSpec('davis_b', 0.0, DOUBLE, 'Running resistance (Davis) B |v| term [N s/m].',
+              low=0.0, high=1.0e6),
+    ParamSpec('davis_c', 0.0, DOUBLE, 'Running resistance (Davis) C v^2 term [N s^2/m^2].',
+              low=0.0, high=1.0e5),
+    ParamSpec('buffer_stroke', 0.105, DOUBLE,
+              'Buffer stroke S_c [m] before blocking (UIC 526-1: 105 mm).',
+              low=0.0, high=10.0, low_exclusive=True),
+    ParamSpec('draw_gear_stroke', 0.06, DOUBLE,
+              'Draw-gear spring travel S_t [m] before blocking (UIC 520 draw gear, typical).',
+              low=0.0, high=10.0, low_exclusive=True),
+    ParamSpec('buffer_slack', 0.0, DOUBLE,
+              'Free play g_c [m] before the buffers take load (0: tight screw coupling).',
+              low=0.0, high=1.0),
+    ParamSpec('draw_gear_slack', 0.0, DOUBLE,
+              'Free play g_t [m] before the draw gear takes load (0: tight coupling).',
+              low=0.0, high=1.0),
+    ParamSpec('blocked_stiffness', 1.0e8, DOUBLE,
+              'Stiffness K_b [N/m] once a buffer or draw gear is at the end of its stroke '
+              '(vehicle underframe, ~1e8 N/m).', low=0.0, high=1.0e12, low_exclusive=True),
+    ParamSpec('max_tractive_force', 0.0, DOUBLE,
+              'Locomotive: starting tractive effort [N] (0: not a traction unit).',
+              low=0.0, high=1.0e7),
+    ParamSpec('max_power', 0.0, DOUBLE, 'Locomotive: power at the wheel rim in traction [W].',
+              low=0.0, high=1.0e8),
+    ParamSpec('max_dynamic_brake_force', 0.0, DOUBLE,
+              'Locomotive: maximum dynamic (electric) braking force [N].', low=0.0, high=1.0e7),
+    ParamSpec('max_dynamic_brake_power', 0.0, DOUBLE,
+              'Locomotive: maximum dynamic braking power [W].', low=0.0, high=1.0e8),
+    ParamSpec('traction_build_up_time', 4.0, DOUBLE,
+              'Locomotive: time [s] for the tractive/dynamic-brake force to go from 0 to the '
+              'full command (rate limit); 0 = immediate.', low=0.0, high=600.0),
+    ParamSpec('traction_adhesion', 0.33, DOUBLE,
+              'Locomotive: wheel-rail adhesion at standstill for traction and dynamic braking; '
+              'falls with speed as Curtius-Kniffler.', low=0.0, high=1.0, low_exclusive=True),
+    ParamSpec('dynamic_brake_fade_speed', 1.4, DOUBLE,
+              'Locomotive: below this speed [m/s] the dynamic braking force fades linearly '
+              'to 0.', low=0.0, high=50.0, low_exclusive=True),
+    ParamSpec('initial_position', 0.0, DOUBLE,
+              'Position along the track [m] of the front of vehicle 1 at t = 0.',
+              low=-1.0e7, high=1.0e7),
+    ParamSpec('track_gradient_positions', [], DOUBLE_ARRAY,
+              'Track positions [m] (increasing) where a gradient starts; 0 before the first.',
+              low=-1.0e7, high=1.0e7),
+    ParamSpec('track_gradients', [], DOUBLE_ARRAY,
+              'Gradient [per mille, > 0 uphill] from each track_gradient_positions entry on.',
+              low=-100.0, high=100.0),
+    ParamSpec('track_curve_starts', [], DOUBLE_ARRAY, 'Track positions [m] where curves start.',
+              low=-1.0e7, high=1.0e7),
+    ParamSpec('track_curve_ends', [], DOUBLE_ARRAY, 'Track positions [m] where curves end.',
+              low=-1.0e7, high=1.0e7),
+    ParamSpec('track_curve_radii', [], DOUBLE_ARRAY,
+              'Curve radii [m]; Roeckl resistance 650/(R-55) per mille (R >= 300 m), '
+              '500/(R-30) below.', low=100.0, high=1.0e6),
+    ParamSpec('traction_schedule_times', [], DOUBLE_ARRAY,
+              'Offline runs without a traction bag: times [s] (increasing) from which every '
+              'locomotive holds the matching traction_schedule_commands entry.',
+              low=0.0, high=1.0e7),
+    ParamSpec('traction_schedule_commands', [], DOUBLE_ARRAY,
+              'Traction command in [-1, 1] (> 0 traction, < 0 dynamic brake) from each '
+              'traction_schedule_times entry on.', low=-1.0, high=1.0),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
@@ -439,13 +514,43 @@ class SimConfig:
     # -- derived quantities -------------------------------------------------------------
     @property
     def n_coaches(self) -> int:
+        if self.consist_file:
+            return self.consist.n
         return len(self.masses) if self.masses else int(self.num_coaches)
 
     @property
     def mass_array(self) -> list[float]:
+        if self.consist_file:
+            return [float(m) for m in self.consist['mass']]
         if self.masses:
             return list(self.masses)
         return [float(self.coach_mass)] * int(self.num_coaches)
+
+    @property
+    def consist(self):
+        """Return the train's :class:`~train_dynamics.physics.consist.Consist` (cached)."""
+        cached = self.__dict__.get('_consist')
+        if cached is None or cached[0] != self.values:
+            cached = (dict(self.values), consist.consist_of(self.values))
+            self.__dict__['_consist'] = cached
+        return cached[1]
+
+    @property
+    def external_forces(self) -> bool:
+        """Return True when the train has resistance, gradients, curves or traction."""
+        v = self.values
+        if v['consist_file'] or v['davis_a'] or v['davis_b'] or v['davis_c']:
+            return True
+        return bool(v['track_gradients'] or v['track_curve_starts']
+                    or v['max_tractive_force'] or v['max_dynamic_brake_force'])
+
+    @property
+    def track(self):
+        """Return the line (:class:`~train_dynamics.physics.track.Track`) of the parameters."""
+        v = self.values
+        return track.Track.from_lists(v['initial_position'], v['track_gradient_positions'],
+                                      v['track_gradients'], v['track_curve_starts'],
+                                      v['track_curve_ends'], v['track_curve_radii'])
 
     def fill_table(self) -> tuple[list[float], list[float]]:
         if self.cylinder_fill_time:
@@ -462,6 +567,7 @@ class SimConfig:
     def check(self) -> None:
         """Cross-parameter checks; raises :class:`ConfigError`."""
         v = self.values
+        self._check_real_train()
         if self.masses and len(self.masses) < 2:
             raise ConfigError(f'masses: a train needs at least 2 coaches, got {len(self.masses)}')
         _check_output_grid(float(v['publish_rate']), float(v['integration_step']))
@@ -511,6 +617,22 @@ class SimConfig:
                     b < a for a, b in zip(fracs, fracs[1:]))
                 if not ok:
                     raise ConfigError(f'{f_name}: must fall strictly from 1 to 0')
+
+    def _check_real_train(self) -> None:
+        """Check the track, the traction schedule and the consist file (issue 11)."""
+        v = self.values
+        try:
+            self.track
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        times, cmds = v['traction_schedule_times'], v['traction_schedule_commands']
+        if len(times) != len(cmds):
+            raise ConfigError('traction_schedule_times and traction_schedule_commands must have '
+                              f'the same length ({len(times)} != {len(cmds)})')
+        if any(b <= a for a, b in zip(times, times[1:])):
+            raise ConfigError('traction_schedule_times: must strictly increase')
+        if v['consist_file']:
+            self.consist
 
 
 class _RosParamLoader(yaml.SafeLoader):
@@ -636,6 +758,11 @@ def load_param_file(path: str, warn: Callable[[str], None] | None = None) -> Sim
             warn(unknown_sections_message(path, unknown))
     params = {k: v for k, v in wildcard.items() if k in PARAMETERS}
     params.update({k: v for k, v in own.items() if k not in ROS_BUILTIN_PARAMETERS})
+    name = params.get('consist_file')
+    if isinstance(name, str) and name and not os.path.isabs(os.path.expanduser(name)):
+        local = os.path.join(os.path.dirname(os.path.abspath(path)), name)
+        if os.path.isfile(local):        # relative to the parameter file, then config/
+            params['consist_file'] = local
     try:
         return SimConfig.from_dict(params)
     except ConfigError as exc:

@@ -37,21 +37,51 @@ class InputEvent:
     msg: Any                  # the FluidPressure message (rosbags)
 
 
+@dataclass(frozen=True)
+class TractionEvent:
+    """One traction command: from step ``step`` on, locomotive ``index`` holds ``command``."""
+
+    step: int
+    t_ns: int                 # time relative to the run's start [ns]
+    index: int                # 0-based vehicle
+    command: float            # fraction in [-1, 1]: > 0 traction, < 0 dynamic brake
+    topic: str                # relative topic name
+    msg: Any = None           # the Float64 message of an input bag (None: a schedule)
+
+
 @dataclass
 class BrakeInputs:
-    """The brake input of a run: bag events (sorted), or a brake-valve model."""
+    """The inputs of a run: brake events (sorted) or a brake-valve model; traction events."""
 
     mode: str
     events: list[InputEvent] = field(default_factory=list)
     valve: Any = None                                  # BrakeValveModel (pipe_head, no bag)
     source: str = ''
+    traction: list[TractionEvent] = field(default_factory=list)
 
     def for_step(self, h: float) -> BrakeInputs:
         """Return the same inputs for a run with integration step ``h`` [s] (:func:`step_of`)."""
-        if not self.events:
+        if not self.events and not self.traction:
             return self
         return BrakeInputs(self.mode, [replace(e, step=step_of(e.t_ns, h)) for e in self.events],
-                           None, self.source)
+                           self.valve if not self.events else None, self.source,
+                           [replace(e, step=step_of(e.t_ns, h)) for e in self.traction])
+
+
+def traction_schedule(cfg: Any) -> list[TractionEvent]:
+    """
+    Return the events of ``traction_schedule_times`` / ``_commands`` for every locomotive.
+
+    Empty for a train without locomotives or without a schedule.
+    """
+    locos = cfg.consist.locomotives if cfg.traction_schedule_times else []
+    h = float(cfg.integration_step)
+    events = []
+    for t, c in zip(cfg.traction_schedule_times, cfg.traction_schedule_commands):
+        t_ns = int(round(t * 1e9))
+        events.extend(TractionEvent(step_of(t_ns, h), t_ns, i, float(c),
+                                    topics.traction_topic(i + 1)) for i in locos)
+    return events
 
 
 def step_of(t_ns: int, h: float) -> int:
@@ -150,7 +180,9 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
               topics.PIPE_PER_COACH: lambda e: sim.set_pipe_pressure(e.gauge, e.index),
               topics.CYLINDER_PER_COACH: lambda e: sim.set_cylinder_pressure(e.gauge, e.index)
               }[inputs.mode]
+    traction = inputs.traction
     ie = 0
+    it = 0
     k = 0
     head: float | None = None
     last_progress = time.monotonic()
@@ -160,6 +192,11 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
             if on_input is not None:
                 on_input(events[ie])
             ie += 1
+        while it < len(traction) and traction[it].step <= k:
+            sim.set_traction_command(traction[it].command, traction[it].index)
+            if on_input is not None:
+                on_input(traction[it])
+            it += 1
         valve_next = k_end
         if valve is not None:
             head, valve_next = _drive_head(valve, sim, k, head, k_end)
@@ -171,6 +208,7 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
             break
         nxt = min(k_end, valve_next,
                   events[ie].step if ie < len(events) else k_end,
+                  traction[it].step if it < len(traction) else k_end,
                   next_sample if next_sample is not None else k_end)
         nxt = max(nxt, k + 1)
         done = sim.advance(nxt - k)

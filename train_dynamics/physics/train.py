@@ -19,9 +19,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from train_dynamics.physics import brakes, couplers, integrators, pneumatic
+from train_dynamics.physics import (brakes, consist, couplers, integrators, parameters,
+                                    pneumatic)
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
 from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.resistance import equivalent_mass
 
 
 class TrainSimulator:
@@ -39,6 +41,19 @@ class TrainSimulator:
     _COUPLER_ROWS = {'buffer_stiffness': COUPLER.KE, 'buffer_friction': COUPLER.KF,
                      'draw_gear_stiffness': COUPLER.KEC, 'draw_gear_friction': COUPLER.KFC}
     COUPLER_CONSTANTS = tuple(_COUPLER_ROWS)
+    #: connection constants of the consist with free play and blocking, and their rows
+    _TRAVEL_ROWS = {'draw_gear_slack': COUPLER.GT, 'buffer_slack': COUPLER.GC,
+                    'draw_gear_stroke': COUPLER.ST, 'buffer_stroke': COUPLER.SC,
+                    'blocked_stiffness': COUPLER.KB}
+    #: per-vehicle fields of the consist and their rows in ``coach``
+    _VEHICLE_ROWS = {'davis_a': COACH.DAVIS_A, 'davis_b': COACH.DAVIS_B,
+                     'davis_c': COACH.DAVIS_C, 'length': COACH.LENGTH,
+                     'max_tractive_force': COACH.T_FORCE, 'max_power': COACH.T_POWER,
+                     'max_dynamic_brake_force': COACH.DB_FORCE,
+                     'max_dynamic_brake_power': COACH.DB_POWER,
+                     'dynamic_brake_fade_speed': COACH.DB_FADE,
+                     'traction_adhesion': COACH.T_ADH,
+                     'traction_build_up_time': COACH.T_BUILD}
 
     def __init__(self, cfg: SimConfig, coupler_constants: dict | None = None):
         """
@@ -49,13 +64,18 @@ class TrainSimulator:
         coaches i and i+1); the scalar parameters of ``cfg`` fill the rest.
         """
         self.cfg = cfg
-        self.n = n = cfg.n_coaches
+        self.consist = train = cfg.consist
+        self.n = n = train.n
         self.h = float(cfg.integration_step)
-        self.masses = np.asarray(cfg.mass_array, dtype=float)
+        self.masses = np.array(train['mass'], dtype=float)
+        #: mass for inertia [kg], m (1 + rotating_mass_factor)
+        self.inertia = equivalent_mass(self.masses, train['rotating_mass_factor'])
         self.cpl = np.empty((len(COUPLER), n - 1))
+        for name, row in self._TRAVEL_ROWS.items():
+            self.cpl[row] = train.coupler(name)
         extra = dict(coupler_constants or {})
         for name, row in self._COUPLER_ROWS.items():
-            value = extra.pop(name, cfg.values[name])
+            value = extra.pop(name, train.coupler(name))
             arr = np.broadcast_to(np.asarray(value, dtype=float), (n - 1,))
             if not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
                 raise ValueError(f'{name}: need {n - 1} finite values >= 0')
@@ -69,17 +89,31 @@ class TrainSimulator:
         self.ke, self.kf, self.kec, self.kfc = (cpl[COUPLER.KE], cpl[COUPLER.KF],
                                                 cpl[COUPLER.KEC], cpl[COUPLER.KFC])
         self.mode = brakes.MODE_CODES[cfg.brake_input]
-        self.fill = np.asarray(cfg.fill_table(), dtype=float)
-        self.rel = np.asarray(cfg.release_table(), dtype=float)
-        self.delays = brakes.pipe_delays(n, cfg.coach_length, cfg.brake_propagation_speed)
+        self.fill, self.rel = _cylinder_tables(cfg, train)
+        if cfg.consist_file:     # the pipe runs along the vehicles' lengths
+            ahead = np.concatenate(([0.0], np.cumsum(train['length'][:-1])))
+            self.delays = ahead / float(cfg.brake_propagation_speed)
+        else:
+            self.delays = brakes.pipe_delays(n, cfg.coach_length, cfg.brake_propagation_speed)
+        self.track = cfg.track
+        self.gprof = np.array([self.track.gx, self.track.gv, self.track.gc], dtype=float)
+        self.cprof = np.array([self.track.cx, self.track.cv, self.track.cc], dtype=float)
+        #: p_max of each vehicle over the train's (eq. 13 works with p / p_max)
+        self.pmax_ratio = train['max_cylinder_pressure'] / float(cfg.max_cylinder_pressure)
         self.ws = integrators.make_workspace(n)
         # brake_model pneumatic: the pneumatic brake hands its cylinder pressures to the
         # chain step by step (the chain then runs as in cylinder_per_coach); the bypass
         # cylinder_per_coach keeps the input cylinders
         self.pneu = None
         if cfg.brake_model == 'pneumatic' and self.mode != brakes.CYLINDER_PER_COACH:
+            per_vehicle = {}
+            if cfg.consist_file:     # the consist's lengths, cylinder pressures and regimes
+                per_vehicle = {'lengths': np.array(train['length']),
+                               'p_max': np.array(train['max_cylinder_pressure']),
+                               'regimes': list(train.regimes)}
             self.pneu = pneumatic.from_config(cfg, self.h,
-                                              external_pipe=self.mode == brakes.PIPE_PER_COACH)
+                                              external_pipe=self.mode == brakes.PIPE_PER_COACH,
+                                              **per_vehicle)
             self._trace = np.zeros((0, n))
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
@@ -95,7 +129,8 @@ class TrainSimulator:
         self.coach = np.zeros((len(COACH), n))
         c = self.coach
         c[COACH.V] = float(cfg.initial_speed)
-        c[COACH.MASS] = self.masses
+        c[COACH.MASS] = self.inertia
+        self._reset_vehicles()
         c[COACH.PPIPE] = p_nom
         c[COACH.PIPE_IN] = p_nom
         c[COACH.DELAY] = self.delays / self.h
@@ -109,12 +144,27 @@ class TrainSimulator:
             cfg.max_coupler_displacement]
         self.iv = np.zeros(len(FLAG), dtype=np.int64)     # FLAG.WS_VALID = 0
         self.iv[FLAG.MODE] = self.mode
+        self.iv[FLAG.EXT] = int(cfg.external_forces)
+        self.iv[FLAG.TRACK] = int(not self.track.flat_and_straight)
         if self.pneu is not None:
             self.pneu.reset()
             self.iv[FLAG.MODE] = brakes.CYLINDER_PER_COACH
             c[COACH.CYL_IN] = self.pneu.cylinder_pressure
         self.set_model(self.model_type, self.u)
         self.fault: str | None = None
+
+    def _reset_vehicles(self) -> None:
+        """Fill the per-vehicle rows of the consist (resistance, track, traction, brake)."""
+        c = self.coach
+        train = self.consist
+        cfg = self.cfg
+        mu = float(cfg.adhesion_coefficient)
+        own = train['adhesion_coefficient']
+        c[COACH.BMASS] = np.where(own == mu, self.masses, self.masses * own / mu)
+        c[COACH.WEIGHT] = self.masses * float(cfg.gravity)
+        for name, row in self._VEHICLE_ROWS.items():
+            c[row] = train[name]
+        c[COACH.FRONT0] = self.track.fronts(train['length'])
 
     def set_model(self, model_type: str, scale_factor: float) -> None:
         """Switch the coupler friction law live (state untouched)."""
@@ -157,10 +207,27 @@ class TrainSimulator:
     def set_cylinder_pressure(self, p, index: int | None = None) -> None:
         """Set the brake-cylinder pressure(s), gauge [Pa] (``cylinder_per_coach``); 0-based."""
         arr = self._finite(p, 'cylinder')
+        ratio = self.pmax_ratio if index is None else self.pmax_ratio[index]
+        if np.any(ratio != 1.0):       # a vehicle's own p_max: the kernel works in the train's
+            arr = arr / ratio
         if index is None:
             self.coach[COACH.CYL_IN] = arr
         else:
             self.coach[COACH.CYL_IN, index] = float(arr)
+
+    @property
+    def locomotives(self) -> list[int]:
+        """Return the 0-based indices of the vehicles that take a traction command."""
+        return self.consist.locomotives
+
+    def set_traction_command(self, command: float, index: int) -> None:
+        """Set the traction command of locomotive ``index`` (0-based), in [-1, 1]."""
+        c = float(command)
+        if not (np.isfinite(c) and -1.0 <= c <= 1.0):
+            raise ValueError(f'traction command must be in [-1, 1], got {command!r}')
+        if index not in self.consist.locomotives:
+            raise ValueError(f'vehicle {index + 1} is not a locomotive (no traction)')
+        self.coach[COACH.T_CMD, index] = c
 
     # -- integration -------------------------------------------------------------------------
     @property
@@ -176,7 +243,7 @@ class TrainSimulator:
             return self._advance_pneumatic(int(n_steps))
         done, status = integrators.advance_chain(int(n_steps), self.coach, self.cpl, self.sc,
                                                  self.iv, self.fill, self.rel, self.ring,
-                                                 self.ws)
+                                                 self.ws, self.gprof, self.cprof)
         self.steps += done
         if status != integrators.OK:
             self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
@@ -191,10 +258,12 @@ class TrainSimulator:
         cyl_in = self.coach[COACH.CYL_IN]
         done = 0
         status = integrators.OK
+        scaled = bool(np.any(self.pmax_ratio != 1.0))   # vehicles' own p_max -> the train's
         for k in range(n_steps):
-            cyl_in[:] = trace[k]
+            cyl_in[:] = trace[k] / self.pmax_ratio if scaled else trace[k]
             step, status = integrators.advance_chain(1, self.coach, self.cpl, self.sc, self.iv,
-                                                     self.fill, self.rel, self.ring, self.ws)
+                                                     self.fill, self.rel, self.ring, self.ws,
+                                                     self.gprof, self.cprof)
             done += step
             if status != integrators.OK:
                 break
@@ -246,7 +315,71 @@ class TrainSimulator:
 
     @property
     def cylinder_pressure(self) -> np.ndarray:
-        return self.coach[COACH.PCYL].copy()
+        p = self.coach[COACH.PCYL].copy()
+        if np.any(self.pmax_ratio != 1.0):
+            p *= self.pmax_ratio
+        return p
+
+    @property
+    def buffer_stroke(self) -> np.ndarray:
+        """Return each coupler's buffer stroke S_c [m] (the connection's, N-1 values)."""
+        return self.cpl[COUPLER.SC].copy()
+
+    @property
+    def draw_gear_stroke(self) -> np.ndarray:
+        """Return each coupler's draw-gear stroke S_t [m]."""
+        return self.cpl[COUPLER.ST].copy()
+
+    @property
+    def buffer_slack(self) -> np.ndarray:
+        """Return each coupler's buffer free play g_c [m]."""
+        return self.cpl[COUPLER.GC].copy()
+
+    @property
+    def draw_gear_slack(self) -> np.ndarray:
+        """Return each coupler's draw-gear free play g_t [m]."""
+        return self.cpl[COUPLER.GT].copy()
+
+    @property
+    def traction_force(self) -> np.ndarray:
+        """Return each vehicle's traction / dynamic-brake force [N, forward > 0]."""
+        return self.coach[COACH.F_TRAC].copy()
+
+    @property
+    def resistance_force(self) -> np.ndarray:
+        """Return each vehicle's running + curve resistance [N, on the vehicle, forward > 0]."""
+        return self.coach[COACH.F_RES].copy()
+
+    @property
+    def gradient_force(self) -> np.ndarray:
+        """Return each vehicle's gradient force [N, forward > 0]."""
+        return self.coach[COACH.F_GRADE].copy()
+
+    @property
+    def work_resistance(self) -> float:
+        """Return the work done by running and curve resistance since t = 0 [J]."""
+        return float(self.sc[SCALAR.WR])
+
+    @property
+    def work_traction(self) -> float:
+        """Return the work of traction and dynamic braking on the train since t = 0 [J]."""
+        return float(self.sc[SCALAR.WT])
+
+    @property
+    def work_gravity(self) -> float:
+        """Return the work of gravity since t = 0 [J] (the potential energy lost)."""
+        return float(self.sc[SCALAR.WG])
+
+    @property
+    def external_impulse(self) -> float:
+        """Return the impulse of every external force since t = 0 [N s]."""
+        return float(self.sc[SCALAR.PEXT])
+
+    @property
+    def potential_energy(self) -> float:
+        """Return the potential energy on the line's gradients [J] (0 at the lowest start)."""
+        return self.track.potential_energy(self.coach[COACH.X], self.consist['length'],
+                                           self.masses, float(self.cfg.gravity))
 
     @property
     def pipe_pressure(self) -> np.ndarray:
@@ -274,12 +407,39 @@ class TrainSimulator:
 
     @property
     def kinetic_energy(self) -> float:
-        return float(0.5 * np.sum(self.masses * self.coach[COACH.V] ** 2))
+        """Return the kinetic energy [J], rotating masses included."""
+        return float(0.5 * np.sum(self.inertia * self.coach[COACH.V] ** 2))
 
     @property
     def elastic_energy(self) -> float:
-        return float(np.sum(couplers.elastic_energy(self.y, self.ke, self.kec)))
+        """Return the energy stored in the couplers' springs [J] (free play and blocking)."""
+        c = self.cpl
+        return float(np.sum(couplers.elastic_energy_travel(
+            self.y, self.ke, self.kec, c[COUPLER.GT], c[COUPLER.GC], c[COUPLER.ST],
+            c[COUPLER.SC], c[COUPLER.KB])))
 
     @property
     def momentum(self) -> float:
-        return float(np.sum(self.masses * self.coach[COACH.V]))
+        """Return the momentum [N s], rotating masses included."""
+        return float(np.sum(self.inertia * self.coach[COACH.V]))
+
+
+def _cylinder_tables(cfg: SimConfig, train: consist.Consist) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return the filling and release tables of the train's brake regime.
+
+    The parameters' own tables when set; else the regime of the vehicles (all the same:
+    one regime per train for now) or of ``brake_regime``.
+    """
+    regimes = set(train.regimes)
+    if len(regimes) > 1 and not cfg.cylinder_fill_time:
+        raise parameters.ConfigError('brake_regime: the vehicles mix regimes '
+                                     f'({", ".join(sorted(regimes))}); one regime per train')
+    regime = regimes.pop() if regimes else cfg.brake_regime
+    fill_t = parameters.P_FILL_TIME if regime == 'P' else parameters.G_FILL_TIME
+    rel_t = parameters.P_RELEASE_TIME if regime == 'P' else parameters.G_RELEASE_TIME
+    fill = (list(cfg.cylinder_fill_time), list(cfg.cylinder_fill_fraction)) \
+        if cfg.cylinder_fill_time else (fill_t, parameters.P_FILL_FRACTION)
+    rel = (list(cfg.cylinder_release_time), list(cfg.cylinder_release_fraction)) \
+        if cfg.cylinder_release_time else (rel_t, parameters.P_RELEASE_FRACTION)
+    return np.asarray(fill, dtype=float), np.asarray(rel, dtype=float)

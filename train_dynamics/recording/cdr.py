@@ -115,3 +115,8 @@ def encode_fluid_pressure(t_ns: int, pressure: float, variance: float = 0.0,
     _cdr_align(out, 8)
     out += struct.pack('<dd', float(pressure), float(variance))
     return bytes(out)
+
+
+def encode_float64(value: float) -> bytes:
+    """Return the CDR bytes of a ``std_msgs/msg/Float64`` (e.g. a traction command)."""
+    return _ENCAPSULATION + struct.pack('<d', float(value))

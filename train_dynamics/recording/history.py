@@ -30,6 +30,7 @@ _HISTORY_TOPICS = {name: msgtype.rsplit('/', 1)[-1] for name, msgtype in (
     (topics.COUPLERS_TOPIC, topics.JOINT_STATE), (topics.COACHES_TOPIC, topics.JOINT_STATE),
     (topics.BRAKE_CYLINDERS_TOPIC, topics.JOINT_STATE),
     (topics.BRAKE_RESERVOIRS_TOPIC, topics.JOINT_STATE),
+    (topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE),
     (topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE))}
 
 
@@ -55,6 +56,7 @@ class History:
     coaches: JointSeries | None = None
     cylinders: JointSeries | None = None            # ``brake_cylinders`` topic
     reservoirs: JointSeries | None = None           # ``brake_reservoirs`` (pneumatic)
+    forces: JointSeries | None = None               # ``vehicle_forces`` topic
     head_pressure: tuple[np.ndarray, np.ndarray] | None = None   # t [s], gauge [Pa]
     label: str = ''                                 # e.g. bag name, for titles
     info: dict[str, str] = field(default_factory=dict)   # model description (custom_data)
@@ -118,7 +120,7 @@ def joint_series(samples: Sequence[tuple[int, object]], topic: str = '',
 def load_history(bag: str | os.PathLike, *, namespace: str = '',
                  atmospheric_pressure: float = ATMOSPHERIC_PRESSURE) -> History:
     """
-    Read ``couplers``, ``coaches``, ``brake_cylinders`` and ``brake_pipe/pressure``.
+    Read ``couplers``, ``coaches``, ``brake_cylinders``, ``vehicle_forces``, the head pipe.
 
     ``namespace``: the node's namespace if it ran in one (``/train1`` reads
     ``/train1/couplers``). Raises :class:`train_dynamics.recording.bags.BagError` for an
@@ -141,7 +143,8 @@ def load_history(bag: str | os.PathLike, *, namespace: str = '',
         data[wanted[topic]].append((t_ns, msg))
     for name, attr in ((topics.COUPLERS_TOPIC, 'couplers'), (topics.COACHES_TOPIC, 'coaches'),
                        (topics.BRAKE_CYLINDERS_TOPIC, 'cylinders'),
-                       (topics.BRAKE_RESERVOIRS_TOPIC, 'reservoirs')):
+                       (topics.BRAKE_RESERVOIRS_TOPIC, 'reservoirs'),
+                       (topics.VEHICLE_FORCES_TOPIC, 'forces')):
         setattr(hist, attr, joint_series(data[name], name, hist.notes))
     if data[topics.HEAD_PIPE_TOPIC]:
         samples = data[topics.HEAD_PIPE_TOPIC]

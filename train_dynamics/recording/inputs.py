@@ -19,7 +19,7 @@ from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.physics.parameters import input_rejection, INPUT_VALUE_REASONS
-from train_dynamics.physics.runner import BrakeInputs, InputEvent, step_of
+from train_dynamics.physics.runner import BrakeInputs, InputEvent, step_of, TractionEvent
 from train_dynamics.recording.bags import bag_info, BagError, BagInfo, read_topics
 
 _log = logging.getLogger(__name__)
@@ -74,6 +74,55 @@ def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
         raise InputBagError(f'input bag {path}: no usable input message for brake_input {mode}')
     events.sort(key=lambda e: e.t_ns)           # stable: bag order for equal times
     return BrakeInputs(mode, events, None, f'bag {Path(path).name}')
+
+
+def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
+                      warn: Callable[[str], None] = _log.warning) -> list[TractionEvent]:
+    """
+    Return the traction commands (``coach_<i>/traction/command``, Float64) in the bag.
+
+    Only locomotives (vehicles with traction or dynamic brake) take a command; a value that is
+    not finite or outside [-1, 1] is rejected (counted, reported through ``warn``). Empty when
+    the bag has no traction topic.
+    """
+    ns = namespace.strip('/')
+    try:
+        info = bag_info(path)
+    except BagError as exc:
+        raise InputBagError(f'input bag: {exc}') from None
+    locos = set(cfg.consist.locomotives) if cfg.external_forces else set()
+    selected: dict[str, int] = {}
+    for topic, (msgtype, _) in info.topics.items():
+        rel = topic[len(ns) + 1:] if ns and topic.startswith(ns + '/') else topic
+        m = topics.TRACTION_TOPIC_PATTERN.fullmatch(rel)
+        if m is None or (ns and rel == topic):
+            continue
+        i = int(m.group(1)) - 1
+        if msgtype != topics.FLOAT64:
+            warn(f'input bag: {topic} has type {msgtype}, not {topics.FLOAT64}; ignored')
+        elif i not in locos:
+            warn(f'input bag: {topic}: vehicle {i + 1} is not a locomotive; ignored')
+        else:
+            selected[topic] = i
+    h = float(cfg.integration_step)
+    events: list[TractionEvent] = []
+    rejected = 0
+    try:
+        for topic, t_ns, msg in read_topics(path, list(selected)):
+            c = float(msg.data)
+            if not (math.isfinite(c) and -1.0 <= c <= 1.0):
+                rejected += 1
+                continue
+            rel_ns = t_ns - info.start_ns
+            events.append(TractionEvent(step_of(rel_ns, h), rel_ns, selected[topic], c,
+                                        topics.traction_topic(selected[topic] + 1), msg))
+    except BagError as exc:
+        raise InputBagError(f'input bag: {exc}') from None
+    if rejected:
+        warn(f'input bag: {rejected} traction command(s) not finite or outside [-1, 1] '
+             'rejected')
+    events.sort(key=lambda e: e.t_ns)
+    return events
 
 
 def _select_topics(info: BagInfo, mode: str, ns: str, n_coaches: int,

@@ -11,6 +11,9 @@ writes them to its bag. One definition of what each output topic carries:
 - ``brake_reservoirs`` (``brake_model: pneumatic`` only): JointState ``coach_1..N``:
   position = auxiliary-reservoir gauge pressure [Pa], velocity empty, effort =
   control-reservoir gauge pressure [Pa].
+- ``vehicle_forces`` (a train with resistance, gradients, curves or traction only):
+  JointState ``coach_1..N``: position = traction / dynamic-brake force, velocity = running
+  + curve resistance, effort = gradient force [N, on the vehicle, forward > 0].
 """
 from __future__ import annotations
 
@@ -61,6 +64,15 @@ class OutputEncoder:
         if self.reservoirs:
             out += (self._coaches(t_ns, sim.auxiliary_pressure, None, sim.control_pressure),)
         return out
+
+    def encode_forces(self, t_ns: int, sim: Any) -> bytes:
+        """
+        Return ``vehicle_forces`` of ``sim``'s present state: JointState ``coach_1..N``.
+
+        position = traction / dynamic-brake force, velocity = running + curve resistance,
+        effort = gradient force; each [N] on the vehicle, forward > 0.
+        """
+        return self._coaches(t_ns, sim.traction_force, sim.resistance_force, sim.gradient_force)
 
 
 def run_metadata(cfg: Any, generator: str, **extra: str) -> dict[str, str]:

@@ -11,6 +11,8 @@ in the label:
 * ``couplers.png``              the three stacked on one page
 * ``coaches.png``               (when ``coaches`` is present) speed [km/h], braking force
   [kN], and brake-cylinder / brake-pipe pressures [bar gauge] when recorded.
+* ``vehicle_forces.png``        (when ``vehicle_forces`` is present) traction / dynamic
+  brake, resistance and gradient force per vehicle [kN].
 
 :func:`plot_comparison` draws the ``compare`` command's figures. Only the Agg canvas is used
 (no pyplot, no display needed). Every figure has a fixed pixel size (:data:`SIZE_PX`).
@@ -183,9 +185,30 @@ def plot_history(hist: History, outdir: str | os.PathLike, *, title: str | None 
 
     if hist.coaches is not None and len(hist.coaches):
         paths.append(_plot_coaches(hist, out / 'coaches.png', sub))
+    if hist.forces is not None and len(hist.forces):
+        paths.append(_plot_forces(hist, out / 'vehicle_forces.png', sub))
     if hist.reservoirs is not None and len(hist.reservoirs) and hist.cylinders is not None:
         paths.append(_plot_brake_pressures(hist, out / 'brake_pressures.png', sub))
     return paths
+
+
+def _plot_forces(hist: History, path: Path, sub: str) -> Path:
+    """Draw ``vehicle_forces``: traction, resistance and gradient force per vehicle [kN]."""
+    fo = hist.forces
+    fig = _new_figure('coaches')
+    axes = fig.subplots(3, 1, sharex=True)
+    for ax, fld, title, legend in (
+            (axes[0], 'position', 'Traction (> 0) / dynamic brake (< 0) force', True),
+            (axes[1], 'velocity', 'Running + curve resistance (on the vehicle)', False),
+            (axes[2], 'effort', 'Gradient force (> 0 downhill)', False)):
+        _style(ax)
+        _plot_lines(ax, fo.t, getattr(fo, fld) * 1e-3, fo.names, 'coach', legend=legend)
+        ax.set_ylabel('[kN]', fontsize=11)
+        ax.set_title(title, fontsize=11)
+        _set_xlim(ax, fo.t)
+    axes[-1].set_xlabel('time t [s]', fontsize=11)
+    fig.suptitle('External forces per vehicle' + (f'\n{sub}' if sub else ''), fontsize=13)
+    return _save(fig, path)
 
 
 def _plot_brake_pressures(hist: History, path: Path, sub: str) -> Path:

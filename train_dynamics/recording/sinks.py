@@ -14,9 +14,9 @@ import numpy as np
 
 from train_dynamics import topics
 from train_dynamics.physics import couplers
-from train_dynamics.physics.runner import InputEvent, Sample
+from train_dynamics.physics.runner import InputEvent, Sample, TractionEvent
 from train_dynamics.recording.bags import BagRecorder
-from train_dynamics.recording.cdr import encode_fluid_pressure
+from train_dynamics.recording.cdr import encode_float64, encode_fluid_pressure
 from train_dynamics.recording.history import History, JointSeries
 from train_dynamics.recording.messages import stamp
 from train_dynamics.recording.outputs import has_reservoirs, OutputEncoder, time_ns
@@ -37,6 +37,9 @@ class BagSink:
         self.encoder = OutputEncoder(cfg.n_coaches, has_reservoirs(cfg))
         for topic in self.encoder.topics:
             rec.add_topic(topic, topics.JOINT_STATE)
+        self.forces = bool(cfg.external_forces)
+        if self.forces:
+            rec.add_topic(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE)
 
     def sample(self, s: Sample) -> None:
         """Write the outputs at an output step (and the head-pipe pressure of a valve run)."""
@@ -44,12 +47,18 @@ class BagSink:
         t_ns = time_ns(s.t)
         for topic, data in zip(self.encoder.topics, self.encoder.encode(t_ns, s.sim)):
             write(topic, t_ns, data)
+        if self.forces:
+            write(topics.VEHICLE_FORCES_TOPIC, t_ns, self.encoder.encode_forces(t_ns, s.sim))
         if s.head_gauge is not None:
             write(topics.HEAD_PIPE_TOPIC, t_ns,
                   encode_fluid_pressure(t_ns, s.head_gauge + self.atm))
 
-    def input(self, e: InputEvent) -> None:  # noqa: A003 - the runner's on_input hook
+    def input(self, e: InputEvent | TractionEvent) -> None:  # noqa: A003 - runner's hook
         """Write an input message as applied, stamped with its time from the run's start."""
+        if isinstance(e, TractionEvent):      # std_msgs/Float64: no header
+            self.rec.add_topic(e.topic, topics.FLOAT64)
+            self.rec.write(e.topic, e.t_ns, encode_float64(e.command))
+            return
         msg = e.msg
         msg.header.stamp = stamp(e.t_ns, ns=True)
         self.rec.write_msg(e.topic, e.t_ns, msg)

@@ -11,16 +11,18 @@ both connect:
 
 A message takes effect at the next integration step (zero-order hold). Rejected and counted per
 reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning naming the topic):
-``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute pressure
-> :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of another ``brake_input``),
-``unknown_coach`` (``coach_<i>`` with i outside 1..N), ``malformed`` (not deserialisable); the
-first three by the rule the offline replay applies too
-(:func:`train_dynamics.physics.parameters.input_rejection`). Publishers of another message type on
-an input topic (never received: DDS does not match them) are found by the graph scan and reported
-as ``wrong_type`` in ``/diagnostics``. The head topic and the per-coach topics of the active mode
-are subscribed from the start; topics of the other modes and of coaches that do not exist are found
-by a graph scan every :data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to count and reject
-their messages: keeping 2N idle subscriptions would slow rclpy's executor for long trains).
+``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute
+pressure > :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of another
+``brake_input``), ``unknown_coach`` (``coach_<i>`` with i outside 1..N), ``out_of_range`` (a
+traction command outside [-1, 1], :mod:`train_dynamics.ros.traction_inputs`), ``malformed`` (not
+deserialisable); the first three by the rule the offline replay applies too
+(:func:`train_dynamics.physics.parameters.input_rejection`). Publishers of another message type
+on an input topic (never received: DDS does not match them) are found by the graph scan and
+reported as ``wrong_type`` in ``/diagnostics``. The head topic and the per-coach topics of the
+active mode are subscribed from the start; topics of the other modes and of coaches that do not
+exist are found by a graph scan every :data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to
+count and reject their messages: keeping 2N idle subscriptions would slow rclpy's executor for
+long trains).
 
 Stale inputs: ``input_timeout`` > 0 s (wall) without a brake input (any coach of a per-coach mode)
 is reported in ``/diagnostics``; ``on_input_timeout`` ``hold`` keeps the last values, ``emergency``
@@ -46,6 +48,7 @@ from train_dynamics.physics.parameters import input_rejection, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
 from train_dynamics.ros.outputs import stamp
+from train_dynamics.ros.traction_inputs import TractionInputs
 
 HEAD = topics.PIPE_HEAD
 CYL = topics.CYLINDER_PER_COACH
@@ -53,7 +56,7 @@ PER_COACH = (topics.PIPE_PER_COACH, topics.CYLINDER_PER_COACH)
 MAX_ABSOLUTE_PRESSURE = topics.MAX_ABSOLUTE_PRESSURE
 #: Reasons an input message is rejected (keys of the counts in /diagnostics).
 REJECT_REASONS = ('non_finite', 'negative', 'too_high', 'wrong_mode', 'unknown_coach',
-                  'malformed')
+                  'malformed', 'out_of_range')
 GRAPH_SCAN_PERIOD = 2.0  # [s wall] search for input topics of other modes / unknown coaches
 MAX_EXTRA_SUBSCRIPTIONS = 256   # cap on the subscriptions made by the graph scan
 INPUT_SETTLE = 0.3       # [s wall] wait_for_input: pause after the inputs are connected
@@ -172,6 +175,11 @@ class BrakeInputs:
         self._stale_count = 0
         self._wait_since: float | None = None
         self._wait_ready: float | None = None
+        #: the locomotives' traction commands (same validation counts, timeout and policy)
+        self.traction = TractionInputs(node, INPUT_QOS, self._reject_traction)
+
+    def _reject_traction(self, resolved: str, reason: str, detail: str) -> None:
+        self._reject(resolved, Rejected(reason, detail))
 
     # -- a run (executor thread, simulation lock held) -------------------------------------
     def start(self, cfg: SimConfig, n: int, recording: bool) -> None:
@@ -189,6 +197,7 @@ class BrakeInputs:
         self._stale_count = 0
         self._wait_since = None
         self._update_subscriptions(mode, n)
+        self.traction.start(cfg.consist.locomotives if cfg.external_forces else [])
 
     def set_policy(self, timeout: float, on_timeout: str) -> None:
         """Report inputs older than ``timeout`` [s wall]; ``on_timeout``: hold/emergency."""
@@ -321,6 +330,7 @@ class BrakeInputs:
 
     def apply(self, now: float, sim: TrainSimulator, record: Record) -> None:
         """Put the inputs received since the last call (or the fail-safe) into ``sim``."""
+        self.traction.apply(now, sim, record, self.timeout, self.on_timeout == 'emergency')
         news = self._take(now)
         if news is None:
             return

@@ -9,6 +9,9 @@ simulation time, at the integration steps nearest to k / publish_rate
 - ``coaches``: JointState ``coach_1..N``: position x [m], velocity v [m/s], effort Fb [N];
 - ``brake_cylinders``: JointState ``coach_1..N``: position = brake-cylinder gauge pressure [Pa],
   effort = local brake-pipe gauge pressure [Pa] (as the offline command writes);
+- ``vehicle_forces`` (a train with resistance, track or traction): JointState ``coach_1..N``:
+  position = traction / dynamic-brake force, velocity = running + curve resistance, effort =
+  gradient force [N, on the vehicle, forward > 0];
 - ``/clock`` (``rosgraph_msgs/Clock``) when ``publish_clock``.
 
 Output messages are CDR-encoded once per output (:class:`OutputEncoder`: names and header
@@ -58,6 +61,9 @@ class Outputs:
         self._pubs = [node.create_publisher(JointState, topic, OUTPUT_QOS)
                       for topic in topics.OUTPUT_TOPICS + (topics.BRAKE_RESERVOIRS_TOPIC,)]
         self._pub_clock = node.create_publisher(Clock, topics.CLOCK_TOPIC, OUTPUT_QOS)
+        self._node = node
+        self._pub_forces = None         # vehicle_forces, created for a train that has them
+        self._forces = False
         self.writer: BagWriter | None = None
         self.publish_clock = False
         self.rate = 0.0                 # [Hz] publish_rate of the run
@@ -69,15 +75,21 @@ class Outputs:
 
     def start(self, n: int, rate: float, h: float, publish_clock: bool,
               writer: BagWriter | None, reservoirs: bool = False,
-              metrics: RunMetrics | None = None) -> None:
+              forces: bool = False, metrics: RunMetrics | None = None) -> None:
         """
         Begin a run of ``n`` coaches at t = 0: outputs at ``rate`` [Hz] on steps ``h``.
 
-        ``reservoirs``: also publish ``brake_reservoirs`` (pneumatic brake); ``metrics``:
-        the run metrics, fed with every published sample (as the offline command does).
+        ``reservoirs``: also publish ``brake_reservoirs`` (pneumatic brake); ``forces``:
+        also publish ``vehicle_forces`` (a train with resistance, track or traction);
+        ``metrics``: the run metrics, fed with every published sample (as the offline
+        command does).
         """
         self.metrics = metrics
         self._encoder = OutputEncoder(n, reservoirs)
+        self._forces = bool(forces)
+        if self._forces and self._pub_forces is None:
+            self._pub_forces = self._node.create_publisher(
+                JointState, topics.VEHICLE_FORCES_TOPIC, OUTPUT_QOS)
         self.rate = float(rate)
         self._h = h
         self.publish_clock = bool(publish_clock)
@@ -111,6 +123,9 @@ class Outputs:
         encoded = self._encoder.encode(t_ns, sim)
         for pub, data in zip(self._pubs, encoded):
             pub.publish(data)
+        forces = self._encoder.encode_forces(t_ns, sim) if self._forces else None
+        if forces is not None:
+            self._pub_forces.publish(forces)
         if self.metrics is not None:
             self.metrics.add(sim.t, sim.y, sim.ydot, sim.coupler_force, sim.x, sim.v,
                              sim.brake_force)
@@ -122,5 +137,7 @@ class Outputs:
         if w is not None:
             for topic, data in zip(self._encoder.topics, encoded):
                 w.write(topic, topics.JOINT_STATE, t_ns, data)
+            if forces is not None:
+                w.write(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE, t_ns, forces)
             if clock is not None:
                 w.write(topics.CLOCK_TOPIC, topics.CLOCK_TYPE, t_ns, serialize_message(clock))

@@ -192,7 +192,8 @@ class SimNode(Node):
         sim = TrainSimulator(cfg)
         self._cfg = cfg
         self._outputs.start(sim.n, cfg.publish_rate, sim.h, cfg.publish_clock, writer,
-                            has_reservoirs(cfg), RunMetrics.for_run(cfg, sim))
+                            has_reservoirs(cfg), forces=cfg.external_forces,
+                            metrics=RunMetrics.for_run(cfg, sim))
         self._inputs.start(cfg, sim.n, recording=writer is not None)
         self._pacer.start(sim, cfg.real_time_factor)
         rtf, duration = cfg.real_time_factor, self._pacer.duration

@@ -1,0 +1,139 @@
+"""Consist files: the vehicle library, defaults from parameters, connection rule, errors."""
+import numpy as np
+import pytest
+
+from train_dynamics.physics import consist
+from train_dynamics.physics.parameters import ConfigError, SimConfig
+
+
+def write(tmp_path, text, name='train.yaml'):
+    path = tmp_path / name
+    path.write_text(text)
+    return str(path)
+
+
+def values(**over):
+    return SimConfig.from_dict(over).values
+
+
+def test_library_holds_the_required_types_and_the_papers_coach_exactly():
+    lib = consist.library_types()
+    for name in ('paper_coach', 'electric_passenger_locomotive', 'heavy_freight_locomotive',
+                 'freight_wagon_loaded', 'freight_wagon_empty'):
+        assert name in lib
+    assert lib['paper_coach'] == {
+        'mass': 45000.0, 'length': 25.0, 'buffer_stiffness': 2.8e6, 'buffer_friction': 1.4e6,
+        'draw_gear_stiffness': 5.46e6, 'draw_gear_friction': 2.43e6,
+        'adhesion_coefficient': 0.1, 'max_cylinder_pressure': 380000.0, 'brake_regime': 'P'}
+
+
+def test_connection_rule_for_a_mixed_pair(tmp_path):
+    path = write(tmp_path, """
+vehicle_types:
+  a: {buffer_stiffness: 2.0e6, buffer_friction: 1.0e6, draw_gear_stiffness: 6.0e6,
+      draw_gear_friction: 3.0e6, blocked_stiffness: 1.0e8, buffer_stroke: 0.10,
+      draw_gear_stroke: 0.05, buffer_slack: 0.0, draw_gear_slack: 0.02}
+  b: {buffer_stiffness: 3.0e6, buffer_friction: 2.0e6, draw_gear_stiffness: 3.0e6,
+      draw_gear_friction: 1.0e6, blocked_stiffness: 3.0e8, buffer_stroke: 0.12,
+      draw_gear_stroke: 0.07, buffer_slack: 0.01, draw_gear_slack: 0.0}
+vehicles: [{type: a}, {type: b}, {type: b}]
+""")
+    c = consist.load_consist(path, values())
+    # harmonic: 2 k_a k_b / (k_a + k_b), by hand
+    assert c.coupler('buffer_stiffness')[0] == pytest.approx(2.4e6)
+    assert c.coupler('buffer_friction')[0] == pytest.approx(4.0e6 / 3.0)
+    assert c.coupler('draw_gear_stiffness')[0] == pytest.approx(4.0e6)
+    assert c.coupler('draw_gear_friction')[0] == pytest.approx(1.5e6)
+    assert c.coupler('blocked_stiffness')[0] == pytest.approx(1.5e8)
+    # arithmetic
+    assert c.coupler('buffer_stroke')[0] == pytest.approx(0.11)
+    assert c.coupler('draw_gear_stroke')[0] == pytest.approx(0.06)
+    assert c.coupler('buffer_slack')[0] == pytest.approx(0.005)
+    assert c.coupler('draw_gear_slack')[0] == pytest.approx(0.01)
+    # two identical vehicles: their own values, exactly
+    for f in consist.COUPLER_FIELDS:
+        assert c.coupler(f)[1] == c[f][2]
+    assert c.coupler_array().shape == (9, 2)
+
+
+def test_fields_left_out_take_the_parameters_and_overrides_win(tmp_path):
+    path = write(tmp_path, """
+vehicles:
+  - {type: paper_coach, count: 2}
+  - {type: paper_coach, mass: 50000.0, davis_a: 700.0}
+""")
+    c = consist.load_consist(path, values(davis_a=123.0, rotating_mass_factor=0.05))
+    assert c.n == 3
+    assert list(c['mass']) == [45000.0, 45000.0, 50000.0]
+    assert list(c['davis_a']) == [123.0, 123.0, 700.0]
+    assert list(c['rotating_mass_factor']) == [0.05] * 3
+    assert c.regimes == ['P'] * 3
+    assert c.locomotives == []
+
+
+def test_types_in_the_file_add_to_the_library(tmp_path):
+    path = write(tmp_path, """
+vehicle_types:
+  shunter: {mass: 60000.0, length: 10.0, max_tractive_force: 200000.0, max_power: 5.0e5}
+vehicles: [{type: shunter}, {type: freight_wagon_empty, count: 3}]
+""")
+    c = consist.load_consist(path, values())
+    assert c.types == ['shunter'] + ['freight_wagon_empty'] * 3
+    assert c.locomotives == [0]
+    assert c.regimes[1] == 'G'
+
+
+def test_uniform_train_of_the_parameters():
+    c = consist.consist_of(values(num_coaches=4))
+    assert c.n == 4 and list(c['mass']) == [45000.0] * 4
+    assert list(c.coupler('buffer_stiffness')) == [2.8e6] * 3
+    c = consist.consist_of(values(masses=[40000.0, 50000.0]))
+    assert list(c['mass']) == [40000.0, 50000.0]
+
+
+def test_relative_path_resolves_against_base_dir_then_config(tmp_path, monkeypatch):
+    write(tmp_path, 'vehicles: [{type: paper_coach, count: 2}]\n', 'mine.yaml')
+    assert consist.resolve_path('mine.yaml', str(tmp_path)) == tmp_path / 'mine.yaml'
+    monkeypatch.chdir(tmp_path)             # without a base folder: the working directory
+    assert consist.consist_of(values(consist_file='mine.yaml')).n == 2
+    # the library itself is found in config/ from anywhere
+    assert consist.resolve_path('vehicles.yaml', str(tmp_path)).name == 'vehicles.yaml'
+
+
+@pytest.mark.parametrize('text, words', [
+    ('vehicles: [{type: paper_coach}, {type: nope}]', ['vehicles[2]', "'nope'"]),
+    ('vehicles: [{type: paper_coach}, {type: paper_coach, mas: 1.0}]',
+     ['vehicles[2]', 'paper_coach', "'mas'"]),
+    ('vehicles: [{type: paper_coach}, {type: paper_coach, mass: -5.0}]',
+     ['vehicles[2]', 'mass', '> 0']),
+    ('vehicles: [{type: paper_coach, count: 0}, {type: paper_coach}]', ['vehicles[1]', 'count']),
+    ('vehicles: [{type: paper_coach}, {type: paper_coach, brake_regime: X}]',
+     ['vehicles[2]', 'brake_regime']),
+    ('vehicles: [{type: paper_coach}, {type: paper_coach, buffer_friction: 3.0e6}]',
+     ['vehicle 2', 'buffer_friction']),
+    ('vehicle_types: {w: {length: 0.0}}\nvehicles: [{type: w}, {type: w}]',
+     ["vehicle type 'w'", 'length']),
+    ('vehicles: [{type: paper_coach}]', ['at least 2']),
+    ('vehicles: []', ['non-empty']),
+    ('trains: []', ['unknown key']),
+])
+def test_errors_name_the_vehicle_and_the_field(tmp_path, text, words):
+    path = write(tmp_path, text)
+    with pytest.raises(ConfigError) as err:
+        consist.load_consist(path, values())
+    msg = str(err.value)
+    assert '\n' not in msg
+    for w in words:
+        assert w in msg
+
+
+def test_missing_consist_file_is_a_clear_error(tmp_path):
+    with pytest.raises(ConfigError, match='not found'):
+        consist.consist_of({'consist_file': 'nowhere.yaml'}, str(tmp_path))
+    with pytest.raises(ConfigError, match='not found'):
+        SimConfig.from_dict({'consist_file': 'nowhere.yaml'})
+
+
+def test_connection_harmonic_mean_with_zero_friction():
+    out = consist.connection_harmonic(np.array([0.0, 2.0]), np.array([1.0, 2.0]))
+    assert list(out) == [0.0, 2.0]

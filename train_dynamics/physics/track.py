@@ -1,0 +1,179 @@
+"""
+The line: gradients and curves, and the forces they put on each vehicle.
+
+Positions s [m] are along the track in the direction of travel. Vehicle i occupies
+[p_i - L_i, p_i] with p_i = initial_position - (L_1 + ... + L_{i-1}) + x_i (its front).
+
+- Gradient G(s) [per mille, > 0 uphill], piecewise constant from each of
+  ``track_gradient_positions`` on, 0 before the first. The gradient force on vehicle i is
+  -m_i g G_i / 1000 with G_i the mean of G over the length the vehicle occupies, so it changes
+  continuously while a vehicle crosses a change of gradient (a train on a hump or in a sag
+  feels in-train forces from gravity alone). The mean is (H(p) - H(p - L)) / L with the
+  elevation H(s) = integral of G / 1000: the force is minus the derivative of the potential
+  energy m g (mean of H over the vehicle), :func:`potential_energy`.
+- Curves [start, end) of radius R [m]: Roeckl's specific resistance r = 650 / (R - 55) per
+  mille for R >= 300 m, 500 / (R - 30) for R < 300 m (standard-gauge main lines; Roeckl 1880,
+  as given by Wende, Fahrdynamik des Schienenverkehrs, 2003). The curve resistance of vehicle
+  i is m_i g r_i / 1000 against the motion, r_i the mean of r over the vehicle's length.
+
+A profile is stored as breakpoints ``xs``, the value on [xs[k], xs[k+1]) ``vals`` (the last
+one to infinity) and the integral from xs[0] to xs[k] ``cum``: the mean over any interval is
+two look-ups (:func:`profile_mean`), compiled with numba for the kernel.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from train_dynamics.physics._jit import jit
+
+
+def roeckl(radius: float) -> float:
+    """Return Roeckl's specific curve resistance [per mille] of a curve of ``radius`` [m]."""
+    if radius >= 300.0:
+        return 650.0 / (radius - 55.0)
+    return 500.0 / (radius - 30.0)
+
+
+def _cumulative(xs: np.ndarray, vals: np.ndarray) -> np.ndarray:
+    cum = np.zeros(xs.shape[0])
+    if xs.shape[0] > 1:
+        cum[1:] = np.cumsum(vals[:-1] * np.diff(xs))
+    return cum
+
+
+@jit
+def profile_integral(s: float, xs: np.ndarray, vals: np.ndarray, cum: np.ndarray) -> float:
+    """Return the integral of the piecewise-constant profile from -infinity to s."""
+    if xs.shape[0] == 0 or s <= xs[0]:
+        return 0.0
+    k = np.searchsorted(xs, s, side='right') - 1
+    return cum[k] + vals[k] * (s - xs[k])
+
+
+@jit
+def profile_mean(lo: float, hi: float, xs: np.ndarray, vals: np.ndarray,
+                 cum: np.ndarray) -> float:
+    """Return the mean of the profile over [lo, hi] (hi > lo) [the profile's unit]."""
+    return (profile_integral(hi, xs, vals, cum) - profile_integral(lo, xs, vals, cum)) / (hi - lo)
+
+
+@jit
+def track_forces(x: np.ndarray, front0: np.ndarray, lengths: np.ndarray, weight: np.ndarray,
+                 gx: np.ndarray, gv: np.ndarray, gc: np.ndarray, cx: np.ndarray,
+                 cv: np.ndarray, cc: np.ndarray, grade: np.ndarray, curve: np.ndarray) -> None:
+    """
+    Fill the gradient force [N, signed, forward > 0] and curve resistance [N, >= 0].
+
+    x: travelled distances [m]; front0: the front of each vehicle at t = 0 [m]; weight: m g
+    [N]; (gx, gv, gc) the gradient profile [per mille], (cx, cv, cc) the curve-resistance
+    profile [per mille]. An empty profile gives 0.
+    """
+    for i in range(x.shape[0]):
+        hi = front0[i] + x[i]
+        lo = hi - lengths[i]
+        grade[i] = 0.0
+        curve[i] = 0.0
+        if gx.shape[0] > 0:
+            grade[i] = -weight[i] * profile_mean(lo, hi, gx, gv, gc) * 1e-3
+        if cx.shape[0] > 0:
+            curve[i] = weight[i] * profile_mean(lo, hi, cx, cv, cc) * 1e-3
+
+
+@dataclass
+class Track:
+    """Gradient and curve-resistance profiles (per mille) and the start position [m]."""
+
+    initial_position: float = 0.0
+    gx: np.ndarray = None
+    gv: np.ndarray = None
+    gc: np.ndarray = None
+    cx: np.ndarray = None
+    cv: np.ndarray = None
+    cc: np.ndarray = None
+
+    @classmethod
+    def from_lists(cls, initial_position=0.0, gradient_positions=(), gradients=(),
+                   curve_starts=(), curve_ends=(), curve_radii=()) -> 'Track':
+        """Build and check a track; raise ValueError naming the parameter at fault."""
+        gp = np.asarray(gradient_positions, dtype=float).reshape(-1)
+        gr = np.asarray(gradients, dtype=float).reshape(-1)
+        if gp.shape != gr.shape:
+            raise ValueError(f'track_gradient_positions and track_gradients must have the same '
+                             f'length ({gp.size} != {gr.size})')
+        if np.any(np.diff(gp) <= 0.0):
+            raise ValueError('track_gradient_positions: must strictly increase')
+        cs, ce, cr = (np.asarray(a, dtype=float).reshape(-1)
+                      for a in (curve_starts, curve_ends, curve_radii))
+        if not cs.size == ce.size == cr.size:
+            raise ValueError('track_curve_starts, track_curve_ends and track_curve_radii must '
+                             f'have the same length ({cs.size}, {ce.size}, {cr.size})')
+        order = np.argsort(cs, kind='stable')
+        cs, ce, cr = cs[order], ce[order], cr[order]
+        if np.any(ce <= cs):
+            raise ValueError('track_curve_ends: each curve must end after it starts')
+        if np.any(cs[1:] < ce[:-1]):
+            raise ValueError('track curves: curves must not overlap')
+        if np.any(cr <= 55.0):
+            raise ValueError('track_curve_radii: must be > 55 m (Roeckl)')
+        xs, vals = [], []
+        for a, b, r in zip(cs, ce, cr):
+            if xs and xs[-1] == a:
+                vals[-1] = roeckl(r)
+            else:
+                xs.append(a)
+                vals.append(roeckl(r))
+            xs.append(b)
+            vals.append(0.0)
+        cx = np.asarray(xs, dtype=float)
+        cv = np.asarray(vals, dtype=float)
+        return cls(float(initial_position), gp, gr, _cumulative(gp, gr), cx, cv,
+                   _cumulative(cx, cv))
+
+    @property
+    def flat_and_straight(self) -> bool:
+        """Return True when no gradient and no curve is set (the paper's idealisation)."""
+        return self.gx.size == 0 and self.cx.size == 0
+
+    def fronts(self, lengths) -> np.ndarray:
+        """Return the front position of each vehicle at t = 0 [m]."""
+        lengths = np.asarray(lengths, dtype=float)
+        return self.initial_position - np.concatenate(([0.0], np.cumsum(lengths[:-1])))
+
+    def gradient_at(self, s) -> np.ndarray:
+        """Return the gradient [per mille] at track positions s [m]."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        if self.gx.size == 0:
+            return np.zeros_like(s)
+        k = np.searchsorted(self.gx, s, side='right') - 1
+        return np.where(k >= 0, self.gv[np.maximum(k, 0)], 0.0)
+
+    def elevation(self, s) -> np.ndarray:
+        """Return the height H(s) [m] of the track relative to the first gradient change."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        return np.array([profile_integral(float(p), self.gx, self.gv, self.gc)
+                         for p in s]) * 1e-3
+
+    def mean_elevation(self, lo: float, hi: float) -> float:
+        """Return the mean of H over [lo, hi] [m] (H is piecewise linear: exact)."""
+        inner = self.gx[(self.gx > lo) & (self.gx < hi)]
+        pts = np.concatenate(([lo], inner, [hi]))
+        h = self.elevation(pts)
+        return float(np.sum(0.5 * (h[1:] + h[:-1]) * np.diff(pts)) / (hi - lo))
+
+    def potential_energy(self, x, lengths, masses, g: float) -> float:
+        """Return the potential energy of the train [J]: sum of m g (mean H over each vehicle)."""
+        fronts = self.fronts(lengths) + np.asarray(x, dtype=float)
+        return float(sum(m * g * self.mean_elevation(p - length, p)
+                         for p, length, m in zip(fronts, lengths, masses)))
+
+    def forces(self, x, lengths, masses, g: float):
+        """Return (gradient force [N, forward > 0], curve resistance [N, >= 0]) per vehicle."""
+        x = np.asarray(x, dtype=float)
+        lengths = np.asarray(lengths, dtype=float)
+        grade = np.empty(x.shape[0])
+        curve = np.empty(x.shape[0])
+        track_forces(x, self.fronts(lengths), lengths, np.asarray(masses, float) * g,
+                     self.gx, self.gv, self.gc, self.cx, self.cv, self.cc, grade, curve)
+        return grade, curve

@@ -1,0 +1,121 @@
+"""
+The traction inputs of ``sim_node``: ``coach_<i>/traction/command`` of each locomotive.
+
+``std_msgs/Float64``, a fraction in [-1, 1] of the force available at the present speed
+(> 0 traction, < 0 dynamic brake), subscribed best-effort keep-last 10 for every locomotive
+of the consist (vehicles with ``max_tractive_force`` or ``max_dynamic_brake_force`` > 0). A
+command takes effect at the next integration step (zero-order hold) and is recorded as
+received. Rejected and counted (in the brake inputs' counts of ``/diagnostics``):
+``non_finite``, ``out_of_range`` (|c| > 1), ``malformed``.
+
+Staleness: with ``input_timeout`` > 0 a locomotive that has received a command and then
+nothing for ``input_timeout`` wall seconds is stale; with ``on_input_timeout`` ``emergency``
+its command falls to 0 (the fail-safe: no traction, no dynamic brake; recorded with the value
+0) until a new command arrives; with ``hold`` it keeps the last one.
+"""
+from __future__ import annotations
+
+import functools
+import math
+import threading
+import time
+from typing import Any, Callable
+
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message, serialize_message
+from std_msgs.msg import Float64
+
+from train_dynamics import topics
+from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.recording.outputs import time_ns
+
+Record = Callable[[str, str, int, bytes], None]
+Reject = Callable[[str, str, str], None]
+
+
+def traction_command(data: bytes) -> float:
+    """Return the command of a raw Float64; raise ValueError(reason, detail) if unusable."""
+    try:
+        value = float(deserialize_message(data, Float64).data)
+    except Exception as exc:  # noqa: BLE001 - anything rclpy raises on a bad buffer
+        raise ValueError('malformed', f'cannot deserialise: {exc}') from None
+    if not math.isfinite(value):
+        raise ValueError('non_finite', f'command {value}')
+    if not -1.0 <= value <= 1.0:
+        raise ValueError('out_of_range', f'command {value:g} outside [-1, 1]')
+    return value
+
+
+class TractionInputs:
+    """Subscribe to, check and hold the locomotives' traction commands of one node."""
+
+    def __init__(self, node: Node, qos: Any, reject: Reject) -> None:
+        self._node = node
+        self._qos = qos
+        self._reject = reject           # (resolved topic, reason, detail): count and warn
+        self._log = node.get_logger()
+        self._subs: dict[str, Any] = {}
+        self._lock = threading.Lock()
+        self._locos: list[int] = []
+        self._value: dict[int, float] = {}
+        self._arrival: dict[int, float] = {}       # [s wall] of each loco's last command
+        self._dirty: dict[int, bytes | None] = {}  # accepted since the last apply
+        self._stale: set[int] = set()
+        self.accepted = 0
+
+    def start(self, locomotives: list[int]) -> None:
+        """Subscribe to the commands of ``locomotives`` (0-based) for a new run."""
+        with self._lock:
+            self._locos = list(locomotives)
+            self._value = dict.fromkeys(self._locos, 0.0)
+            self._arrival = {}
+            self._dirty = {}
+            self._stale = set()
+        wanted = {self._node.resolve_topic_name(topics.traction_topic(i + 1)): i
+                  for i in self._locos}
+        for name in list(self._subs):
+            if name not in wanted:
+                self._node.destroy_subscription(self._subs.pop(name))
+        for name, i in wanted.items():
+            if name not in self._subs:
+                cb = functools.partial(self._on_command, name, i)
+                self._subs[name] = self._node.create_subscription(Float64, name, cb, self._qos,
+                                                                  raw=True)
+
+    def _on_command(self, resolved: str, index: int, data: bytes) -> None:
+        try:
+            value = traction_command(data)
+        except ValueError as exc:
+            reason, detail = exc.args
+            self._reject(resolved, reason, detail)
+            return
+        with self._lock:
+            if index not in self._value:        # a reset changed the train meanwhile
+                return
+            self._value[index] = value
+            self._arrival[index] = time.monotonic()
+            self._dirty[index] = bytes(data)
+        self.accepted += 1
+
+    def apply(self, now: float, sim: TrainSimulator, record: Record, timeout: float,
+              emergency: bool) -> None:
+        """Put the commands received since the last call (or the fail-safe 0) into ``sim``."""
+        with self._lock:
+            dirty, self._dirty = self._dirty, {}
+            stale = {i for i, t in self._arrival.items()
+                     if timeout > 0.0 and now - t > timeout} - set(dirty)
+            values = dict(self._value)
+        t_ns = time_ns(sim.t)
+        for i, raw in dirty.items():
+            self._stale.discard(i)
+            sim.set_traction_command(values[i], i)
+            record(topics.traction_topic(i + 1), topics.FLOAT64, t_ns, raw)
+        for i in stale - self._stale:
+            self._stale.add(i)
+            action = 'command set to 0' if emergency else 'holding the last command'
+            self._log.warning(f'traction command of coach_{i + 1} stale: nothing for more '
+                              f'than {timeout:g} s; {action}')
+            if emergency:
+                sim.set_traction_command(0.0, i)
+                record(topics.traction_topic(i + 1), topics.FLOAT64, t_ns,
+                       serialize_message(Float64(data=0.0)))
