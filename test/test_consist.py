@@ -105,7 +105,7 @@ def test_relative_path_resolves_against_base_dir_then_config(tmp_path, monkeypat
     ('vehicles: [{type: paper_coach}, {type: paper_coach, mas: 1.0}]',
      ['vehicles[2]', 'paper_coach', "'mas'"]),
     ('vehicles: [{type: paper_coach}, {type: paper_coach, mass: -5.0}]',
-     ['vehicles[2]', 'mass', '> 0']),
+     ['vehicles[2]', 'mass', 'must be >= 500']),
     ('vehicles: [{type: paper_coach, count: 0}, {type: paper_coach}]', ['vehicles[1]', 'count']),
     ('vehicles: [{type: paper_coach}, {type: paper_coach, brake_regime: X}]',
      ['vehicles[2]', 'brake_regime']),

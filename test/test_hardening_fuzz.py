@@ -27,7 +27,8 @@ FIXED = {'num_coaches', 'masses', 'integration_step', 'publish_rate', 'record_ba
 
 def _number(spec):
     """Values around and beyond the bounds of ``spec``, and plain odd numbers."""
-    edges = [v for v in (spec.low, spec.high, spec.default) if v is not None]
+    edges = [v for v in (spec.low, spec.high, spec.default)
+             if v is not None and not isinstance(v, list)]
     near = [e * f for e in edges for f in (0.5, 0.999999, 1.0, 1.000001, 2.0)] + [-1.0, 0.0]
     if spec.kind == 'integer':
         return st.one_of(st.sampled_from([int(v) for v in near]),
@@ -45,6 +46,8 @@ def _value(spec):
         return st.booleans()
     if spec.kind == 'string':
         return st.sampled_from(list(spec.choices) + ['bogus']) if spec.choices else st.just('')
+    if spec.kind == 'double_array':      # track and traction tables: short lists, odd values
+        return st.lists(_number(spec), max_size=3)
     raise AssertionError(spec.kind)
 
 

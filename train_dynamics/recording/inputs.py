@@ -14,6 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 import logging
+import math
 from pathlib import Path
 from typing import Any
 
