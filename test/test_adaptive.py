@@ -98,9 +98,10 @@ def test_unequal_masses_replayed_cylinders_within_2_percent():
 
 def sim_ref_force(sim, x, v):
     """Return the coupler forces of the paper's law at positions x [m], speeds v [m/s]."""
-    k = [np.full(x.size - 1, c) for c in (sim.cfg.buffer_stiffness, sim.cfg.buffer_friction,
-                                           sim.cfg.draw_gear_stiffness,
-                                           sim.cfg.draw_gear_friction)]
+    cfg = sim.cfg
+    consts = (cfg.buffer_stiffness, cfg.buffer_friction, cfg.draw_gear_stiffness,
+              cfg.draw_gear_friction)
+    k = [np.full(x.size - 1, c) for c in consts]
     return couplers.coupler_force(x[:-1] - x[1:], v[:-1] - v[1:], *k, couplers.TANH,
                                   float(sim.u))
 

@@ -96,33 +96,3 @@ def jit(func=None, *, inline: bool = False):
         return _numba.njit(cache=True, **options)(func)
     finally:
         _numba.config.CACHE_DIR = saved
-
-
-def warmup() -> float:
-    """
-    Compile every kernel into the cache now; return the seconds it took.
-
-    For the install (``python -m train_dynamics.physics._jit``, run by ``make venv`` and
-    after a colcon build) so that the first start after it loads machine code instead of
-    compiling for 10-30 s: the fixed-step and the error-controlled kernel, the pneumatic
-    brake, external forces and track, on a small train.
-    """
-    # imported here, not at the top: the kernels' modules import this one
-    import time
-
-    from train_dynamics.physics.parameters import SimConfig
-    from train_dynamics.physics.train import TrainSimulator
-    t0 = time.perf_counter()
-    for tol in (0.0, 1e-3):
-        for extra in ({}, {'brake_model': 'pneumatic'},
-                      {'davis_a': 500.0, 'track_gradient_positions': [0.0],
-                       'track_gradients': [1.0]}):
-            sim = TrainSimulator(SimConfig.from_dict({'integration_tolerance': tol, **extra}))
-            sim.advance(10)
-            _ = sim.coupler_force
-    return time.perf_counter() - t0
-
-
-if __name__ == '__main__':    # pragma: no cover - the install step
-    print(f'train_dynamics: kernels compiled into {kernel_cache_dir()} '
-          f'in {warmup():.1f} s')
