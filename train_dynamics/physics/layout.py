@@ -89,6 +89,19 @@ ScalarSlots = namedtuple('ScalarSlots', [
     'WT',           # work of traction and dynamic braking since t = 0 [J]
     'WG',           # work of gravity on gradients since t = 0 [J]
     'PEXT',         # impulse of all external forces since t = 0 [N s]
+    # error-controlled stepping (issue 14; integrators.advance_adaptive)
+    'TOL',          # integration_tolerance: local coupler-force error / force level [-]
+    'FFLOOR',       # force level below which the tolerance is absolute [N]
+    'HPROP',        # the controller's proposed next step [s]
+    'HEVAL',        # the step the couplers' stage weights in ws were made for [s] (-1: none)
+    'ERRPREV',      # error norm of the last accepted step (PI controller)
+    'NSTEPS',       # accepted chain steps since reset
+    'NREJ',         # rejected chain steps since reset
+    'HMIN',         # smallest accepted step since reset [s] (not the landing steps)
+    'NFALLBACK',    # output periods that ran out of step budget (finished at fixed steps)
+    'INT_STEPS',    # chain steps of the last output period
+    'INT_STEPS_MAX',    # largest INT_STEPS since reset
+    'INT_HMIN',     # smallest step of the last output period [s]
 ])
 SCALAR = _indices(ScalarSlots)
 
@@ -99,6 +112,11 @@ FlagSlots = namedtuple('FlagSlots', [
     'WS_VALID',     # 1 when the WORK rows F, DFDY, KK, K0, FRAC hold the present state
     'EXT',          # 1: external forces (resistance, track, traction) act; 0: the paper's
     'TRACK',        # 1: the line has gradients or curves
+    # error-controlled stepping (issue 14)
+    'TICK',         # brake-system ticks done (fixed step SCALAR.H): the simulator's steps
+    'CHAIN_TICK',   # the tick the coach chain has reached (it lands on LAND multiples)
+    'LAND',         # the chain's landing period in ticks (one output period)
+    'BUDGET',       # largest number of error-controlled steps per landing period
 ])
 FLAG = _indices(FlagSlots)
 

@@ -76,6 +76,9 @@ P_RELEASE_FRACTION = [1.0, 0.768, 0.589, 0.452, 0.347, 0.267, 0.205, 0.157, 0.10
 G_FILL_TIME = [round(t * 6.0, 3) for t in P_FILL_TIME]
 G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
 
+#: default integration_tolerance (issue 14)
+INTEGRATION_TOLERANCE = 0.0
+
 _PARAMS = [
     ParamSpec('model_type', 'tanh', STRING,
               'Coupler friction law: "tanh" uses tanh(u*ydot) (paper eqs. 14-16), '
@@ -282,6 +285,17 @@ _PARAMS = [
     ParamSpec('traction_schedule_commands', [], DOUBLE_ARRAY,
               'Traction command in [-1, 1] (> 0 traction, < 0 dynamic brake) from each '
               'traction_schedule_times entry on.', low=-1.0, high=1.0),
+    # error-controlled stepping (issue 14)
+    ParamSpec('integration_tolerance', INTEGRATION_TOLERANCE, DOUBLE,
+              'Error-controlled integration: the local error of every coupler force per step, '
+              'relative to the largest coupler force in the train (at least 1e-3 of a '
+              "vehicle's weight) [-]; ROS2 with its embedded first-order estimate, PI step "
+              'control, landing on every output instant. 0 = fixed step integration_step.',
+              low=0.0, high=0.1),
+    ParamSpec('integration_max_steps', 100, INTEGER,
+              'Work budget of the error-controlled integration: steps per output period; '
+              'beyond it the rest of the period runs at the fixed integration_step (counted '
+              'in /diagnostics fallback_periods).', low=1, high=1000000),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}

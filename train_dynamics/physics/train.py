@@ -17,6 +17,8 @@ coach chain under zero-order-hold brake inputs.
 """
 from __future__ import annotations
 
+import time
+
 import numpy as np
 
 from train_dynamics.physics import (brakes, consist, couplers, integrators, parameters,
@@ -117,6 +119,13 @@ class TrainSimulator:
             self._trace = np.zeros((0, n))
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
+        #: error-controlled chain (integration_tolerance > 0): the brake system keeps the
+        #: fixed tick h, the chain lands on every output instant (``land`` ticks)
+        self.tolerance = float(cfg.integration_tolerance)
+        self.adaptive = self.tolerance > 0.0
+        self.land = _landing_ticks(float(cfg.publish_rate), self.h)
+        self.tick_fb = np.zeros((self.land + 1, n))
+        self.tick_te = np.zeros((self.land + 1, n))
         self.reset()
 
     # -- state ---------------------------------------------------------------------------
@@ -146,12 +155,26 @@ class TrainSimulator:
         self.iv[FLAG.MODE] = self.mode
         self.iv[FLAG.EXT] = int(cfg.external_forces)
         self.iv[FLAG.TRACK] = int(not self.track.flat_and_straight)
+        self._reset_adaptive()
         if self.pneu is not None:
             self.pneu.reset()
             self.iv[FLAG.MODE] = brakes.CYLINDER_PER_COACH
             c[COACH.CYL_IN] = self.pneu.cylinder_pressure
-        self.set_model(self.model_type, self.u)
         self.fault: str | None = None
+        self.set_model(self.model_type, self.u)
+
+    def _reset_adaptive(self) -> None:
+        """Set the error-controlled stepping's constants and counters (issue 14)."""
+        sc, iv = self.sc, self.iv
+        iv[FLAG.LAND] = self.land
+        iv[FLAG.BUDGET] = int(self.cfg.integration_max_steps)
+        sc[SCALAR.TOL] = self.tolerance
+        sc[SCALAR.FFLOOR] = 1e-3 * float(np.max(self.masses)) * float(self.cfg.gravity)
+        sc[SCALAR.HPROP] = self.h
+        sc[SCALAR.HEVAL] = -1.0
+        sc[SCALAR.ERRPREV] = 1.0
+        sc[SCALAR.HMIN] = np.inf
+        sc[SCALAR.INT_HMIN] = np.inf
 
     def _reset_vehicles(self) -> None:
         """Fill the per-vehicle rows of the consist (resistance, track, traction, brake)."""
@@ -173,6 +196,7 @@ class TrainSimulator:
         u = float(scale_factor)
         if not np.isfinite(u) or u <= 0.0:
             raise ValueError(f'scale_factor must be > 0, got {scale_factor!r}')
+        self._sync()      # the chain reaches the present tick under the old law
         self.model_type = model_type
         self.model = couplers.MODEL_CODES[model_type]
         self.u = u
@@ -241,9 +265,7 @@ class TrainSimulator:
             return 0
         if self.pneu is not None:
             return self._advance_pneumatic(int(n_steps))
-        done, status = integrators.advance_chain(int(n_steps), self.coach, self.cpl, self.sc,
-                                                 self.iv, self.fill, self.rel, self.ring,
-                                                 self.ws, self.gprof, self.cprof)
+        done, status = self._kernel(int(n_steps))
         self.steps += done
         if status != integrators.OK:
             self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
@@ -261,9 +283,7 @@ class TrainSimulator:
         scaled = bool(np.any(self.pmax_ratio != 1.0))   # vehicles' own p_max -> the train's
         for k in range(n_steps):
             cyl_in[:] = trace[k] / self.pmax_ratio if scaled else trace[k]
-            step, status = integrators.advance_chain(1, self.coach, self.cpl, self.sc, self.iv,
-                                                     self.fill, self.rel, self.ring, self.ws,
-                                                     self.gprof, self.cprof)
+            step, status = self._kernel(1)
             done += step
             if status != integrators.OK:
                 break
@@ -273,6 +293,44 @@ class TrainSimulator:
             self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
         return done
 
+    def _kernel(self, n_steps: int, sync: bool = False) -> tuple[int, int]:
+        """Run the fixed-step or the error-controlled kernel; return (steps, status)."""
+        if self.adaptive:
+            return integrators.advance_adaptive(n_steps, sync, self.coach, self.cpl, self.sc,
+                                                self.iv, self.fill, self.rel, self.ring,
+                                                self.ws, self.gprof, self.cprof,
+                                                self.tick_fb, self.tick_te)
+        return integrators.advance_chain(n_steps, self.coach, self.cpl, self.sc, self.iv,
+                                         self.fill, self.rel, self.ring, self.ws, self.gprof,
+                                         self.cprof)
+
+    def _sync(self) -> None:
+        """Bring the error-controlled chain to the present tick (it lands on outputs)."""
+        if (not self.adaptive or self.fault is not None
+                or self.iv[FLAG.CHAIN_TICK] >= self.iv[FLAG.TICK]):
+            return
+        _, status = self._kernel(0, True)
+        if status != integrators.OK:
+            self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
+
+    @property
+    def integration_stats(self) -> dict:
+        """
+        Return the error-controlled stepping's counters (issue 14; zeros at fixed step).
+
+        steps, rejected: chain steps since reset; h_min [s]: smallest step (not counting
+        the steps shortened to land on an output); steps_last_period, h_min_last_period:
+        of the last output period; steps_max_period; fallback_periods: periods that ran out
+        of ``integration_max_steps`` and finished at the fixed step.
+        """
+        sc = self.sc
+        return {'adaptive': self.adaptive, 'steps': int(sc[SCALAR.NSTEPS]),
+                'rejected': int(sc[SCALAR.NREJ]), 'h_min': float(sc[SCALAR.HMIN]),
+                'steps_last_period': int(sc[SCALAR.INT_STEPS]),
+                'h_min_last_period': float(sc[SCALAR.INT_HMIN]),
+                'steps_max_period': int(sc[SCALAR.INT_STEPS_MAX]),
+                'fallback_periods': int(sc[SCALAR.NFALLBACK])}
+
     def advance_to(self, t: float) -> int:
         """Integrate whole steps until ``self.t >= t - h/2``; return the steps done."""
         target = int(np.floor(t / self.h + 0.5))
@@ -281,36 +339,43 @@ class TrainSimulator:
     # -- outputs -----------------------------------------------------------------------------
     @property
     def x(self) -> np.ndarray:
+        self._sync()
         return self.coach[COACH.X].copy()
 
     @property
     def v(self) -> np.ndarray:
+        self._sync()
         return self.coach[COACH.V].copy()
 
     @property
     def held(self) -> np.ndarray:
         """Coaches at rest, held by their brakes."""
+        self._sync()
         return self.coach[COACH.HELD] > 0.5
 
     @property
     def y(self) -> np.ndarray:
+        self._sync()
         x = self.coach[COACH.X]
         return x[:-1] - x[1:]
 
     @property
     def ydot(self) -> np.ndarray:
+        self._sync()
         v = self.coach[COACH.V]
         return v[:-1] - v[1:]
 
     @property
     def coupler_force(self) -> np.ndarray:
         """F_i [N] at the present state: F at the end of the last step."""
+        self._sync()
         if self.steps == 0:
             return np.zeros(self.n - 1)
         return self.ws[WORK.F, :self.n - 1].copy()
 
     @property
     def brake_force(self) -> np.ndarray:
+        self._sync()
         return self.coach[COACH.FB_APPLIED].copy()
 
     @property
@@ -343,41 +408,49 @@ class TrainSimulator:
     @property
     def traction_force(self) -> np.ndarray:
         """Return each vehicle's traction / dynamic-brake force [N, forward > 0]."""
+        self._sync()
         return self.coach[COACH.F_TRAC].copy()
 
     @property
     def resistance_force(self) -> np.ndarray:
         """Return each vehicle's running + curve resistance [N, on the vehicle, forward > 0]."""
+        self._sync()
         return self.coach[COACH.F_RES].copy()
 
     @property
     def gradient_force(self) -> np.ndarray:
         """Return each vehicle's gradient force [N, forward > 0]."""
+        self._sync()
         return self.coach[COACH.F_GRADE].copy()
 
     @property
     def work_resistance(self) -> float:
         """Return the work done by running and curve resistance since t = 0 [J]."""
+        self._sync()
         return float(self.sc[SCALAR.WR])
 
     @property
     def work_traction(self) -> float:
         """Return the work of traction and dynamic braking on the train since t = 0 [J]."""
+        self._sync()
         return float(self.sc[SCALAR.WT])
 
     @property
     def work_gravity(self) -> float:
         """Return the work of gravity since t = 0 [J] (the potential energy lost)."""
+        self._sync()
         return float(self.sc[SCALAR.WG])
 
     @property
     def external_impulse(self) -> float:
         """Return the impulse of every external force since t = 0 [N s]."""
+        self._sync()
         return float(self.sc[SCALAR.PEXT])
 
     @property
     def potential_energy(self) -> float:
         """Return the potential energy on the line's gradients [J] (0 at the lowest start)."""
+        self._sync()
         return self.track.potential_energy(self.coach[COACH.X], self.consist['length'],
                                            self.masses, float(self.cfg.gravity))
 
@@ -398,21 +471,25 @@ class TrainSimulator:
     @property
     def work_brake(self) -> float:
         """Work done by the brakes since t = 0 [J]."""
+        self._sync()
         return float(self.sc[SCALAR.WB])
 
     @property
     def work_coupler(self) -> float:
         """Work done on the couplers since t = 0 [J] (stored elastic + dissipated)."""
+        self._sync()
         return float(self.sc[SCALAR.WC])
 
     @property
     def kinetic_energy(self) -> float:
         """Return the kinetic energy [J], rotating masses included."""
+        self._sync()
         return float(0.5 * np.sum(self.inertia * self.coach[COACH.V] ** 2))
 
     @property
     def elastic_energy(self) -> float:
         """Return the energy stored in the couplers' springs [J] (free play and blocking)."""
+        self._sync()
         c = self.cpl
         return float(np.sum(couplers.elastic_energy_travel(
             self.y, self.ke, self.kec, c[COUPLER.GT], c[COUPLER.GC], c[COUPLER.ST],
@@ -421,7 +498,14 @@ class TrainSimulator:
     @property
     def momentum(self) -> float:
         """Return the momentum [N s], rotating masses included."""
+        self._sync()
         return float(np.sum(self.inertia * self.coach[COACH.V]))
+
+
+def _landing_ticks(rate: float, h: float) -> int:
+    """Return the output period in ticks of h [s] when whole (the chain lands there), else 1."""
+    k = int(np.floor(1.0 / (rate * h) + 0.5))
+    return k if k >= 1 and abs(k * h * rate - 1.0) < 1e-9 else 1
 
 
 def _cylinder_tables(cfg: SimConfig, train: consist.Consist) -> tuple[np.ndarray, np.ndarray]:
@@ -443,3 +527,27 @@ def _cylinder_tables(cfg: SimConfig, train: consist.Consist) -> tuple[np.ndarray
     rel = (list(cfg.cylinder_release_time), list(cfg.cylinder_release_fraction)) \
         if cfg.cylinder_release_time else (rel_t, parameters.P_RELEASE_FRACTION)
     return np.asarray(fill, dtype=float), np.asarray(rel, dtype=float)
+
+
+def warmup() -> float:
+    """
+    Compile every kernel into the cache now; return the seconds it took.
+
+    For the install (``python -m train_dynamics.physics.train``, to be run by ``make venv``
+    and after a colcon build) so that the first start after it loads machine code instead
+    of compiling for 10-30 s: the fixed-step and the error-controlled kernel, the pneumatic
+    brake, external forces and track, on a small train.
+    """
+    t0 = time.perf_counter()
+    for tol in (0.0, 1e-3):
+        for extra in ({}, {'brake_model': 'pneumatic'},
+                      {'davis_a': 500.0, 'track_gradient_positions': [0.0],
+                       'track_gradients': [1.0]}):
+            sim = TrainSimulator(SimConfig.from_dict({'integration_tolerance': tol, **extra}))
+            sim.advance(10)
+            _ = sim.coupler_force
+    return time.perf_counter() - t0
+
+
+if __name__ == '__main__':    # pragma: no cover - the install step
+    print(f'train_dynamics: kernels compiled (or loaded from the cache) in {warmup():.1f} s')

@@ -55,6 +55,26 @@ class SimulationReport:
     backlog: int = 0
     backlog_bytes: int = 0
     record_error: str | None = None
+    #: the simulator's integration_stats (error-controlled stepping, issue 14), None: not given
+    integration: dict | None = None
+
+
+def integration_values(stats: dict | None) -> dict[str, str]:
+    """
+    Return the diagnostics values of the error-controlled stepping (issue 14).
+
+    ``stats``: :attr:`TrainSimulator.integration_stats`; empty when None or fixed step.
+    """
+    if not stats or not stats.get('adaptive'):
+        return {}
+    h_min = stats['h_min']
+    return {
+        'chain_steps': str(stats['steps']), 'step_rejections': str(stats['rejected']),
+        'smallest_step_s': f'{h_min:.3e}' if h_min != float('inf') else '',
+        'steps_last_output_period': str(stats['steps_last_period']),
+        'steps_max_output_period': str(stats['steps_max_period']),
+        'fallback_periods': str(stats['fallback_periods']),
+    }
 
 
 @dataclass
@@ -106,6 +126,7 @@ def simulation_status(r: SimulationReport, hardware_id: str) -> DiagnosticStatus
         'recording': r.recording, 'recorded_messages': str(r.recorded),
         'record_backlog': str(r.backlog), 'record_backlog_bytes': str(r.backlog_bytes),
     }
+    kv.update(integration_values(r.integration))
     return DiagnosticStatus(level=level, name=SIMULATION, message=message,
                             hardware_id=hardware_id,
                             values=[KeyValue(key=k, value=v) for k, v in kv.items()])

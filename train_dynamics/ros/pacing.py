@@ -114,6 +114,7 @@ class Pacer:
         self._anchor_sim = 0.0          # ... the simulation was at this time
         self._need_anchor = True
         self._fault_reported = False
+        self.fallback_periods = 0       # output periods over the integration_max_steps budget
 
     # -- control (other threads, lock held) -------------------------------------------------
     def start(self, sim: TrainSimulator, real_time_factor: float) -> None:
@@ -124,6 +125,7 @@ class Pacer:
         self.finished = False
         self.exit_code = 0
         self._fault_reported = False
+        self.fallback_periods = 0
         self._update_end_step()
         self.behind = 0.0
         self._step_cost = 1e-5
@@ -274,6 +276,7 @@ class Pacer:
             sim.advance(n)
             t1 = time.monotonic()
             self._step_cost = 0.8 * self._step_cost + 0.2 * (t1 - t0) / n
+            self._report_fallback(sim)
             if sim.fault is not None:
                 self._on_fault()
                 return True
@@ -281,6 +284,23 @@ class Pacer:
             if t1 >= deadline:
                 return False
             self._inputs.apply(t1, sim, self._outputs.record)
+
+    def _report_fallback(self, sim: TrainSimulator) -> None:
+        """
+        Warn when output periods ran out of the integration_max_steps work budget.
+
+        Such a period finishes at the fixed integration_step (deterministic: the same
+        offline); the count is in /diagnostics (fallback_periods).
+        """
+        if not sim.adaptive:
+            return
+        count = sim.integration_stats['fallback_periods']
+        if count > self.fallback_periods:
+            self.fallback_periods = count
+            self._log.warning(
+                f'integration_max_steps reached in {count} output period(s) so far (latest '
+                f'before t = {sim.t:.3f} s): the rest of such a period runs at the fixed '
+                f'integration_step', throttle_duration_sec=WARN_PERIOD)
 
     def _anchor(self, now: float) -> None:
         self._anchor_wall = now
