@@ -45,6 +45,8 @@ $(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml
 	fi
 	$(VPY) -m pip install -r requirements.txt
 	$(VPY) -m pip install --no-deps --no-build-isolation --use-pep517 -e .
+	# compile the numba kernels once now (cached per source version): the first run starts fast
+	$(VPY) -m train_dynamics.physics.train
 	@touch "$@"
 
 test: venv

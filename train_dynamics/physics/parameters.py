@@ -23,7 +23,7 @@ from typing import Any, Callable, Mapping
 
 from train_dynamics import topics
 # consist uses this module's table at call time only (a circular import that is safe)
-from train_dynamics.physics import consist, track
+from train_dynamics.physics import consist, layout, track
 import yaml
 
 # Kinds of value, named after the ROS 2 parameter types they map to.
@@ -423,8 +423,10 @@ def input_rejection(absolute: float) -> tuple[str, str] | None:
 
 #: [bytes] largest simulator state a configuration may need (delay line + per-coach arrays)
 MAX_SIMULATOR_MEMORY = 1 << 30
-#: [bytes] upper estimate of the simulator's arrays per coach (state, workspace, constants)
-SIMULATOR_BYTES_PER_COACH = 8 * 64
+#: [bytes] upper estimate of the simulator's arrays per coach: the kernel's packed rows
+#: (state, coupler constants, workspace; from the layout) and 32 more float rows for the
+#: per-vehicle vectors and the error-controlled stepping's tick buffers
+SIMULATOR_BYTES_PER_COACH = 8 * (len(layout.COACH) + len(layout.COUPLER) + len(layout.WORK) + 32)
 #: [bytes] the simulator's arrays whatever the train (cylinder tables, scalars)
 SIMULATOR_FIXED_BYTES = 1 << 16
 #: [bytes] MCAP record and index overhead per message (opcode, length, channel, sequence,

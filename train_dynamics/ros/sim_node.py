@@ -274,7 +274,8 @@ class SimNode(Node):
             achieved=pacer.measure_rtf(now), lag_dropped=pacer.lag_dropped,
             lag_events=pacer.lag_events, model_type=cfg.model_type,
             scale_factor=cfg.scale_factor, h=sim.h, rate=self._outputs.rate,
-            duration=pacer.duration, behind_warn=BEHIND_WARN, pending=pending)
+            duration=pacer.duration, behind_warn=BEHIND_WARN, pending=pending,
+            integration=sim.integration_stats)
         if writer is not None:
             report.recording, report.recorded = str(writer.path), writer.written
             report.backlog, report.record_error = writer.backlog, writer.error
