@@ -226,7 +226,8 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
 
     The point is (x + h (v + g h b1), v + h b1) with b1 = WORK.B1: stage 1 for h = 0,
     stage 2 for the step h [s]. Forces [N]:
-    the gradient -m g (mean gradient over the vehicle) / 1000 (``track``), the speed-dependent
+    the gradient -m g (mean gradient over the vehicle) / 1000 (``track``; at stage 1 the
+    WORK.GR1 that :func:`_external_step` left, the same position), the speed-dependent
     resistance d (B |v| + C v^2) against the friction's direction d (Davis; A is with the
     brake), traction (``traction.traction_force``), and E = gradient + traction -
     resistance. (Written out here, not in a called function: a per-vehicle call cost the
@@ -255,8 +256,8 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
         d = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else rel_dir[i])
         sv = abs(vi)
         rd = d * (davis_b[i] + davis_c[i] * sv) * sv
-        gr = 0.0
-        if grades:
+        gr = out_gr[i] if h == 0.0 else 0.0     # stage 1: from _external_step
+        if grades and h != 0.0:
             hi = coach[COACH.FRONT0, i] + xi
             gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
                 hi - coach[COACH.LENGTH, i], hi, gx, gv, gc)
@@ -594,36 +595,20 @@ def _braking_force_trapezoid(coach, sc, ws):
 
 
 @jit(inline=True)
-def _external_step(coach, sc, iv, cprof, ws):
+def _external_step(coach, sc, iv, gprof, cprof, ws):
     """
     Add the static resistance to the friction of the step; ramp the traction command.
 
-    WORK.FBRAKE keeps the braking force [N]; WORK.RSTAT = A + curve resistance at the step's
-    start [N] (Davis A, Roeckl over the vehicle's length) joins it in WORK.FB: like the
-    brake it holds a vehicle at rest and never pushes it. COACH.T_EFF moves toward the
-    command COACH.T_CMD (build-up rate limit); WORK.TEFF is the mean over the step.
+    :func:`_static_resistance` (Davis A + curves, held like the brake; WORK.GR1, stage 1's
+    gradient force). COACH.T_EFF moves toward the command COACH.T_CMD (build-up rate
+    limit); WORK.TEFF is the mean over the step.
     """
+    _static_resistance(coach, iv, gprof, cprof, ws)
     h = sc[SCALAR.H]
-    cx = cprof[0]
-    cv = cprof[1]
-    cc = cprof[2]
-    curves = iv[FLAG.TRACK] and cx.shape[0] > 0
-    davis_a = coach[COACH.DAVIS_A]
     cmd = coach[COACH.T_CMD]
     eff = coach[COACH.T_EFF]
-    rstat = ws[WORK.RSTAT]
-    fb = ws[WORK.FB]
-    fbrake = ws[WORK.FBRAKE]
     t_eff = ws[WORK.TEFF]
-    for i in range(fb.shape[0]):
-        r = davis_a[i]
-        if curves:
-            hi = coach[COACH.FRONT0, i] + coach[COACH.X, i]
-            r += coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
-                hi - coach[COACH.LENGTH, i], hi, cx, cv, cc)
-        rstat[i] = r
-        fbrake[i] = fb[i]
-        fb[i] += r
+    for i in range(t_eff.shape[0]):
         old = eff[i]
         new = old
         if cmd[i] != old:
@@ -769,7 +754,7 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
         _brake_system_step(coach, sc, iv, ring, tables, ws)
         _braking_force_trapezoid(coach, sc, ws)
         if iv[FLAG.EXT]:
-            _external_step(coach, sc, iv, cprof, ws)
+            _external_step(coach, sc, iv, gprof, cprof, ws)
         extra_work = _active_set_step(sc[SCALAR.H], coach, cpl, sc, iv, held, ws, gprof)
         status = _fault_check(ws, sc[SCALAR.YLIM])
         if status != OK:
@@ -854,21 +839,41 @@ def _tick_means(fbt, tet, ka, u0, u1, ws):
 
 
 @jit(inline=True)
-def _static_resistance(coach, iv, cprof, ws):
-    """Add the static resistance (Davis A + curves, at the step's start) to WORK.FB [N]."""
+def _static_resistance(coach, iv, gprof, cprof, ws):
+    """
+    Add the static resistance at the step's start to the friction WORK.FB [N].
+
+    WORK.FBRAKE keeps the braking force [N]; WORK.RSTAT = Davis A + curve resistance (Roeckl,
+    averaged over the vehicle's length) joins it in WORK.FB: like the brake it holds a vehicle
+    at rest and never pushes it. WORK.GR1 = the gradient force at the step's start [N]
+    (stage 1's, computed here once per step on the same span, not once per active-set pass).
+    """
     cx = cprof[0]
     cv = cprof[1]
     cc = cprof[2]
     curves = iv[FLAG.TRACK] and cx.shape[0] > 0
-    for i in range(coach.shape[1]):
-        r = coach[COACH.DAVIS_A, i]
+    gx = gprof[0]
+    gv = gprof[1]
+    gpc = gprof[2]
+    grades = iv[FLAG.TRACK] and gx.shape[0] > 0
+    gr1 = ws[WORK.GR1]
+    davis_a = coach[COACH.DAVIS_A]
+    rstat = ws[WORK.RSTAT]
+    fb = ws[WORK.FB]
+    fbrake = ws[WORK.FBRAKE]
+    for i in range(fb.shape[0]):
+        r = davis_a[i]
+        hi = coach[COACH.FRONT0, i] + coach[COACH.X, i]
+        lo = hi - coach[COACH.LENGTH, i]
         if curves:
-            hi = coach[COACH.FRONT0, i] + coach[COACH.X, i]
-            r += coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
-                hi - coach[COACH.LENGTH, i], hi, cx, cv, cc)
-        ws[WORK.RSTAT, i] = r
-        ws[WORK.FBRAKE, i] = ws[WORK.FB, i]
-        ws[WORK.FB, i] += r
+            r += coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(lo, hi, cx, cv, cc)
+        gr = 0.0
+        if grades:
+            gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(lo, hi, gx, gv, gpc)
+        gr1[i] = gr
+        rstat[i] = r
+        fbrake[i] = fb[i]
+        fb[i] += r
 
 
 @jit(inline=True)
@@ -956,7 +961,7 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
             sc[SCALAR.HEVAL] = hs
         _tick_means(fbt, tet, ka, s / h_tick, (s + hs) / h_tick, ws)
         if ext:
-            _static_resistance(coach, iv, cprof, ws)
+            _static_resistance(coach, iv, gprof, cprof, ws)
         pext = sc[SCALAR.PEXT]
         extra_work = _active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
         err = _error_norm(hs, ws, tol, sc[SCALAR.FFLOOR])

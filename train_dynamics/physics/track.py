@@ -43,7 +43,7 @@ def _cumulative(xs: np.ndarray, vals: np.ndarray) -> np.ndarray:
     return cum
 
 
-@jit
+@jit(inline=True)
 def profile_integral(s: float, xs: np.ndarray, vals: np.ndarray, cum: np.ndarray) -> float:
     """Return the integral of the piecewise-constant profile from -infinity to s."""
     if xs.shape[0] == 0 or s <= xs[0]:
@@ -52,7 +52,7 @@ def profile_integral(s: float, xs: np.ndarray, vals: np.ndarray, cum: np.ndarray
     return cum[k] + vals[k] * (s - xs[k])
 
 
-@jit
+@jit(inline=True)
 def profile_mean(lo: float, hi: float, xs: np.ndarray, vals: np.ndarray,
                  cum: np.ndarray) -> float:
     """Return the mean of the profile over [lo, hi] (hi > lo) [the profile's unit]."""
