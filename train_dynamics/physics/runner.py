@@ -153,6 +153,30 @@ def _drive_head(valve: Any, sim: TrainSimulator, k: int, head: float | None,
     return head, k_end
 
 
+class _DueEvents:
+    """Input events sorted by step, each applied when its step comes (zero-order hold)."""
+
+    def __init__(self, events: Sequence[Any], apply: Callable[[Any], None],
+                 on_input: Callable[[Any], None] | None) -> None:
+        self._events = events
+        self._apply = apply
+        self._on_input = on_input
+        self._next = 0
+
+    def apply_until(self, k: int) -> None:
+        """Apply (and report to ``on_input``) every event due at step ``k`` or before."""
+        events = self._events
+        while self._next < len(events) and events[self._next].step <= k:
+            self._apply(events[self._next])
+            if self._on_input is not None:
+                self._on_input(events[self._next])
+            self._next += 1
+
+    def next_step(self, default: int) -> int:
+        """Return the step of the next event, ``default`` when none is left."""
+        return self._events[self._next].step if self._next < len(self._events) else default
+
+
 def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
                    on_sample: Callable[[Sample], None],
                    on_input: Callable[[InputEvent], None] | None = None,
@@ -180,23 +204,15 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
               topics.PIPE_PER_COACH: lambda e: sim.set_pipe_pressure(e.gauge, e.index),
               topics.CYLINDER_PER_COACH: lambda e: sim.set_cylinder_pressure(e.gauge, e.index)
               }[inputs.mode]
-    traction = inputs.traction
-    ie = 0
-    it = 0
+    brake_events = _DueEvents(events, setter, on_input)
+    traction = _DueEvents(inputs.traction,
+                          lambda e: sim.set_traction_command(e.command, e.index), on_input)
     k = 0
     head: float | None = None
     last_progress = time.monotonic()
     while True:
-        while ie < len(events) and events[ie].step <= k:
-            setter(events[ie])
-            if on_input is not None:
-                on_input(events[ie])
-            ie += 1
-        while it < len(traction) and traction[it].step <= k:
-            sim.set_traction_command(traction[it].command, traction[it].index)
-            if on_input is not None:
-                on_input(traction[it])
-            it += 1
+        brake_events.apply_until(k)
+        traction.apply_until(k)
         valve_next = k_end
         if valve is not None:
             head, valve_next = _drive_head(valve, sim, k, head, k_end)
@@ -206,9 +222,8 @@ def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
             next_sample = next(samples, None)
         if k >= k_end:
             break
-        nxt = min(k_end, valve_next,
-                  events[ie].step if ie < len(events) else k_end,
-                  traction[it].step if it < len(traction) else k_end,
+        nxt = min(k_end, valve_next, brake_events.next_step(k_end),
+                  traction.next_step(k_end),
                   next_sample if next_sample is not None else k_end)
         nxt = max(nxt, k + 1)
         done = sim.advance(nxt - k)

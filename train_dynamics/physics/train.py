@@ -23,12 +23,13 @@ import numpy as np
 
 from train_dynamics.physics import (brakes, consist, couplers, integrators, parameters,
                                     pneumatic)
-from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
+from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR
+from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.resistance import equivalent_mass
 
 
-class TrainSimulator:
+class TrainSimulator(TrainOutputs, TrainBalances):
     """
     Train, brake system and fixed-step integrator (eqs. 5-9, 12-16).
 
@@ -72,6 +73,27 @@ class TrainSimulator:
         self.masses = np.array(train['mass'], dtype=float)
         #: mass for inertia [kg], m (1 + rotating_mass_factor)
         self.inertia = equivalent_mass(self.masses, train['rotating_mass_factor'])
+        self._build_couplers(train, coupler_constants)
+        self._build_brakes(cfg, train)
+        #: the line: gradient and curve profiles (track.py) as kernel arrays
+        self.track = cfg.track
+        self.gprof = np.array([self.track.gx, self.track.gv, self.track.gc], dtype=float)
+        self.cprof = np.array([self.track.cx, self.track.cv, self.track.cc], dtype=float)
+        self.ws = integrators.make_workspace(n)
+        self.model_type = cfg.model_type
+        self.u = float(cfg.scale_factor)
+        #: error-controlled chain (integration_tolerance > 0): the brake system keeps the
+        #: fixed tick h, the chain lands on every output instant (``land`` ticks)
+        self.tolerance = float(cfg.integration_tolerance)
+        self.adaptive = self.tolerance > 0.0
+        self.land = _landing_ticks(float(cfg.publish_rate), self.h)
+        self.tick_fb = np.zeros((self.land + 1, n))
+        self.tick_te = np.zeros((self.land + 1, n))
+        self.reset()
+
+    def _build_couplers(self, train: consist.Consist, coupler_constants: dict | None) -> None:
+        """Fill ``cpl``: each connection's constants (eqs. 2-3, free play, strokes, K_b)."""
+        n = self.n
         self.cpl = np.empty((len(COUPLER), n - 1))
         for name, row in self._TRAVEL_ROWS.items():
             self.cpl[row] = train.coupler(name)
@@ -90,6 +112,10 @@ class TrainSimulator:
             raise ValueError('every coupler needs k_f < k_e and k_fc < k_ec')
         self.ke, self.kf, self.kec, self.kfc = (cpl[COUPLER.KE], cpl[COUPLER.KF],
                                                 cpl[COUPLER.KEC], cpl[COUPLER.KFC])
+
+    def _build_brakes(self, cfg: SimConfig, train: consist.Consist) -> None:
+        """Set up the brake system (eq. 13): mode, cylinder tables, pipe delays, pneumatics."""
+        n = self.n
         self.mode = brakes.MODE_CODES[cfg.brake_input]
         self.fill, self.rel = _cylinder_tables(cfg, train)
         if cfg.consist_file:     # the pipe runs along the vehicles' lengths
@@ -97,12 +123,8 @@ class TrainSimulator:
             self.delays = ahead / float(cfg.brake_propagation_speed)
         else:
             self.delays = brakes.pipe_delays(n, cfg.coach_length, cfg.brake_propagation_speed)
-        self.track = cfg.track
-        self.gprof = np.array([self.track.gx, self.track.gv, self.track.gc], dtype=float)
-        self.cprof = np.array([self.track.cx, self.track.cv, self.track.cc], dtype=float)
         #: p_max of each vehicle over the train's (eq. 13 works with p / p_max)
         self.pmax_ratio = train['max_cylinder_pressure'] / float(cfg.max_cylinder_pressure)
-        self.ws = integrators.make_workspace(n)
         # brake_model pneumatic: the pneumatic brake hands its cylinder pressures to the
         # chain step by step (the chain then runs as in cylinder_per_coach); the bypass
         # cylinder_per_coach keeps the input cylinders
@@ -117,16 +139,6 @@ class TrainSimulator:
                                               external_pipe=self.mode == brakes.PIPE_PER_COACH,
                                               **per_vehicle)
             self._trace = np.zeros((0, n))
-        self.model_type = cfg.model_type
-        self.u = float(cfg.scale_factor)
-        #: error-controlled chain (integration_tolerance > 0): the brake system keeps the
-        #: fixed tick h, the chain lands on every output instant (``land`` ticks)
-        self.tolerance = float(cfg.integration_tolerance)
-        self.adaptive = self.tolerance > 0.0
-        self.land = _landing_ticks(float(cfg.publish_rate), self.h)
-        self.tick_fb = np.zeros((self.land + 1, n))
-        self.tick_te = np.zeros((self.land + 1, n))
-        self.reset()
 
     # -- state ---------------------------------------------------------------------------
     def reset(self) -> None:
@@ -335,171 +347,6 @@ class TrainSimulator:
         """Integrate whole steps until ``self.t >= t - h/2``; return the steps done."""
         target = int(np.floor(t / self.h + 0.5))
         return self.advance(target - self.steps)
-
-    # -- outputs -----------------------------------------------------------------------------
-    @property
-    def x(self) -> np.ndarray:
-        self._sync()
-        return self.coach[COACH.X].copy()
-
-    @property
-    def v(self) -> np.ndarray:
-        self._sync()
-        return self.coach[COACH.V].copy()
-
-    @property
-    def held(self) -> np.ndarray:
-        """Coaches at rest, held by their brakes."""
-        self._sync()
-        return self.coach[COACH.HELD] > 0.5
-
-    @property
-    def y(self) -> np.ndarray:
-        self._sync()
-        x = self.coach[COACH.X]
-        return x[:-1] - x[1:]
-
-    @property
-    def ydot(self) -> np.ndarray:
-        self._sync()
-        v = self.coach[COACH.V]
-        return v[:-1] - v[1:]
-
-    @property
-    def coupler_force(self) -> np.ndarray:
-        """F_i [N] at the present state: F at the end of the last step."""
-        self._sync()
-        if self.steps == 0:
-            return np.zeros(self.n - 1)
-        return self.ws[WORK.F, :self.n - 1].copy()
-
-    @property
-    def brake_force(self) -> np.ndarray:
-        self._sync()
-        return self.coach[COACH.FB_APPLIED].copy()
-
-    @property
-    def cylinder_pressure(self) -> np.ndarray:
-        p = self.coach[COACH.PCYL].copy()
-        if np.any(self.pmax_ratio != 1.0):
-            p *= self.pmax_ratio
-        return p
-
-    @property
-    def buffer_stroke(self) -> np.ndarray:
-        """Return each coupler's buffer stroke S_c [m] (the connection's, N-1 values)."""
-        return self.cpl[COUPLER.SC].copy()
-
-    @property
-    def draw_gear_stroke(self) -> np.ndarray:
-        """Return each coupler's draw-gear stroke S_t [m]."""
-        return self.cpl[COUPLER.ST].copy()
-
-    @property
-    def buffer_slack(self) -> np.ndarray:
-        """Return each coupler's buffer free play g_c [m]."""
-        return self.cpl[COUPLER.GC].copy()
-
-    @property
-    def draw_gear_slack(self) -> np.ndarray:
-        """Return each coupler's draw-gear free play g_t [m]."""
-        return self.cpl[COUPLER.GT].copy()
-
-    @property
-    def traction_force(self) -> np.ndarray:
-        """Return each vehicle's traction / dynamic-brake force [N, forward > 0]."""
-        self._sync()
-        return self.coach[COACH.F_TRAC].copy()
-
-    @property
-    def resistance_force(self) -> np.ndarray:
-        """Return each vehicle's running + curve resistance [N, on the vehicle, forward > 0]."""
-        self._sync()
-        return self.coach[COACH.F_RES].copy()
-
-    @property
-    def gradient_force(self) -> np.ndarray:
-        """Return each vehicle's gradient force [N, forward > 0]."""
-        self._sync()
-        return self.coach[COACH.F_GRADE].copy()
-
-    @property
-    def work_resistance(self) -> float:
-        """Return the work done by running and curve resistance since t = 0 [J]."""
-        self._sync()
-        return float(self.sc[SCALAR.WR])
-
-    @property
-    def work_traction(self) -> float:
-        """Return the work of traction and dynamic braking on the train since t = 0 [J]."""
-        self._sync()
-        return float(self.sc[SCALAR.WT])
-
-    @property
-    def work_gravity(self) -> float:
-        """Return the work of gravity since t = 0 [J] (the potential energy lost)."""
-        self._sync()
-        return float(self.sc[SCALAR.WG])
-
-    @property
-    def external_impulse(self) -> float:
-        """Return the impulse of every external force since t = 0 [N s]."""
-        self._sync()
-        return float(self.sc[SCALAR.PEXT])
-
-    @property
-    def potential_energy(self) -> float:
-        """Return the potential energy on the line's gradients [J] (0 at the lowest start)."""
-        self._sync()
-        return self.track.potential_energy(self.coach[COACH.X], self.consist['length'],
-                                           self.masses, float(self.cfg.gravity))
-
-    @property
-    def pipe_pressure(self) -> np.ndarray:
-        return self.coach[COACH.PPIPE].copy()
-
-    @property
-    def auxiliary_pressure(self) -> np.ndarray | None:
-        """Auxiliary-reservoir gauge pressures [Pa] (pneumatic brake), else None."""
-        return None if self.pneu is None else self.pneu.auxiliary_pressure
-
-    @property
-    def control_pressure(self) -> np.ndarray | None:
-        """Control-reservoir gauge pressures [Pa] (pneumatic brake), else None."""
-        return None if self.pneu is None else self.pneu.control_pressure
-
-    @property
-    def work_brake(self) -> float:
-        """Work done by the brakes since t = 0 [J]."""
-        self._sync()
-        return float(self.sc[SCALAR.WB])
-
-    @property
-    def work_coupler(self) -> float:
-        """Work done on the couplers since t = 0 [J] (stored elastic + dissipated)."""
-        self._sync()
-        return float(self.sc[SCALAR.WC])
-
-    @property
-    def kinetic_energy(self) -> float:
-        """Return the kinetic energy [J], rotating masses included."""
-        self._sync()
-        return float(0.5 * np.sum(self.inertia * self.coach[COACH.V] ** 2))
-
-    @property
-    def elastic_energy(self) -> float:
-        """Return the energy stored in the couplers' springs [J] (free play and blocking)."""
-        self._sync()
-        c = self.cpl
-        return float(np.sum(couplers.elastic_energy_travel(
-            self.y, self.ke, self.kec, c[COUPLER.GT], c[COUPLER.GC], c[COUPLER.ST],
-            c[COUPLER.SC], c[COUPLER.KB])))
-
-    @property
-    def momentum(self) -> float:
-        """Return the momentum [N s], rotating masses included."""
-        self._sync()
-        return float(np.sum(self.inertia * self.coach[COACH.V]))
 
 
 def _landing_ticks(rate: float, h: float) -> int:

@@ -1,0 +1,189 @@
+"""
+What the train shows: its outputs and its energy and momentum balances (read-only views).
+
+:class:`TrainOutputs` reads the published quantities (positions, speeds, coupler and braking
+forces, brake pressures, the vehicles' external forces) and :class:`TrainBalances` the terms
+of the balances the tests check (eq. 8: momentum and impulse; kinetic + potential energy lost =
+brake + resistance work + coupler dissipation - traction work). Both are mixins of
+:class:`train_dynamics.physics.train.TrainSimulator`: they read its packed arrays (``coach``,
+``cpl``, ``sc``, ``ws``; :mod:`train_dynamics.physics.layout`) after ``_sync()`` brings the
+error-controlled chain to the present tick, and copy what they return. They change nothing.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from train_dynamics.physics import couplers
+from train_dynamics.physics.layout import COACH, COUPLER, SCALAR, WORK
+
+
+class TrainOutputs:
+    """The train's published quantities (SI units; arrays are copies)."""
+
+    @property
+    def x(self) -> np.ndarray:
+        self._sync()
+        return self.coach[COACH.X].copy()
+
+    @property
+    def v(self) -> np.ndarray:
+        self._sync()
+        return self.coach[COACH.V].copy()
+
+    @property
+    def held(self) -> np.ndarray:
+        """Coaches at rest, held by their brakes."""
+        self._sync()
+        return self.coach[COACH.HELD] > 0.5
+
+    @property
+    def y(self) -> np.ndarray:
+        self._sync()
+        x = self.coach[COACH.X]
+        return x[:-1] - x[1:]
+
+    @property
+    def ydot(self) -> np.ndarray:
+        self._sync()
+        v = self.coach[COACH.V]
+        return v[:-1] - v[1:]
+
+    @property
+    def coupler_force(self) -> np.ndarray:
+        """F_i [N] at the present state: F at the end of the last step."""
+        self._sync()
+        if self.steps == 0:
+            return np.zeros(self.n - 1)
+        return self.ws[WORK.F, :self.n - 1].copy()
+
+    @property
+    def brake_force(self) -> np.ndarray:
+        self._sync()
+        return self.coach[COACH.FB_APPLIED].copy()
+
+    @property
+    def cylinder_pressure(self) -> np.ndarray:
+        p = self.coach[COACH.PCYL].copy()
+        if np.any(self.pmax_ratio != 1.0):
+            p *= self.pmax_ratio
+        return p
+
+    @property
+    def buffer_stroke(self) -> np.ndarray:
+        """Return each coupler's buffer stroke S_c [m] (the connection's, N-1 values)."""
+        return self.cpl[COUPLER.SC].copy()
+
+    @property
+    def draw_gear_stroke(self) -> np.ndarray:
+        """Return each coupler's draw-gear stroke S_t [m]."""
+        return self.cpl[COUPLER.ST].copy()
+
+    @property
+    def buffer_slack(self) -> np.ndarray:
+        """Return each coupler's buffer free play g_c [m]."""
+        return self.cpl[COUPLER.GC].copy()
+
+    @property
+    def draw_gear_slack(self) -> np.ndarray:
+        """Return each coupler's draw-gear free play g_t [m]."""
+        return self.cpl[COUPLER.GT].copy()
+
+    @property
+    def traction_force(self) -> np.ndarray:
+        """Return each vehicle's traction / dynamic-brake force [N, forward > 0]."""
+        self._sync()
+        return self.coach[COACH.F_TRAC].copy()
+
+    @property
+    def resistance_force(self) -> np.ndarray:
+        """Return each vehicle's running + curve resistance [N, on the vehicle, forward > 0]."""
+        self._sync()
+        return self.coach[COACH.F_RES].copy()
+
+    @property
+    def gradient_force(self) -> np.ndarray:
+        """Return each vehicle's gradient force [N, forward > 0]."""
+        self._sync()
+        return self.coach[COACH.F_GRADE].copy()
+
+    @property
+    def pipe_pressure(self) -> np.ndarray:
+        return self.coach[COACH.PPIPE].copy()
+
+    @property
+    def auxiliary_pressure(self) -> np.ndarray | None:
+        """Auxiliary-reservoir gauge pressures [Pa] (pneumatic brake), else None."""
+        return None if self.pneu is None else self.pneu.auxiliary_pressure
+
+    @property
+    def control_pressure(self) -> np.ndarray | None:
+        """Control-reservoir gauge pressures [Pa] (pneumatic brake), else None."""
+        return None if self.pneu is None else self.pneu.control_pressure
+
+
+class TrainBalances:
+    """Work, energy and momentum since t = 0 (eq. 8 and the energy balance)."""
+
+    @property
+    def work_resistance(self) -> float:
+        """Return the work done by running and curve resistance since t = 0 [J]."""
+        self._sync()
+        return float(self.sc[SCALAR.WR])
+
+    @property
+    def work_traction(self) -> float:
+        """Return the work of traction and dynamic braking on the train since t = 0 [J]."""
+        self._sync()
+        return float(self.sc[SCALAR.WT])
+
+    @property
+    def work_gravity(self) -> float:
+        """Return the work of gravity since t = 0 [J] (the potential energy lost)."""
+        self._sync()
+        return float(self.sc[SCALAR.WG])
+
+    @property
+    def external_impulse(self) -> float:
+        """Return the impulse of every external force since t = 0 [N s]."""
+        self._sync()
+        return float(self.sc[SCALAR.PEXT])
+
+    @property
+    def potential_energy(self) -> float:
+        """Return the potential energy on the line's gradients [J] (0 at the lowest start)."""
+        self._sync()
+        return self.track.potential_energy(self.coach[COACH.X], self.consist['length'],
+                                           self.masses, float(self.cfg.gravity))
+
+    @property
+    def work_brake(self) -> float:
+        """Work done by the brakes since t = 0 [J]."""
+        self._sync()
+        return float(self.sc[SCALAR.WB])
+
+    @property
+    def work_coupler(self) -> float:
+        """Work done on the couplers since t = 0 [J] (stored elastic + dissipated)."""
+        self._sync()
+        return float(self.sc[SCALAR.WC])
+
+    @property
+    def kinetic_energy(self) -> float:
+        """Return the kinetic energy [J], rotating masses included."""
+        self._sync()
+        return float(0.5 * np.sum(self.inertia * self.coach[COACH.V] ** 2))
+
+    @property
+    def elastic_energy(self) -> float:
+        """Return the energy stored in the couplers' springs [J] (free play and blocking)."""
+        self._sync()
+        c = self.cpl
+        return float(np.sum(couplers.elastic_energy_travel(
+            self.y, self.ke, self.kec, c[COUPLER.GT], c[COUPLER.GC], c[COUPLER.ST],
+            c[COUPLER.SC], c[COUPLER.KB])))
+
+    @property
+    def momentum(self) -> float:
+        """Return the momentum [N s], rotating masses included."""
+        self._sync()
+        return float(np.sum(self.inertia * self.coach[COACH.V]))
