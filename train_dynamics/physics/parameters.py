@@ -424,6 +424,7 @@ def traction_rejection(command: float) -> tuple[str, str] | None:
         return 'out_of_range', f'command {c:g} outside [-1, 1]'
     return None
 
+
 # -- what a run costs: memory of the simulator, disk of its outputs ---------------------------
 
 #: [bytes] largest simulator state a configuration may need (delay line + per-coach arrays)

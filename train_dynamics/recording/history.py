@@ -119,6 +119,7 @@ class Envelope:
         self.lo = np.full(shape, np.inf)
         self.hi = np.full(shape, -np.inf)
         self.seen = np.zeros(self.bins, dtype=bool)
+        self.t_first, self.t_last = math.inf, -math.inf      # [s] of the samples binned
 
     def widen(self, k: int) -> None:
         """Add ``k`` columns (NaN before now)."""
@@ -141,6 +142,9 @@ class Envelope:
                 self._overflow()
             return
         self.rows += t.shape[0]
+        if t.size:
+            self.t_first = min(self.t_first, float(t[0]))
+            self.t_last = max(self.t_last, float(t[-1]))
         idx = np.floor((t - self.t0) / self.width)
         while idx.size and idx.max() > self.bins:
             self._coarsen()
@@ -191,11 +195,18 @@ class Envelope:
         return np.concatenate(self._t), q
 
     def curves(self) -> tuple[np.ndarray, np.ndarray]:
-        """Return t (K,) and the quantities (K, fields, m): the rows, or each bin's min, max."""
+        """
+        Return t (K,) and the quantities (K, fields, m): the rows, or each bin's min and max.
+
+        A bin's pair is drawn at its middle; the first and the last at the first and the last
+        sample's time (so the curves span the run).
+        """
         if self.exact:
             return self._rows()
         idx = np.nonzero(self.seen)[0]
         t = np.repeat(self.t0 + (idx + 0.5) * self.width, 2)
+        if t.size:              # the curves span the samples' times (the axes' limits)
+            t[:2], t[-2:] = self.t_first, self.t_last
         q = np.empty((2 * idx.size, self.fields, self.m))
         q[0::2], q[1::2] = self.lo[idx], self.hi[idx]
         return t, q

@@ -9,8 +9,8 @@
   (coupler or vehicle, value, time) once ``coupler_force_limit`` or ``jerk_limit`` is crossed;
 - ``train_dynamics: brake input``: input age, staleness, emergency (the fail-safe), accepted
   and rejected counts per reason, of the brake inputs and the locomotives' traction commands
-  (``coach_<i>/traction/command``) together, publishers of a wrong message type on an input topic (``wrong_type``:
-  their number; ``wrong_type_topics``: which, with their types; WARN).
+  (``coach_<i>/traction/command``) together, publishers of a wrong message type on an input
+  topic (``wrong_type``: their number; ``wrong_type_topics``: which, with their types; WARN).
 
 The node fills a :class:`SimulationReport` and an :class:`InputReport` under the simulation
 lock; building the message needs no lock.
