@@ -2,16 +2,19 @@
 ``train-dynamics report``: the metrics of a recorded run, as summary.json, summary.md, figures.
 
 Reads ``couplers`` and ``coaches`` from a bag written by ``train-dynamics simulate``, by the
-node's ``record_bag`` or by ``ros2 bag record`` (the same topics), feeds them into
-:class:`train_dynamics.physics.metrics.RunMetrics` (the code the sweep and the node run)
-and writes :func:`train_dynamics.recording.report.write_report`'s files. The run's
-parameters (limits, strokes and slacks, coupler stiffness for the dissipated energy) come
-from ``--params``, else from the bag's ``custom_data`` ``parameters`` (recorded by the node),
-else the limits are off and the dissipated energy is not given.
+node's ``record_bag`` or by ``ros2 bag record`` (the same topics) block by block, feeds them
+into :class:`train_dynamics.physics.metrics.RunMetrics` (the code the sweep and the node run)
+as they are read (:class:`train_dynamics.recording.report.MetricsFeed`; memory does not depend
+on the bag's length, the figures' curves are bounded) and writes
+:func:`train_dynamics.recording.report.write_report`'s files. The run's parameters
+(limits, strokes and slacks, coupler stiffness for the dissipated energy) come from
+``--params``, else from the bag's ``custom_data`` ``parameters`` (recorded by the node), else
+the limits are off and the dissipated energy is not given.
 """
 from __future__ import annotations
 
 import argparse
+from collections.abc import Callable
 import json
 from pathlib import Path
 from typing import Any
@@ -20,9 +23,9 @@ from train_dynamics.cli.errors import CliError, EXIT_ERROR, EXIT_OK
 from train_dynamics.cli.scenario import load_config
 from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
 from train_dynamics.physics.parameters import ConfigError, SimConfig
-from train_dynamics.recording.bags import BagError
-from train_dynamics.recording.history import History, load_history
-from train_dynamics.recording.report import write_report
+from train_dynamics.recording.bags import bag_info, BagError
+from train_dynamics.recording.history import History, stream_history
+from train_dynamics.recording.report import MetricsFeed, write_report
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -45,11 +48,12 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
     r.set_defaults(func=cmd_report)
 
 
-def run_config(args: argparse.Namespace, hist: History) -> tuple[SimConfig | None, str]:
+def run_config(args: argparse.Namespace, info: dict[str, str]
+               ) -> tuple[SimConfig | None, str]:
     """Return the run's parameters and where they came from (None: unknown)."""
     if args.params:
         return load_config(args.params), args.params
-    text = hist.info.get('parameters')
+    text = info.get('parameters')
     if text:
         try:
             return SimConfig.from_dict(json.loads(text), ignore_unknown=True), 'bag custom_data'
@@ -59,27 +63,48 @@ def run_config(args: argparse.Namespace, hist: History) -> tuple[SimConfig | Non
     return None, 'none (limits off; give --params for limits and dissipated energy)'
 
 
+def metrics_factory(cfg: SimConfig | None, **overrides: Any) -> Callable[[int], RunMetrics]:
+    """Return ``make(n_vehicles)``: the run's RunMetrics (``overrides``: keyword arguments)."""
+    def make(n: int) -> RunMetrics:
+        if cfg is not None and cfg.n_coaches != n:
+            raise CliError(f'the bag has {n} vehicles, the parameters {cfg.n_coaches}')
+        return (RunMetrics.for_run(cfg, **overrides) if cfg is not None
+                else RunMetrics(n, **overrides))
+    return make
+
+
 def report_metrics(hist: History, cfg: SimConfig | None, **overrides: Any) -> RunMetrics:
-    """Return the metrics of a loaded run (``overrides``: RunMetrics keyword arguments)."""
-    n = len(hist.coaches.names)
-    if cfg is not None and cfg.n_coaches != n:
-        raise CliError(f'the bag has {n} vehicles, the parameters {cfg.n_coaches}')
-    metrics = (RunMetrics.for_run(cfg, **overrides) if cfg is not None
-               else RunMetrics(n, **overrides))
+    """Return the metrics of a run loaded in memory (``overrides``: RunMetrics arguments)."""
+    metrics = metrics_factory(cfg, **overrides)(len(hist.coaches.names))
     return metrics_of_history(hist, metrics)
+
+
+def read_run(args: argparse.Namespace, overrides: dict[str, Any]
+             ) -> tuple[History, RunMetrics | None, str]:
+    """
+    Read the bag once, block-wise: bounded curves for the figures and the run metrics.
+
+    Return the curves, the metrics (None: no common couplers / coaches sample) and where the
+    parameters came from.
+    """
+    try:
+        info = bag_info(args.bag)
+    except BagError as exc:
+        raise CliError(str(exc)) from None
+    cfg, origin = run_config(args, info.custom_data)
+    feed = MetricsFeed(metrics_factory(cfg, **overrides))
+    try:
+        hist = stream_history(args.bag, namespace=args.namespace, on_block=feed.on_block,
+                              on_reset=feed.on_reset)
+    except BagError as exc:
+        raise CliError(str(exc)) from None
+    return hist, feed.finish(), origin
 
 
 def cmd_report(args: argparse.Namespace) -> int:
     """Run ``report``; return the exit status."""
     if not Path(args.bag).exists():
         raise CliError(f'bag not found: {args.bag}')
-    try:
-        hist = load_history(args.bag, namespace=args.namespace)
-    except BagError as exc:
-        raise CliError(str(exc)) from None
-    if hist.couplers is None or hist.coaches is None or not len(hist.coaches):
-        raise CliError(f'{args.bag}: needs the couplers and coaches topics (JointState)')
-    cfg, origin = run_config(args, hist)
     overrides = {}
     for name in ('coupler_force_limit', 'jerk_limit'):
         value = getattr(args, name)
@@ -87,7 +112,10 @@ def cmd_report(args: argparse.Namespace) -> int:
             if not value >= 0.0:
                 raise CliError(f'--{name.replace("_", "-")} must be >= 0, got {value:g}')
             overrides[name] = value
-    metrics = report_metrics(hist, cfg, **overrides)
+    hist, metrics, origin = read_run(args, overrides)
+    if hist.couplers is None or hist.coaches is None or not len(hist.coaches) \
+            or metrics is None:
+        raise CliError(f'{args.bag}: needs the couplers and coaches topics (JointState)')
     result = metrics.result()
     keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
     model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)

@@ -419,6 +419,26 @@ def input_rejection(absolute: float) -> tuple[str, str] | None:
     return None
 
 
+#: why a traction command is not used (``sim_node`` counts them per reason)
+TRACTION_VALUE_REASONS = ('non_finite', 'out_of_range')
+
+
+def traction_rejection(command: float) -> tuple[str, str] | None:
+    """
+    Return (reason, detail) if a traction command is rejected, else None.
+
+    The one rule for ``sim_node`` and the offline replay of ``coach_<i>/traction/command``
+    (a fraction of the available force, > 0 traction, < 0 dynamic brake): ``non_finite``
+    (NaN, +-inf), ``out_of_range`` (outside [-1, 1]).
+    """
+    c = float(command)
+    if not math.isfinite(c):
+        return 'non_finite', f'command {c}'
+    if not -1.0 <= c <= 1.0:
+        return 'out_of_range', f'command {c:g} outside [-1, 1]'
+    return None
+
+
 # -- what a run costs: memory of the simulator, disk of its outputs ---------------------------
 
 #: [bytes] largest simulator state a configuration may need (delay line + per-coach arrays)

@@ -10,8 +10,9 @@ under a namespace); time comes from ``header.stamp`` (simulation time). The offl
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+import math
 import os
 from pathlib import Path
 import re
@@ -21,6 +22,11 @@ import numpy as np
 from train_dynamics import topics
 from train_dynamics.physics.parameters import PARAMETERS
 from train_dynamics.recording.bags import bag_info, read_topics
+
+#: samples of a topic kept for the figures before min/max decimation sets in
+MAX_PLOT_SAMPLES = 20000
+#: messages of a topic converted at once (numpy on blocks)
+BLOCK_ROWS = 4096
 
 #: [Pa]; converts FluidPressure (absolute) to gauge: the simulator's default
 ATMOSPHERIC_PRESSURE = float(PARAMETERS['atmospheric_pressure'].default)
@@ -61,9 +67,11 @@ class History:
     label: str = ''                                 # e.g. bag name, for titles
     info: dict[str, str] = field(default_factory=dict)   # model description (custom_data)
     notes: list[str] = field(default_factory=list)        # warnings met while loading
+    decimated: list[str] = field(default_factory=list)    # topics drawn as min/max bins
 
 
-def _natural_key(name: str):
+def natural_key(name: str) -> list:
+    """Return the sort key of a joint name in natural order (coupler_2 before coupler_10)."""
     return [int(p) if p.isdigit() else p for p in re.split(r'(\d+)', name)]
 
 
@@ -71,50 +79,331 @@ def _stamp_s(msg) -> float:
     return msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9
 
 
-def _last_run(t: np.ndarray) -> tuple[int, bool]:
-    """Return where the last monotone run of stamps starts, and whether time ran backwards."""
-    back = np.nonzero(np.diff(t) < 0)[0]
-    return (int(back[-1]) + 1, True) if back.size else (0, False)
-
-
-def joint_series(samples: Sequence[tuple[int, object]], topic: str = '',
-                 notes: list[str] | None = None) -> JointSeries | None:
+class Envelope:
     """
-    Turn JointState messages ``[(bag_t_ns, msg), ...]`` into a :class:`JointSeries`.
+    Curves for the figures in bounded memory: every sample, or min/max per time bin.
 
-    Time is the header stamp. Joints are matched by name (columns in natural order:
-    coupler_2 before coupler_10). If the stamps run backwards (the simulator was reset during
-    a recording) only the last run is kept; if every stamp is zero the bag time (from the
-    first message) is used.
+    ``m`` columns of ``fields`` quantities. Rows are kept as they come while there are at most
+    ``limit`` (None: no limit); past it, each quantity is kept as its minimum and maximum over
+    ``limit / 2`` equal time bins (min/max decimation: the figure shows the envelope of the
+    full curve; a 1800-pixel-wide axis cannot show more). With ``expected`` > ``limit`` the
+    bins cover [0, ``duration``] from the start (``compare``: the run's length is known);
+    otherwise they are set up when the rows overflow, over the time the rows spanned, scaled
+    to ``count_hint`` rows (a bag's message count), and a time past the last bin merges bins
+    pairwise (twice as wide) until it fits. Columns can be added (:meth:`widen`): missing
+    values are NaN.
     """
-    if not samples:
-        return None
-    t = np.array([_stamp_s(m) for _, m in samples])
-    if not np.any(t):
-        t = (np.array([n for n, _ in samples], dtype=np.int64) - samples[0][0]) * 1e-9
-        if notes is not None:
-            notes.append(f'{topic}: header stamps are zero, using bag time')
-    start, reset = _last_run(t)
-    if reset and notes is not None:
-        notes.append(f'{topic}: time runs backwards (reset during recording); '
-                     f'plotting the last run only ({len(t) - start} of {len(t)} messages)')
-    samples = samples[start:]
-    t = t[start:]
-    names: dict[str, None] = {}
-    for _, m in samples:
-        for n in m.name:
-            names.setdefault(str(n), None)
-    cols = sorted(names, key=_natural_key)
-    index = {n: j for j, n in enumerate(cols)}
-    arrays = {f: np.full((len(samples), len(cols)), np.nan) for f in ('position', 'velocity',
-                                                                      'effort')}
-    for k, (_, m) in enumerate(samples):
-        idx = [index[str(n)] for n in m.name]
-        for f, arr in arrays.items():
-            vals = np.asarray(getattr(m, f), dtype=float)
-            if vals.shape[0] == len(idx):
-                arr[k, idx] = vals
-    return JointSeries(t, cols, arrays['position'], arrays['velocity'], arrays['effort'])
+
+    def __init__(self, m: int, duration: float = 0.0, expected: int | None = None, *,
+                 fields: int = 3, limit: int | None = MAX_PLOT_SAMPLES,
+                 count_hint: int | None = None) -> None:
+        self.m, self.fields, self.limit = m, fields, limit
+        self.count_hint = count_hint
+        self.rows = 0
+        self._t: list[np.ndarray] = []               # blocks of times (K,)
+        self._q: list[np.ndarray] = []               # blocks of quantities (K, fields, m_k)
+        self.exact = True
+        if limit is not None and expected is not None and expected > limit:
+            self._bins(0.0, duration / (limit // 2))
+
+    @property
+    def decimated(self) -> bool:
+        """Return True once the curves are kept as min/max bins."""
+        return not self.exact
+
+    def _bins(self, t0: float, width: float) -> None:
+        self.exact = False
+        self.bins = self.limit // 2
+        self.t0, self.width = t0, width if width > 0 else 1.0
+        shape = (self.bins, self.fields, self.m)
+        self.lo = np.full(shape, np.inf)
+        self.hi = np.full(shape, -np.inf)
+        self.seen = np.zeros(self.bins, dtype=bool)
+        self.t_first, self.t_last = math.inf, -math.inf      # [s] of the samples binned
+
+    def widen(self, k: int) -> None:
+        """Add ``k`` columns (NaN before now)."""
+        if k <= 0:
+            return
+        self.m += k
+        if not self.exact:
+            pad = np.where(self.seen[:, None, None], np.nan, np.inf)
+            pad = np.broadcast_to(pad, (self.bins, self.fields, k))
+            self.lo = np.concatenate([self.lo, pad], axis=2)
+            self.hi = np.concatenate([self.hi, -pad], axis=2)
+
+    def add(self, t: np.ndarray, q: np.ndarray) -> None:
+        """Add a block: times ``t`` (K,) increasing, quantities ``q`` (K, fields, m)."""
+        if self.exact:
+            self._t.append(t)
+            self._q.append(q)
+            self.rows += t.shape[0]
+            if self.limit is not None and self.rows > self.limit:
+                self._overflow()
+            return
+        self.rows += t.shape[0]
+        if t.size:
+            self.t_first = min(self.t_first, float(t[0]))
+            self.t_last = max(self.t_last, float(t[-1]))
+        idx = np.floor((t - self.t0) / self.width)
+        while idx.size and idx.max() > self.bins:
+            self._coarsen()
+            idx = np.floor((t - self.t0) / self.width)
+        b = np.clip(idx, 0, self.bins - 1).astype(np.int64)
+        np.minimum.at(self.lo, b, q)
+        np.maximum.at(self.hi, b, q)
+        self.seen[b] = True
+
+    def _overflow(self) -> None:
+        """Turn the rows kept so far into bins (past ``limit`` rows)."""
+        t, q = self._rows()
+        self._t, self._q = [], []
+        rows = t.shape[0]
+        span = float(t[-1] - t[0])
+        expect = max(self.count_hint or 0, rows)
+        self._bins(float(t[0]), span * (expect - 1) / max(rows - 1, 1) / (self.limit // 2))
+        self.rows = 0
+        self.add(t, q)
+
+    def _coarsen(self) -> None:
+        """Merge the bins pairwise: twice as wide, the second half empty."""
+        half = self.bins // 2
+        for arr, op in ((self.lo, np.minimum), (self.hi, np.maximum)):
+            arr[:half] = op(arr[0:2 * half:2], arr[1:2 * half:2])
+            if self.bins % 2:
+                arr[half] = arr[self.bins - 1]
+            arr[half + self.bins % 2:] = np.inf if op is np.minimum else -np.inf
+        seen = self.seen[0:2 * half:2] | self.seen[1:2 * half:2]
+        last = self.seen[self.bins - 1] if self.bins % 2 else None
+        self.seen[:] = False
+        self.seen[:half] = seen
+        if last is not None:
+            self.seen[half] = last
+        self.width *= 2
+
+    def _rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Return the kept rows: t (K,), q (K, fields, m) (columns added later: NaN)."""
+        if not self._t:
+            return np.zeros(0), np.zeros((0, self.fields, self.m))
+        if len(self._t) == 1 and self._q[0].shape[2] == self.m:
+            return self._t[0], self._q[0]
+        q = np.full((self.rows, self.fields, self.m), np.nan)
+        k = 0
+        for block in self._q:
+            q[k:k + block.shape[0], :, :block.shape[2]] = block
+            k += block.shape[0]
+        return np.concatenate(self._t), q
+
+    def curves(self) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return t (K,) and the quantities (K, fields, m): the rows, or each bin's min and max.
+
+        A bin's pair is drawn at its middle; the first and the last at the first and the last
+        sample's time (so the curves span the run).
+        """
+        if self.exact:
+            return self._rows()
+        idx = np.nonzero(self.seen)[0]
+        t = np.repeat(self.t0 + (idx + 0.5) * self.width, 2)
+        if t.size:              # the curves span the samples' times (the axes' limits)
+            t[:2], t[-2:] = self.t_first, self.t_last
+        q = np.empty((2 * idx.size, self.fields, self.m))
+        q[0::2], q[1::2] = self.lo[idx], self.hi[idx]
+        return t, q
+
+    def series(self, names: list[str]) -> tuple[JointSeries, bool]:
+        """Return the curves (3 fields) as a JointSeries and whether they are decimated."""
+        t, q = self.curves()
+        return JointSeries(t.copy(), names, q[:, 0], q[:, 1], q[:, 2]), self.decimated
+
+
+def _joint_values(msg) -> tuple[Sequence[str], tuple[Sequence[float], ...]]:
+    return msg.name, (msg.position, msg.velocity, msg.effort)
+
+
+class TopicStream:
+    """
+    One topic of a bag read message by message into bounded curves (:class:`Envelope`).
+
+    Time is the header stamp; if every stamp is zero the bag time (from the first message) is
+    used (zero stamps before the first non-zero one are t = 0; past a block of them the
+    topic restarts at the first non-zero one). Stamps that
+    run backwards (the simulator was reset during a recording) restart the topic: only the
+    last run is kept. Joints are matched by name, columns in natural order (coupler_2 before
+    coupler_10). Blocks of :data:`BLOCK_ROWS` messages go to the envelope and to
+    ``on_block(topic, t, q, names)`` (``q`` (K, fields, M), ``names`` of the M columns in
+    arrival order); ``on_reset(topic)`` is called when the topic restarts.
+    """
+
+    def __init__(self, topic: str, *, fields: int = 3, values: Callable = _joint_values,
+                 limit: int | None = MAX_PLOT_SAMPLES, count_hint: int | None = None,
+                 on_block: Callable | None = None, on_reset: Callable | None = None) -> None:
+        self.topic, self.fields, self._values = topic, fields, values
+        self.limit, self.count_hint = limit, count_hint
+        self.on_block, self.on_reset = on_block, on_reset
+        self.index: dict[str, int] = {}              # name -> column (arrival order)
+        self.total = 0                               # messages read
+        self.kept = 0                                # messages of the last run
+        self.reset = False
+        self.zero_stamps = True                      # every stamp so far is 0
+        self._first_ns: int | None = None
+        self._last_t = -math.inf
+        self._names_cache: tuple[tuple, list[int]] = ((), [])
+        self._block: list[tuple[float, list[int], tuple]] = []
+        self.envelope = self._new_envelope()
+
+    def _new_envelope(self) -> Envelope:
+        return Envelope(len(self.index), fields=self.fields, limit=self.limit,
+                        count_hint=self.count_hint)
+
+    def add(self, t_ns: int, msg) -> None:
+        """Take one message received at bag time ``t_ns``."""
+        if self._first_ns is None:
+            self._first_ns = t_ns
+        self.total += 1
+        t = _stamp_s(msg)
+        if self.zero_stamps:
+            if t == 0.0:
+                t = (t_ns - self._first_ns) * 1e-9
+            else:
+                self.zero_stamps = False
+                self._zero_prefix()
+        if t < self._last_t:
+            self.reset = True
+            self._restart()
+        self._last_t = t
+        names, vals = self._values(msg)
+        key = tuple(names)
+        if key != self._names_cache[0]:
+            idx = [self.index.setdefault(str(n), len(self.index)) for n in names]
+            self._names_cache = (key, idx)
+        self._block.append((t, self._names_cache[1], vals))
+        self.kept += 1
+        if len(self._block) >= BLOCK_ROWS:
+            self.flush()
+
+    def _zero_prefix(self) -> None:
+        """Give the messages with a zero stamp before the first non-zero one t = 0."""
+        if self.kept > len(self._block):      # already flushed: a recording without stamps
+            self._restart()                   # for a while; drop that part
+            return
+        self._block = [(0.0, idx, vals) for _, idx, vals in self._block]
+        self._last_t = 0.0 if self._block else -math.inf
+
+    def _restart(self) -> None:
+        """Drop the run so far (its last block included)."""
+        self._block = []
+        self.kept = 0
+        self.envelope = self._new_envelope()
+        if self.on_reset is not None:
+            self.on_reset(self.topic)
+
+    def flush(self) -> None:
+        """Put the buffered messages into the curves (and ``on_block``)."""
+        if not self._block:
+            return
+        block, self._block = self._block, []
+        m = len(self.index)
+        self.envelope.widen(m - self.envelope.m)
+        t = np.array([row[0] for row in block])
+        q = np.full((len(block), self.fields, m), np.nan)
+        for k, (_, idx, vals) in enumerate(block):
+            for f, v in enumerate(vals):
+                v = np.asarray(v, dtype=float)
+                if v.shape == (len(idx),):
+                    q[k, f, idx] = v
+        self.envelope.add(t, q)
+        if self.on_block is not None:
+            self.on_block(self.topic, t, q, list(self.index))
+
+    def curves(self) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """Return t (K,), q (K, fields, M) and the M names of the last run, natural order."""
+        self.flush()
+        t, q = self.envelope.curves()
+        cols = sorted(self.index, key=natural_key)
+        perm = [self.index[n] for n in cols]
+        q = q[:, :, perm] if perm != list(range(len(perm))) else q
+        return t.copy(), q, cols
+
+    def series(self) -> JointSeries | None:
+        """Return the curves of a JointState topic (None: no message)."""
+        if not self.total:
+            return None
+        t, q, cols = self.curves()
+        return JointSeries(t, cols, q[:, 0], q[:, 1], q[:, 2])
+
+    def notes(self) -> list[str]:
+        """Return what the reader met: zero stamps, a reset."""
+        out = []
+        if self.total and self.zero_stamps:
+            out.append(f'{self.topic}: header stamps are zero, using bag time')
+        if self.reset:
+            out.append(f'{self.topic}: time runs backwards (reset during recording); '
+                       f'plotting the last run only ({self.kept} of {self.total} messages)')
+        return out
+
+
+#: History attributes of the JointState topics, in the order notes are given
+_JOINT_ATTRS = ((topics.COUPLERS_TOPIC, 'couplers'), (topics.COACHES_TOPIC, 'coaches'),
+                (topics.BRAKE_CYLINDERS_TOPIC, 'cylinders'),
+                (topics.BRAKE_RESERVOIRS_TOPIC, 'reservoirs'),
+                (topics.VEHICLE_FORCES_TOPIC, 'forces'))
+
+
+def stream_history(bag: str | os.PathLike, *, namespace: str = '',
+                   atmospheric_pressure: float = ATMOSPHERIC_PRESSURE, keep_all: bool = False,
+                   on_block: Callable | None = None,
+                   on_reset: Callable | None = None) -> History:
+    """
+    Read the output topics of a bag block-wise into bounded curves (:class:`TopicStream`).
+
+    Memory does not depend on the bag's length: each topic keeps at most
+    :data:`MAX_PLOT_SAMPLES` rows (``keep_all``: every row), then min/max bins
+    (``History.decimated`` says which topics). ``on_block`` /
+    ``on_reset`` see every block of every topic (short names: ``couplers``, ...), e.g. to
+    compute the run metrics as the bag is read. ``namespace``: the node's namespace if it
+    ran in one. Raises :class:`train_dynamics.recording.bags.BagError` for an unreadable bag.
+    """
+    ns = namespace.strip('/')
+    prefix = f'{ns}/' if ns else ''
+    info = bag_info(bag)
+    hist = History(label=Path(bag).name, info=dict(info.custom_data))
+    limit = None if keep_all else MAX_PLOT_SAMPLES
+    streams: dict[str, TopicStream] = {}
+    for short, kind in _HISTORY_TOPICS.items():
+        topic = prefix + short
+        if topic not in info.topics:
+            continue
+        if not info.topics[topic][0].endswith('/' + kind):
+            hist.notes.append(f'{topic}: type {info.topics[topic][0]} ignored')
+            continue
+        opts = {'limit': limit, 'count_hint': info.topics[topic][1], 'on_block': on_block,
+                'on_reset': on_reset}
+        if short == topics.HEAD_PIPE_TOPIC:
+            streams[topic] = TopicStream(short, fields=1, values=_head_values(
+                atmospheric_pressure), **opts)
+        else:
+            streams[topic] = TopicStream(short, **opts)
+    for topic, t_ns, msg in read_topics(bag, list(streams)):
+        streams[topic].add(t_ns, msg)
+    by_short = {s.topic: s for s in streams.values()}
+    for short, attr in _JOINT_ATTRS:
+        if short in by_short:
+            setattr(hist, attr, by_short[short].series())
+            hist.notes.extend(by_short[short].notes())
+    head = by_short.get(topics.HEAD_PIPE_TOPIC)
+    if head is not None and head.total:
+        t, q, _ = head.curves()
+        hist.head_pressure = (t, q[:, 0, 0])
+    hist.decimated = [s.topic for s in streams.values() if s.envelope.decimated]
+    return hist
+
+
+def _head_values(atmospheric_pressure: float) -> Callable:
+    """Return the values of a FluidPressure: one column, gauge pressure [Pa]."""
+    def values(msg):
+        return ('head',), ((msg.fluid_pressure - atmospheric_pressure,),)
+    return values
 
 
 def load_history(bag: str | os.PathLike, *, namespace: str = '',
@@ -122,39 +411,13 @@ def load_history(bag: str | os.PathLike, *, namespace: str = '',
     """
     Read ``couplers``, ``coaches``, ``brake_cylinders``, ``vehicle_forces``, the head pipe.
 
-    ``namespace``: the node's namespace if it ran in one (``/train1`` reads
-    ``/train1/couplers``). Raises :class:`train_dynamics.recording.bags.BagError` for an
-    unreadable bag.
+    Every sample, in memory (:func:`stream_history` with ``keep_all``); for long bags use
+    :func:`stream_history`. ``namespace``: the node's namespace if it ran in one
+    (``/train1`` reads ``/train1/couplers``). Raises
+    :class:`train_dynamics.recording.bags.BagError` for an unreadable bag.
     """
-    ns = namespace.strip('/')
-    prefix = f'{ns}/' if ns else ''
-    wanted = {prefix + n: n for n in _HISTORY_TOPICS}
-    info = bag_info(bag)
-    data: dict[str, list] = {n: [] for n in wanted.values()}
-    hist = History(label=Path(bag).name, info=dict(info.custom_data))
-    usable = []
-    for topic, short in wanted.items():
-        if topic in info.topics:
-            if info.topics[topic][0].endswith('/' + _HISTORY_TOPICS[short]):
-                usable.append(topic)
-            else:
-                hist.notes.append(f'{topic}: type {info.topics[topic][0]} ignored')
-    for topic, t_ns, msg in read_topics(bag, usable):
-        data[wanted[topic]].append((t_ns, msg))
-    for name, attr in ((topics.COUPLERS_TOPIC, 'couplers'), (topics.COACHES_TOPIC, 'coaches'),
-                       (topics.BRAKE_CYLINDERS_TOPIC, 'cylinders'),
-                       (topics.BRAKE_RESERVOIRS_TOPIC, 'reservoirs'),
-                       (topics.VEHICLE_FORCES_TOPIC, 'forces')):
-        setattr(hist, attr, joint_series(data[name], name, hist.notes))
-    if data[topics.HEAD_PIPE_TOPIC]:
-        samples = data[topics.HEAD_PIPE_TOPIC]
-        t = np.array([_stamp_s(m) for _, m in samples])
-        if not np.any(t):
-            t = (np.array([n for n, _ in samples], dtype=np.int64) - samples[0][0]) * 1e-9
-        p = np.array([m.fluid_pressure for _, m in samples]) - atmospheric_pressure
-        start, _ = _last_run(t)
-        hist.head_pressure = (t[start:], p[start:])
-    return hist
+    return stream_history(bag, namespace=namespace, atmospheric_pressure=atmospheric_pressure,
+                          keep_all=True)
 
 
 def sign_changes_per_second(t: np.ndarray, values: np.ndarray, tol: float = 1e-9) -> np.ndarray:

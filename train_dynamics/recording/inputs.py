@@ -14,12 +14,12 @@ from __future__ import annotations
 
 from collections.abc import Callable, Sequence
 import logging
-import math
 from pathlib import Path
 from typing import Any
 
 from train_dynamics import topics
-from train_dynamics.physics.parameters import input_rejection, INPUT_VALUE_REASONS
+from train_dynamics.physics.parameters import (input_rejection, INPUT_VALUE_REASONS,
+                                               traction_rejection)
 from train_dynamics.physics.runner import BrakeInputs, InputEvent, step_of, TractionEvent
 from train_dynamics.recording.bags import bag_info, BagError, BagInfo, read_topics
 
@@ -83,8 +83,9 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
     Return the traction commands (``coach_<i>/traction/command``, Float64) in the bag.
 
     Only locomotives (vehicles with traction or dynamic brake) take a command; a value that is
-    not finite or outside [-1, 1] is rejected (counted, reported through ``warn``). Empty when
-    the bag has no traction topic.
+    not finite or outside [-1, 1] is rejected by the node's rule
+    (:func:`train_dynamics.physics.parameters.traction_rejection`; counted, reported through
+    ``warn``). Empty when the bag has no traction topic.
     """
     ns = namespace.strip('/')
     try:
@@ -111,7 +112,7 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
     try:
         for topic, t_ns, msg in read_topics(path, list(selected)):
             c = float(msg.data)
-            if not (math.isfinite(c) and -1.0 <= c <= 1.0):
+            if traction_rejection(c) is not None:
                 rejected += 1
                 continue
             rel_ns = t_ns - info.start_ns

@@ -1,7 +1,7 @@
 """
 Figures of a run: the paper's figs. 5-7 / 9-11 from any bag that holds ``couplers``.
 
-:func:`plot_bag` reads a bag (:func:`train_dynamics.recording.history.load_history`) and
+:func:`plot_bag` reads a bag (:func:`train_dynamics.recording.history.stream_history`) and
 :func:`plot_history` draws, one curve per coupler, in engineering units with the SI quantity
 in the label:
 
@@ -33,7 +33,7 @@ from matplotlib.figure import Figure
 import numpy as np
 
 from train_dynamics import topics
-from train_dynamics.recording.history import History, load_history
+from train_dynamics.recording.history import History, stream_history
 
 #: Figure sizes [inch] and resolution [dpi]; SIZE_PX gives the PNG sizes in pixels.
 DPI = 120
@@ -278,8 +278,14 @@ def _plot_coaches(hist: History, path: Path, sub: str) -> Path:
 
 def plot_bag(bag: str | os.PathLike, outdir: str | os.PathLike, *, namespace: str = '',
              title: str | None = None) -> list[Path]:
-    """Read a bag and write its figures (:func:`plot_history`); raise PlotError / BagError."""
-    hist = load_history(bag, namespace=namespace)
+    """
+    Read a bag and write its figures (:func:`plot_history`); raise PlotError / BagError.
+
+    The bag is read block-wise into bounded curves
+    (:func:`train_dynamics.recording.history.stream_history`): memory does not depend on its
+    length; past 20000 samples a topic is drawn as its min/max envelope.
+    """
+    hist = stream_history(bag, namespace=namespace)
     if hist.couplers is None:
         raise PlotError(f'{bag}: no {topics.COUPLERS_TOPIC} topic ({topics.JOINT_STATE}) in '
                         'the bag')

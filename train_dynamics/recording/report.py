@@ -16,7 +16,7 @@ The report of a run and the figures of a sweep (``train-dynamics report`` / ``sw
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 import json
 import math
 import os
@@ -26,12 +26,16 @@ from typing import Any
 from matplotlib.ticker import MaxNLocator
 import numpy as np
 
-from train_dynamics.recording.history import History
+from train_dynamics import topics
+from train_dynamics.physics.metrics import RunMetrics
+from train_dynamics.recording.history import History, natural_key
 from train_dynamics.recording.plots import (_new_figure, _save, _set_xlim, _style,
                                             plot_history, PlotError)
 
 #: how many rows of couplers / vehicles ``summary.md`` lists (the worst ones first)
 MD_ROWS = 20
+#: samples fed to the run metrics at once by :class:`MetricsFeed` (and the most it holds)
+FEED_ROWS = 20000
 
 _UNITS = {'max_tension': ('kN', 1e-3), 'max_compression': ('kN', 1e-3),
           'stopping_distance': ('m', 1.0), 'stopping_time': ('s', 1.0),
@@ -61,6 +65,89 @@ def write_report(result: dict[str, Any], hist: History, outdir: str | os.PathLik
     except PlotError:
         pass
     return paths
+
+
+class MetricsFeed:
+    """
+    Feed :class:`train_dynamics.physics.metrics.RunMetrics` from a bag as it is read.
+
+    Give :meth:`on_block` / :meth:`on_reset` to
+    :func:`train_dynamics.recording.history.stream_history`. The samples fed are those where
+    ``couplers`` and ``coaches`` share a header stamp (rounded to 1 ns, the first of equal
+    stamps), as :func:`train_dynamics.physics.metrics.metrics_of_history` takes them from
+    whole arrays; they go to the metrics in blocks of :data:`FEED_ROWS` (a run of at most
+    that many samples in one block: the very numbers of the in-memory report). Columns are
+    those of each topic's first block in natural order (coupler_2 before coupler_10). A
+    topic that restarts (reset during the recording) restarts the metrics: the last run
+    counts. ``make_metrics(n_vehicles)`` creates the accumulator.
+    """
+
+    def __init__(self, make_metrics: Callable[[int], RunMetrics]) -> None:
+        self.make_metrics = make_metrics
+        self.metrics: RunMetrics | None = None
+        self._cols: dict[str, list[str]] = {}
+        self._pending: dict[str, tuple[np.ndarray, np.ndarray] | None] = {}
+        self._ready: list[tuple[np.ndarray, ...]] = []
+        self._ready_rows = 0
+        self._last_key = -math.inf
+
+    def on_reset(self, topic: str) -> None:
+        """Restart the metrics when ``couplers`` or ``coaches`` restarts."""
+        if topic in (topics.COUPLERS_TOPIC, topics.COACHES_TOPIC):
+            self._pending[topic] = None
+            self._ready, self._ready_rows = [], 0
+            self._last_key = -math.inf
+            if self.metrics is not None:
+                self.metrics = self.make_metrics(self.metrics.n)
+
+    def on_block(self, topic: str, t: np.ndarray, q: np.ndarray, names: list[str]) -> None:
+        """Take a block of ``couplers`` or ``coaches`` (t (K,), q (K, 3, M), M names)."""
+        if topic not in (topics.COUPLERS_TOPIC, topics.COACHES_TOPIC):
+            return
+        cols = self._cols.setdefault(topic, sorted(names, key=natural_key))
+        where = {n: j for j, n in enumerate(names)}
+        fixed = np.full((q.shape[0], 3, len(cols)), np.nan)
+        for j, n in enumerate(cols):
+            if n in where:
+                fixed[:, :, j] = q[:, :, where[n]]
+        key = np.round(t, 9)
+        new = key > self._last_key
+        old = self._pending.get(topic)
+        rows = (key[new], t[new], fixed[new])
+        self._pending[topic] = rows if old is None else tuple(
+            np.concatenate([a, b]) for a, b in zip(old, rows))
+        self._match()
+
+    def _match(self) -> None:
+        cp, co = (self._pending.get(k) for k in (topics.COUPLERS_TOPIC, topics.COACHES_TOPIC))
+        if cp is None or co is None:
+            return
+        _, ic, iv = np.intersect1d(cp[0], co[0], return_indices=True)
+        if ic.size:
+            self._ready.append((cp[1][ic], cp[2][ic], co[2][iv]))
+            self._ready_rows += ic.size
+            self._last_key = float(cp[0][ic[-1]])
+            if self._ready_rows >= FEED_ROWS:
+                self._feed()
+        for k in (topics.COUPLERS_TOPIC, topics.COACHES_TOPIC):
+            key, t, q = self._pending[k]
+            keep = key > self._last_key
+            keep[:max(keep.size - FEED_ROWS, 0)] = False      # never matched: bounded
+            self._pending[k] = (key[keep], t[keep], q[keep])
+
+    def _feed(self) -> None:
+        if not self._ready:
+            return
+        t, c, v = (np.concatenate(parts) for parts in zip(*self._ready))
+        self._ready, self._ready_rows = [], 0
+        if self.metrics is None:
+            self.metrics = self.make_metrics(v.shape[2])
+        self.metrics.add_block(t, c[:, 0], c[:, 1], c[:, 2], v[:, 0], v[:, 1], v[:, 2])
+
+    def finish(self) -> RunMetrics | None:
+        """Feed what is left; return the metrics (None: no common sample)."""
+        self._feed()
+        return self.metrics
 
 
 def _worst(train: dict[str, Any]) -> tuple[str, int, float, float | None]:

@@ -5,7 +5,8 @@ A run of ``train-dynamics compare`` summarised as it goes: memory independent of
 of one compare run. It keeps, in blocks of at most :data:`BLOCK_ROWS` samples or
 :data:`BLOCK_SPAN` s:
 
-- the curves for the figures (:class:`Envelope`): every sample while a run has at most
+- the curves for the figures (:class:`train_dynamics.recording.history.Envelope`, as for a
+  bag's figures): every sample while a run has at most
   :data:`MAX_PLOT_SAMPLES`, else the minimum and the maximum of each of
   ``MAX_PLOT_SAMPLES / 2`` equal time bins (min/max decimation: the figure shows the same
   envelope as the full curve; a 1800-pixel-wide axis cannot show more);
@@ -30,10 +31,12 @@ import numpy as np
 from train_dynamics import topics
 from train_dynamics.physics import couplers
 from train_dynamics.physics.runner import Sample
-from train_dynamics.recording.history import History, JointSeries
+from train_dynamics.recording import history
+from train_dynamics.recording.history import Envelope, History
 
-#: samples of a run kept for the figures before min/max decimation sets in
-MAX_PLOT_SAMPLES = 20000
+#: samples of a run kept for the figures before min/max decimation sets in (the figures of
+#: a bag use the same, :data:`train_dynamics.recording.history.MAX_PLOT_SAMPLES`)
+MAX_PLOT_SAMPLES = history.MAX_PLOT_SAMPLES
 #: samples summarised at once (numpy on blocks), and the longest block [s]
 BLOCK_ROWS = 4096
 BLOCK_SPAN = 0.1
@@ -83,47 +86,6 @@ def zoom_candidates(flips: np.ndarray, width: float, final_before: float
     return Candidate(c, float(flips[k]), float(flips[k] + flips[k + c - 1]) / 2, -1), done
 
 
-class Envelope:
-    """The curves of one run for the figures, at most :data:`MAX_PLOT_SAMPLES` rows."""
-
-    def __init__(self, m: int, duration: float, expected: int) -> None:
-        self.exact = expected <= MAX_PLOT_SAMPLES
-        self.m = m
-        if self.exact:
-            self._rows: list[np.ndarray] = []          # blocks of (t, y, yd, F) columns
-            return
-        self.bins = MAX_PLOT_SAMPLES // 2
-        self.width = duration / self.bins
-        shape = (self.bins, 3, m)
-        self.lo = np.full(shape, np.inf)
-        self.hi = np.full(shape, -np.inf)
-        self.seen = np.zeros(self.bins, dtype=bool)
-
-    def add(self, t: np.ndarray, q: np.ndarray) -> None:
-        """Add a block: times ``t`` (K,), quantities ``q`` (K, 3, m): y, ydot, F."""
-        if self.exact:
-            self._rows.append(np.concatenate([np.repeat(t[:, None], self.m, 1)[:, None], q],
-                                             axis=1))
-            return
-        b = np.minimum((t / self.width).astype(np.int64), self.bins - 1)
-        np.minimum.at(self.lo, b, q)
-        np.maximum.at(self.hi, b, q)
-        self.seen[b] = True
-
-    def series(self, names: list[str]) -> tuple[JointSeries, bool]:
-        """Return the curves as a JointSeries and whether they are decimated."""
-        if self.exact:
-            rows = (np.concatenate(self._rows) if self._rows
-                    else np.zeros((0, 4, self.m)))
-            return JointSeries(rows[:, 0, 0].copy(), names, rows[:, 1], rows[:, 2],
-                               rows[:, 3]), False
-        idx = np.nonzero(self.seen)[0]
-        t = np.repeat((idx + 0.5) * self.width, 2)
-        q = np.empty((2 * idx.size, 3, self.m))
-        q[0::2], q[1::2] = self.lo[idx], self.hi[idx]
-        return JointSeries(t, names, q[:, 0], q[:, 1], q[:, 2]), True
-
-
 class RunSummary:
     """
     The output sink of one compare run (see the module documentation).
@@ -139,7 +101,7 @@ class RunSummary:
         self.n, self.m = n, n - 1
         self.duration, self.width = duration, width
         self.track, self.capture = track, capture
-        self.envelope = Envelope(self.m, duration, expected)
+        self.envelope = Envelope(self.m, duration, expected, limit=MAX_PLOT_SAMPLES)
         self.fmax = np.full(self.m, -np.inf)
         self.fmin = np.full(self.m, np.inf)
         self.changes = np.zeros(self.m, dtype=np.int64)

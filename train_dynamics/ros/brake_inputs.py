@@ -28,7 +28,10 @@ Stale inputs: ``input_timeout`` > 0 s (wall) without a brake input (any coach of
 is reported in ``/diagnostics``; ``on_input_timeout`` ``hold`` keeps the last values, ``emergency``
 applies the fail-safe (head pipe vented / all pipe pressures 0 gauge / all cylinders at
 ``max_cylinder_pressure``) until every input is fresh again. The fail-safe pressures are recorded
-with ``frame_id`` ``train_dynamics/input_timeout``.
+with ``frame_id`` ``train_dynamics/input_timeout``. The locomotives' traction commands go stale
+by the same timeout and policy (:mod:`train_dynamics.ros.traction_inputs`: the fail-safe sets
+them to 0); ``/diagnostics`` reports both together (:attr:`BrakeInputs.stale`,
+:attr:`BrakeInputs.emergency`, :attr:`BrakeInputs.stale_names`, :meth:`BrakeInputs.max_age`).
 """
 from __future__ import annotations
 
@@ -156,7 +159,7 @@ class BrakeInputs:
         self._subs: dict[str, Any] = {}       # resolved topic name -> subscription
         self._sub_info: dict[str, tuple[str, str | None, int | None]] = {}
         self._n_base_subs = 0
-        self.accepted = 0
+        self._accepted = 0
         self.rejected = dict.fromkeys(REJECT_REASONS, 0)
         self.last_rejected = ''
         self.wrong_type: dict[str, list[str]] = {}     # input topic -> wrong publisher types
@@ -169,9 +172,9 @@ class BrakeInputs:
         self.on_timeout = 'hold'
         self.wait_for_input = 0.0             # [s wall]
         self._failsafe_cylinder = 0.0         # [Pa gauge] max_cylinder_pressure
-        self.stale = False
-        self.emergency = False
-        self.stale_names: list[str] = []
+        self._stale = False
+        self._emergency = False
+        self._stale_names: list[str] = []
         self._stale_count = 0
         self._wait_since: float | None = None
         self._wait_ready: float | None = None
@@ -180,6 +183,27 @@ class BrakeInputs:
 
     def _reject_traction(self, resolved: str, reason: str, detail: str) -> None:
         self._reject(resolved, Rejected(reason, detail))
+
+    # -- what /diagnostics reports: brake inputs and traction commands together ------------
+    @property
+    def stale(self) -> bool:
+        """Return True while a brake input or a traction command is stale."""
+        return self._stale or bool(self.traction.stale_names)
+
+    @property
+    def emergency(self) -> bool:
+        """Return True while a fail-safe holds (emergency brake, or a traction command 0)."""
+        return self._emergency or self.traction.emergency
+
+    @property
+    def stale_names(self) -> list[str]:
+        """Return the stale brake inputs, then the stale traction-command topics."""
+        return (self._stale_names if self._stale else []) + self.traction.stale_names
+
+    @property
+    def accepted(self) -> int:
+        """Return the accepted brake inputs and traction commands."""
+        return self._accepted + self.traction.accepted
 
     # -- a run (executor thread, simulation lock held) -------------------------------------
     def start(self, cfg: SimConfig, n: int, recording: bool) -> None:
@@ -191,9 +215,9 @@ class BrakeInputs:
             self._buffer = buffer
         self.set_policy(cfg.input_timeout, cfg.on_input_timeout)
         self._failsafe_cylinder = float(cfg.max_cylinder_pressure)
-        self.stale = False
-        self.emergency = False
-        self.stale_names = []
+        self._stale = False
+        self._emergency = False
+        self._stale_names = []
         self._stale_count = 0
         self._wait_since = None
         self._update_subscriptions(mode, n)
@@ -306,7 +330,7 @@ class BrakeInputs:
             buffer.dirty = True
             if buffer.recording:
                 buffer.records.append((rel, bytes(data)))
-        self.accepted += 1
+        self._accepted += 1
 
     def _reject(self, resolved: str, exc: Rejected) -> None:
         self.rejected[exc.reason] += 1
@@ -317,10 +341,11 @@ class BrakeInputs:
             self._log.warning(f'rejected input on {resolved}: {exc}{more}')
 
     def max_age(self, now: float) -> float:
-        """Return the age [s wall] of the oldest input."""
+        """Return the age [s wall] of the oldest input (brake inputs and traction commands)."""
         with self._in_lock:
             ages = now - self._buffer.arrival
-            return float(np.max(ages)) if ages.size else 0.0
+            age = float(np.max(ages)) if ages.size else 0.0
+        return max(age, self.traction.max_age(now))
 
     # -- the simulation thread (simulation lock held) --------------------------------------
     def discard_records(self) -> None:
@@ -336,15 +361,15 @@ class BrakeInputs:
             return
         dirty, stale, values, raws, records = news
         t_ns = time_ns(sim.t)
-        if stale != self.stale:
+        if stale != self._stale:
             self._report_stale(stale)
         if stale and self.on_timeout == 'emergency':
-            if not self.emergency:
+            if not self._emergency:
                 self._enter_failsafe(sim, t_ns, record)
             return       # inputs arriving meanwhile wait until every input is fresh
-        if self.emergency:
+        if self._emergency:
             # Back from the fail-safe: the latest value of every input holds again.
-            self.emergency = False
+            self._emergency = False
             self._set(sim, values)
             buffer = self._buffer
             for k, topic in enumerate(buffer.topics):
@@ -365,29 +390,29 @@ class BrakeInputs:
             if self.timeout > 0.0:
                 stale_idx = np.nonzero(now - buffer.arrival > self.timeout)[0]
                 stale = stale_idx.size > 0
-                if stale != self.stale or (stale and stale_idx.size != self._stale_count):
-                    self.stale_names = [buffer.topics[k] for k in stale_idx[:10]]
+                if stale != self._stale or (stale and stale_idx.size != self._stale_count):
+                    self._stale_names = [buffer.topics[k] for k in stale_idx[:10]]
                     if stale_idx.size > 10:
-                        self.stale_names.append(f'... ({stale_idx.size} inputs)')
+                        self._stale_names.append(f'... ({stale_idx.size} inputs)')
                     self._stale_count = stale_idx.size
             dirty = buffer.dirty
-            if not dirty and stale == self.stale and \
-                    self.emergency == (stale and self.on_timeout == 'emergency'):
+            if not dirty and stale == self._stale and \
+                    self._emergency == (stale and self.on_timeout == 'emergency'):
                 return None
             buffer.dirty = False
             records, buffer.records = buffer.records, []
             return dirty, stale, buffer.value.copy(), list(buffer.raw), records
 
     def _report_stale(self, stale: bool) -> None:
-        self.stale = stale
+        self._stale = stale
         if stale:
-            what = ', '.join(self.stale_names)
+            what = ', '.join(self._stale_names)
             self._log.warning(
                 f'brake input stale: nothing for more than {self.timeout:g} s on {what}; '
                 + ('applying the emergency brake' if self.on_timeout == 'emergency'
                    else 'holding the last values'))
         else:
-            self.stale_names = []
+            self._stale_names = []
             self._log.info('brake input fresh again')
 
     def _enter_failsafe(self, sim: TrainSimulator, t_ns: int, record: Record) -> None:
@@ -401,7 +426,7 @@ class BrakeInputs:
         for k, topic in enumerate(buffer.topics):
             record(topic, topics.FLUID_PRESSURE, t_ns,
                    self._synthetic(sim, fail[k], 'train_dynamics/input_timeout'))
-        self.emergency = True
+        self._emergency = True
 
     def _set(self, sim: TrainSimulator, values: np.ndarray) -> None:
         mode = self._buffer.mode

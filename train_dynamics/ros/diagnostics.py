@@ -7,9 +7,10 @@
   (:class:`train_dynamics.physics.metrics.RunMetrics`: largest tension and compression with
   coupler and time, deceleration, jerk, blocking, impacts), WARN with the worst crossing
   (coupler or vehicle, value, time) once ``coupler_force_limit`` or ``jerk_limit`` is crossed;
-- ``train_dynamics: brake input``: input age, staleness, emergency, accepted and rejected
-  counts per reason, publishers of a wrong message type on an input topic (``wrong_type``:
-  their number; ``wrong_type_topics``: which, with their types; WARN).
+- ``train_dynamics: brake input``: input age, staleness, emergency (the fail-safe), accepted
+  and rejected counts per reason, of the brake inputs and the locomotives' traction commands
+  (``coach_<i>/traction/command``) together, publishers of a wrong message type on an input
+  topic (``wrong_type``: their number; ``wrong_type_topics``: which, with their types; WARN).
 
 The node fills a :class:`SimulationReport` and an :class:`InputReport` under the simulation
 lock; building the message needs no lock.
@@ -79,15 +80,15 @@ def integration_values(stats: dict | None) -> dict[str, str]:
 
 @dataclass
 class InputReport:
-    """The state of the brake inputs for one diagnostics message."""
+    """The state of the brake inputs and traction commands for one diagnostics message."""
 
     mode: str
     timeout: float              # [s wall] input_timeout
     on_timeout: str
-    max_age: float              # [s wall] age of the oldest input
-    stale: bool
-    emergency: bool
-    stale_names: str
+    max_age: float              # [s wall] age of the oldest input (brake or traction)
+    stale: bool                 # a brake input or a traction command is stale
+    emergency: bool             # a fail-safe holds: emergency brake or traction command 0
+    stale_names: str            # the stale topics
     accepted: int
     rejected: dict[str, int]
     last_rejected: str
@@ -137,7 +138,8 @@ def input_status(r: InputReport, hardware_id: str) -> DiagnosticStatus:
     rejected = sum(r.rejected.values())
     if r.emergency:
         level = DiagnosticStatus.ERROR
-        message = f'stale (> {r.timeout:g} s): emergency brake applied ({r.stale_names})'
+        message = (f'stale (> {r.timeout:g} s): emergency fail-safe applied (brake / traction '
+                   f'command 0) ({r.stale_names})')
     elif r.stale:
         level = DiagnosticStatus.WARN
         message = f'stale (> {r.timeout:g} s): holding the last values ({r.stale_names})'

@@ -11,12 +11,14 @@ received. Rejected and counted (in the brake inputs' counts of ``/diagnostics``)
 Staleness: with ``input_timeout`` > 0 a locomotive that has received a command and then
 nothing for ``input_timeout`` wall seconds is stale; with ``on_input_timeout`` ``emergency``
 its command falls to 0 (the fail-safe: no traction, no dynamic brake; recorded with the value
-0) until a new command arrives; with ``hold`` it keeps the last one.
+0) until a new command arrives (or the policy changes: then the last command holds again);
+with ``hold`` it keeps the last one. The staleness is reported in ``/diagnostics`` beside the
+brake inputs' (:class:`train_dynamics.ros.brake_inputs.BrakeInputs` adds :attr:`stale_names`,
+:attr:`emergency` and :meth:`max_age` to its own).
 """
 from __future__ import annotations
 
 import functools
-import math
 import threading
 import time
 from typing import Any, Callable
@@ -26,6 +28,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Float64
 
 from train_dynamics import topics
+from train_dynamics.physics.parameters import traction_rejection
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
 
@@ -39,10 +42,9 @@ def traction_command(data: bytes) -> float:
         value = float(deserialize_message(data, Float64).data)
     except Exception as exc:  # noqa: BLE001 - anything rclpy raises on a bad buffer
         raise ValueError('malformed', f'cannot deserialise: {exc}') from None
-    if not math.isfinite(value):
-        raise ValueError('non_finite', f'command {value}')
-    if not -1.0 <= value <= 1.0:
-        raise ValueError('out_of_range', f'command {value:g} outside [-1, 1]')
+    why = traction_rejection(value)
+    if why is not None:
+        raise ValueError(*why)
     return value
 
 
@@ -60,7 +62,9 @@ class TractionInputs:
         self._value: dict[int, float] = {}
         self._arrival: dict[int, float] = {}       # [s wall] of each loco's last command
         self._dirty: dict[int, bytes | None] = {}  # accepted since the last apply
-        self._stale: set[int] = set()
+        self._raw: dict[int, bytes] = {}           # each loco's last accepted command (CDR)
+        self._stale: set[int] = set()              # simulation lock: stale locomotives
+        self._zeroed: set[int] = set()             # stale ones the fail-safe holds at 0
         self.accepted = 0
 
     def start(self, locomotives: list[int]) -> None:
@@ -70,7 +74,9 @@ class TractionInputs:
             self._value = dict.fromkeys(self._locos, 0.0)
             self._arrival = {}
             self._dirty = {}
-            self._stale = set()
+            self._raw = {}
+        self._stale = set()
+        self._zeroed = set()
         wanted = {self._node.resolve_topic_name(topics.traction_topic(i + 1)): i
                   for i in self._locos}
         for name in list(self._subs):
@@ -94,8 +100,24 @@ class TractionInputs:
                 return
             self._value[index] = value
             self._arrival[index] = time.monotonic()
-            self._dirty[index] = bytes(data)
+            self._dirty[index] = self._raw[index] = bytes(data)
         self.accepted += 1
+
+    @property
+    def stale_names(self) -> list[str]:
+        """Return the command topics of the stale locomotives (simulation lock held)."""
+        return [topics.traction_topic(i + 1) for i in sorted(self._stale)]
+
+    @property
+    def emergency(self) -> bool:
+        """Return True while the fail-safe holds a stale locomotive's command at 0."""
+        return bool(self._zeroed)
+
+    def max_age(self, now: float) -> float:
+        """Return the age [s wall] of the oldest command received (0 before any)."""
+        with self._lock:
+            ages = [now - t for t in self._arrival.values()]
+        return max(ages, default=0.0)
 
     def apply(self, now: float, sim: TrainSimulator, record: Record, timeout: float,
               emergency: bool) -> None:
@@ -105,17 +127,26 @@ class TractionInputs:
             stale = {i for i, t in self._arrival.items()
                      if timeout > 0.0 and now - t > timeout} - set(dirty)
             values = dict(self._value)
+            raws = dict(self._raw)
         t_ns = time_ns(sim.t)
         for i, raw in dirty.items():
             self._stale.discard(i)
+            self._zeroed.discard(i)
             sim.set_traction_command(values[i], i)
             record(topics.traction_topic(i + 1), topics.FLOAT64, t_ns, raw)
-        for i in stale - self._stale:
-            self._stale.add(i)
+        for i in sorted(stale - self._stale):
             action = 'command set to 0' if emergency else 'holding the last command'
             self._log.warning(f'traction command of coach_{i + 1} stale: nothing for more '
                               f'than {timeout:g} s; {action}')
-            if emergency:
-                sim.set_traction_command(0.0, i)
-                record(topics.traction_topic(i + 1), topics.FLOAT64, t_ns,
-                       serialize_message(Float64(data=0.0)))
+        for i in sorted(self._stale - stale):          # input_timeout raised or switched off
+            self._log.info(f'traction command of coach_{i + 1} no longer stale')
+        self._stale = stale
+        failsafe = stale if emergency else set()
+        for i in sorted(self._zeroed - failsafe):       # the last command holds again
+            sim.set_traction_command(values[i], i)
+            record(topics.traction_topic(i + 1), topics.FLOAT64, t_ns, raws[i])
+        for i in sorted(failsafe - self._zeroed):
+            sim.set_traction_command(0.0, i)
+            record(topics.traction_topic(i + 1), topics.FLOAT64, t_ns,
+                   serialize_message(Float64(data=0.0)))
+        self._zeroed = set(failsafe)
