@@ -135,12 +135,16 @@ def test_stale_input_emergency_then_fresh_then_hold(harness, tmp_path):
     head = harness.publisher('brake_pipe/pressure')
     assert harness.wait_for_subscriber(head)
 
+    deadline = time.monotonic() + 5.0
+
     def feed(seconds):
         end = time.monotonic() + seconds
         while time.monotonic() < end:
             head.publish(fluid(500000.0 + ATM))
             harness.spin_for(0.02)
     feed(1.0)
+    while diag_values(diags, INPUT) is None and time.monotonic() < deadline:
+        feed(0.1)                  # /diagnostics comes at ~1 Hz wall: wait for the first one
     d = diag_values(diags, INPUT)
     assert d is not None and d['stale'] == 'false' and d['_level'] == 0
     assert max(max(m.effort) for m in coaches) == 0.0              # released
