@@ -68,6 +68,19 @@ def coupler_branch(y: float, s: float, ke: float, kf: float, kec: float, kfc: fl
 
 
 @jit
+def friction_sign(ydot: float, model: int, u: float):
+    """
+    Return (s, ds/dydot): s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14), ydot [m/s], u [s/m].
+
+    The friction term's direction in every coupler law (eqs. 2-3, 15-16).
+    """
+    if model == TANH:
+        s = fast_tanh(u * ydot)
+        return s, u * (1.0 - s * s)
+    return np.sign(ydot), 0.0
+
+
+@jit
 def coupler_force_scalar(y: float, ydot: float, ke: float, kf: float, kec: float, kfc: float,
                          model: int, u: float):
     """
@@ -76,12 +89,7 @@ def coupler_force_scalar(y: float, ydot: float, ke: float, kf: float, kec: float
     s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14) in the branch law of
     :func:`coupler_branch` (eqs. 2-4 / 15-16).
     """
-    if model == TANH:
-        s = fast_tanh(u * ydot)
-        dsdv = u * (1.0 - s * s)
-    else:
-        s = np.sign(ydot)
-        dsdv = 0.0
+    s, dsdv = friction_sign(ydot, model, u)
     f, stiff, kfr = coupler_branch(y, s, ke, kf, kec, kfc)
     return f, stiff, kfr * y * dsdv
 
@@ -212,12 +220,7 @@ def coupler_force_travel_scalar(y: float, ydot: float, ke: float, kf: float, kec
 
     s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14) in :func:`coupler_branch_travel`.
     """
-    if model == TANH:
-        s = fast_tanh(u * ydot)
-        dsdv = u * (1.0 - s * s)
-    else:
-        s = np.sign(ydot)
-        dsdv = 0.0
+    s, dsdv = friction_sign(ydot, model, u)
     f, stiff, amp = coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb)
     return f, stiff, amp * dsdv
 
