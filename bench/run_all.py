@@ -26,6 +26,7 @@ sys.path.insert(1, os.path.dirname(HERE))
 import core  # noqa: E402
 import freight  # noqa: E402  (the real-train case: 750 m freight)
 from memory import MEMORY_BEGIN, MEMORY_END, MEMORY_MD  # noqa: E402  (memory.py's section)
+from results_md import saved_section  # noqa: E402
 from soak import SOAK_BEGIN, SOAK_END, SOAK_MD as SOAK  # noqa: E402  (soak.py owns its section)
 import sweep as sweepbench  # noqa: E402  (sweep.py owns its section)
 
@@ -223,21 +224,14 @@ def targets_table(items) -> str:
 
 
 def soak_section() -> str:
-    try:
-        with open(SOAK) as fh:
-            body = fh.read().strip()
-    except OSError:
-        body = '## Soak (make soak)\n\nNot run yet on this machine.'
-    return f'{SOAK_BEGIN}\n{body}\n{SOAK_END}'
+    """Return the soak section (bench/soak.py owns it; ``make soak`` runs it)."""
+    return saved_section(SOAK, SOAK_BEGIN, SOAK_END, '## Soak (make soak)')
 
 
 def memory_section() -> str:
     """Return the memory section (bench/memory.py owns it; run by main unless --no-memory)."""
-    try:
-        return MEMORY_MD.read_text().strip()
-    except OSError:
-        return (f'{MEMORY_BEGIN}\n## Memory of the offline commands (bench/memory.py)\n\n'
-                f'Not run yet on this machine.\n{MEMORY_END}')
+    return saved_section(MEMORY_MD, MEMORY_BEGIN, MEMORY_END,
+                         '## Memory of the offline commands (bench/memory.py)')
 
 
 def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None) -> str:

@@ -36,6 +36,7 @@ sys.path.insert(0, HERE)
 sys.path.insert(1, os.path.dirname(HERE))
 
 import nodeutil as U  # noqa: E402
+from results_md import splice_section  # noqa: E402
 
 SOAK_MD = os.path.join(HERE, 'soak_results.md')
 SOAK_JSON = os.path.join(HERE, 'soak_last.json')
@@ -265,20 +266,8 @@ def render(res: dict) -> str:
 
 
 def splice_results(section: str) -> None:
-    block = f'{SOAK_BEGIN}\n{section}\n{SOAK_END}'
-    try:
-        with open(RESULTS) as fh:
-            text = fh.read()
-    except OSError:
-        text = '# Benchmark results\n\n'
-    if SOAK_BEGIN in text and SOAK_END in text:
-        a = text.index(SOAK_BEGIN)
-        b = text.index(SOAK_END) + len(SOAK_END)
-        text = text[:a] + block + text[b:]
-    else:
-        text = text.rstrip('\n') + '\n\n' + block + '\n'
-    with open(RESULTS, 'w') as fh:
-        fh.write(text)
+    """Write the soak section into RESULTS.md."""
+    splice_section(RESULTS, SOAK_BEGIN, SOAK_END, section)
 
 
 def main(argv=None) -> int:

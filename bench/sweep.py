@@ -29,8 +29,10 @@ import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
+sys.path.insert(0, HERE)
 
 from distributed import Client, LocalCluster  # noqa: E402
+from results_md import saved_section, splice_section  # noqa: E402
 from train_dynamics import topics  # noqa: E402
 from train_dynamics.cli.offline import main as cli_main  # noqa: E402
 from train_dynamics.cli.sweep_case import run_case  # noqa: E402
@@ -173,30 +175,13 @@ def render(res: dict) -> str:
 
 
 def splice_results(section: str) -> None:
-    block = f'{SWEEP_BEGIN}\n{section}\n{SWEEP_END}'
-    try:
-        with open(RESULTS) as fh:
-            text = fh.read()
-    except OSError:
-        text = '# Benchmark results\n\n'
-    if SWEEP_BEGIN in text and SWEEP_END in text:
-        a = text.index(SWEEP_BEGIN)
-        b = text.index(SWEEP_END) + len(SWEEP_END)
-        text = text[:a] + block + text[b:]
-    else:
-        text = text.rstrip('\n') + '\n\n' + block + '\n'
-    with open(RESULTS, 'w') as fh:
-        fh.write(text)
+    """Write the sweep section into RESULTS.md."""
+    splice_section(RESULTS, SWEEP_BEGIN, SWEEP_END, section)
 
 
 def sweep_section() -> str:
     """Return the sweep section for RESULTS.md (the last ``bench/sweep.py`` run)."""
-    try:
-        with open(SWEEP_MD) as fh:
-            body = fh.read().strip()
-    except OSError:
-        body = '## Sweep on Dask (bench/sweep.py)\n\nNot run yet on this machine.'
-    return f'{SWEEP_BEGIN}\n{body}\n{SWEEP_END}'
+    return saved_section(SWEEP_MD, SWEEP_BEGIN, SWEEP_END, '## Sweep on Dask (bench/sweep.py)')
 
 
 def run_and_write(log=log, write: bool = True) -> str:

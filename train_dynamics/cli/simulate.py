@@ -21,6 +21,7 @@ import shutil
 
 from train_dynamics import topics
 from train_dynamics.cli.errors import CliError, error, EXIT_FAULT, EXIT_OK, PROG
+from train_dynamics.cli.output import remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
 from train_dynamics.physics.parameters import fmt_bytes, output_disk, SimConfig
@@ -84,7 +85,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         rec.close()
     except BaseException:
         rec.abort()
-        _remove_empty(created)
+        remove_created(created)
         raise
     if sim.fault is not None:
         error(f'simulation fault: {sim.fault}; {out} holds the run up to t = {sim.t:.3f} s')
@@ -126,7 +127,7 @@ def _open_recorder(out: Path, parent: Path) -> tuple[list[Path], BagRecorder]:
             d.mkdir()
         return created, BagRecorder(out, atomic=True, file_stem=out.name)
     except (BagError, FileExistsError, OSError) as exc:
-        _remove_empty(created)
+        remove_created(created)
         raise CliError(str(exc)) from None
 
 
@@ -138,12 +139,3 @@ def _model_info(cfg: SimConfig, inputs: BrakeInputs, duration: float) -> dict[st
         info['brake_valve_schedule'] = ', '.join(
             f'{e.time:g}:{e.position}' for e in inputs.valve.schedule)
     return info
-
-
-def _remove_empty(folders: list[Path]) -> None:
-    """Remove the folders this run created (innermost first), if they are still empty."""
-    for d in folders:
-        try:
-            d.rmdir()
-        except OSError:
-            pass
