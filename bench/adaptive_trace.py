@@ -36,7 +36,7 @@ from train_dynamics.physics._jit import jit  # noqa: E402
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK  # noqa: E402
 
 MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP, FLOOR = range(7)
-#: log columns
+#: log columns (BAND: u |ydot| of the limiting coupler, < 1 inside the tanh band)
 T, H, ERR, ACC, JMAX, BAND, EPOS, EVEL, FALLBACK = range(9)
 
 
@@ -114,7 +114,7 @@ def _err(h, coach, cpl, model, u, held, ws, tol, f_floor, mode, scr, info):
             evel = abs(dfdv * dyd)
     scale = tol * fmax
     info[0] = jmax
-    info[1] = 1.0 if abs(v_new[jmax] - v_new[jmax + 1]) * u < 1.0 else 0.0
+    info[1] = abs(v_new[jmax] - v_new[jmax + 1]) * u
     info[2] = epos / scale
     info[3] = evel / scale
     return emax / scale
@@ -306,7 +306,8 @@ def run(case: str, tol: float, ctl: np.ndarray, budget: int, cache: str):
     rej = log[log[:, ACC] == 0.0]
     row.update(case=case, tol=tol, mode=int(ctl[MODE]), cpu_s=cpu, fault=sim.fault,
                steps=int(acc.shape[0]), rejected=int(rej.shape[0]),
-               band_limited=float(acc[:, BAND].mean()) if acc.size else 0.0,
+               band_limited=float((acc[:, BAND] < 1.0).mean()) if acc.size else 0.0,
+               near_band=float((acc[:, BAND] < 10.0).mean()) if acc.size else 0.0,
                vel_dominated=float((acc[:, EVEL] > acc[:, EPOS]).mean()) if acc.size else 0.0,
                h_median_ms=1e3 * float(np.median(acc[:, H])) if acc.size else 0.0)
     return row, log
