@@ -32,7 +32,8 @@ chain's integration error alone. Figures:
 Each case runs in a fresh process (``--case JSON``); the references are cached under
 ``--cache`` (default /tmp/td_adaptive_cache), keyed by the case and the tolerance.
 ``--repo PATH`` imports the package from another source tree (A/B comparisons of kernel
-versions, interleaved: ``--ab PATH``).
+versions: alternate the two trees' runs); ``--write-bag DIR`` writes the ``unequal4`` input bag
+for ``train-dynamics simulate --input``.
 """
 from __future__ import annotations
 
