@@ -50,6 +50,69 @@ def test_controller_meets_its_tolerance_on_the_paper_scenario(paper_ref):
     assert steps[0] < steps[1] < steps[2], steps
 
 
+def _smooth_run(tol, t_end):
+    """Three unequal coaches, u = 100, cylinders filled smoothly tick by tick; F every 10 ms."""
+    cfg = SimConfig.from_dict({'masses': MASSES[:3], 'brake_input': 'cylinder_per_coach',
+                               'scale_factor': 100.0, 'integration_tolerance': tol})
+    sim = TrainSimulator(cfg)
+    per = int(round(0.01 / cfg.integration_step))
+    F = np.empty((int(round(t_end / 0.01)), 2))
+    for j in range(F.shape[0]):
+        for q in range(per):
+            sim.set_cylinder_pressure(_smooth_pressure((j * per + q) * cfg.integration_step))
+            sim.advance(1)
+        F[j] = sim.coupler_force
+    return sim, F
+
+
+def _smooth_pressure(t):
+    """Return the cylinder pressures [Pa] at t [s]: a smoothstep to 3.8 / 1.1 / 0 bar in 3 s."""
+    s = min(max(t / 3.0, 0.0), 1.0)
+    return 380000.0 * np.array([1.0, 0.3, 0.0]) * s * s * (3.0 - 2.0 * s)
+
+
+def test_controller_meets_its_tolerance_on_a_smooth_problem():
+    """
+    A smooth problem (couplers stay in compression, wide tanh band): error below tolerance.
+
+    Every coupler-force sample within tol of the peak of a tight reference fed the same
+    braking force (linear between the 2 ms ticks), for tol = 1e-2, 1e-3, 1e-4; the error
+    and the steps follow the tolerance.
+    """
+    t_end = 10.0
+    cfg = SimConfig.from_dict({'masses': MASSES[:3], 'scale_factor': 100.0})
+    h = cfg.integration_step
+    ticks = np.arange(int(round(t_end / h)) + 1)
+    full = cfg.adhesion_coefficient * np.array(MASSES[:3]) * cfg.gravity
+    fb_ticks = np.array([full * _smooth_pressure(max(k - 1, 0) * h) / cfg.max_cylinder_pressure
+                         for k in ticks])      # the tick k brakes with the input set before it
+
+    def brake(t):
+        return np.array([np.interp(t, ticks * h, fb_ticks[:, i]) for i in range(3)])
+
+    t_eval = np.round(np.arange(1, int(round(t_end / 0.01)) + 1) * 0.01, 10)
+    sol = reference_solution(MASSES[:3], cfg.buffer_stiffness, cfg.buffer_friction,
+                             cfg.draw_gear_stiffness, cfg.draw_gear_friction, 100.0,
+                             cfg.initial_speed, brake, t_end, t_eval=t_eval, rtol=1e-10,
+                             atol=1e-12)
+    assert sol.status == 0
+    consts = (cfg.buffer_stiffness, cfg.buffer_friction, cfg.draw_gear_stiffness,
+              cfg.draw_gear_friction)
+    k = [np.full(2, c) for c in consts]
+    x, v = sol.y[:3], sol.y[3:]
+    Fr = np.array([couplers.coupler_force(x[:-1, i] - x[1:, i], v[:-1, i] - v[1:, i], *k,
+                                          couplers.TANH, 100.0) for i in range(t_eval.size)])
+    assert Fr.max() <= 0.0 < -Fr.min()         # compression throughout: no kink at y = 0
+    errors, steps = [], []
+    for tol in (1e-2, 1e-3, 1e-4):
+        sim, F = _smooth_run(tol, t_end)
+        errors.append(_max_sample_error(F, Fr))
+        steps.append(sim.integration_stats['steps'])
+        assert errors[-1] < tol, (tol, errors)
+    assert errors[0] > errors[1] > errors[2], errors
+    assert steps[0] < steps[1] < steps[2], steps
+
+
 def test_unequal_masses_replayed_cylinders_within_2_percent():
     """
     Four unequal coaches under replayed cylinder pressures: every sample within 2 % of peak.

@@ -1,0 +1,340 @@
+"""
+Where the error-controlled steps go (issue 14): a traced copy of the adaptive chain driver.
+
+:func:`trace_adaptive` is :func:`train_dynamics.physics.integrators.advance_adaptive` with
+its ``_chain_to`` written out here, logging every attempted step (chain time, step, error
+norm, accepted, the limiting coupler, whether its relative velocity is inside the 1/u band,
+the position and velocity parts of its error) and taking the controller's constants and the
+error norm's variant from an array (``ctl``), so variants can be tried without editing the
+kernel. Norm variants (``ctl[MODE]``):
+
+0. the kernel's: the embedded estimate weighted into coupler forces (stage-matrix slopes);
+1. the estimate filtered through the stage matrix, (I - g h J)^-1 e (Shampine), then 0;
+2. filtered, then the force difference F(y, ydot) - F(y - e_y, ydot - e_ydot) (the law);
+3. unfiltered force difference.
+
+``python bench/adaptive_trace.py CASE TOL [--mode M ...]`` runs a case of bench/adaptive.py
+through it and prints the step statistics and the errors against the cached reference.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+if REPO not in sys.path:
+    sys.path.insert(0, REPO)
+
+import numpy as np  # noqa: E402
+
+from train_dynamics.physics import brakes, couplers, integrators as it  # noqa: E402
+from train_dynamics.physics._jit import jit  # noqa: E402
+from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK  # noqa: E402
+
+MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP, FLOOR = range(7)
+#: log columns (BAND: u |ydot| of the limiting coupler, < 1 inside the tanh band)
+T, H, ERR, ACC, JMAX, BAND, EPOS, EVEL, FALLBACK = range(9)
+
+
+@jit(inline=True)
+def _err(h, coach, cpl, model, u, held, ws, tol, f_floor, mode, scr, info):
+    """Return the error norm of the last ROS2 step (variant ``mode``); details to info."""
+    b1 = ws[WORK.B1]
+    b2 = ws[WORK.B2]
+    dfdy = ws[WORK.DFDY]
+    kk = ws[WORK.KK]
+    F0 = ws[WORK.F]
+    gh = it.GAMMA * h
+    cx = h - gh
+    n = b1.shape[0]
+    m = n - 1
+    ex = scr[0]
+    ev = scr[1]
+    for i in range(n):
+        ex[i] = 0.5 * h * (cx * b1[i] + gh * b2[i])
+        ev[i] = 0.5 * h * (b1[i] + b2[i])
+    if mode == 1 or mode == 2:
+        masses = coach[COACH.MASS]
+        winv = ws[WORK.WINV]
+        lower = ws[WORK.LOWER]
+        c = ws[WORK.C]
+        z = scr[2]
+        for i in range(n):
+            r = masses[i] * ev[i]
+            if i < m:
+                r -= gh * dfdy[i] * (ex[i] - ex[i + 1])
+            if i > 0:
+                r += gh * dfdy[i - 1] * (ex[i - 1] - ex[i])
+            if held[i]:
+                r = 0.0
+            if i == 0:
+                z[0] = r * winv[0]
+            else:
+                z[i] = (r - lower[i - 1] * z[i - 1]) * winv[i]
+        for i in range(n - 2, -1, -1):
+            z[i] -= c[i] * z[i + 1]
+        for i in range(n):
+            ev[i] = z[i]
+            ex[i] = ex[i] + gh * z[i]
+    fmax = f_floor
+    for j in range(m):
+        fmax = max(fmax, abs(F0[j]))
+    x_new = ws[WORK.XNEW]
+    v_new = ws[WORK.VNEW]
+    emax = 0.0
+    jmax = 0
+    epos = 0.0
+    evel = 0.0
+    for j in range(m):
+        dy = ex[j] - ex[j + 1]
+        dyd = ev[j] - ev[j + 1]
+        dfdv = kk[j] / gh - gh * dfdy[j]
+        if mode >= 2:
+            y = x_new[j] - x_new[j + 1]
+            yd = v_new[j] - v_new[j + 1]
+            fa, _, _ = couplers.coupler_force_travel_scalar(
+                y, yd, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j], cpl[COUPLER.KEC, j],
+                cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j], cpl[COUPLER.GC, j],
+                cpl[COUPLER.ST, j], cpl[COUPLER.SC, j], cpl[COUPLER.KB, j], model, u)
+            fb, _, _ = couplers.coupler_force_travel_scalar(
+                y - dy, yd - dyd, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j], cpl[COUPLER.KEC, j],
+                cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j], cpl[COUPLER.GC, j],
+                cpl[COUPLER.ST, j], cpl[COUPLER.SC, j], cpl[COUPLER.KB, j], model, u)
+            e = abs(fa - fb)
+        else:
+            e = abs(dfdy[j] * dy + dfdv * dyd)
+        if e > emax:
+            emax = e
+            jmax = j
+            epos = abs(dfdy[j] * dy)
+            evel = abs(dfdv * dyd)
+    scale = tol * fmax
+    info[0] = jmax
+    info[1] = abs(v_new[jmax] - v_new[jmax + 1]) * u
+    info[2] = epos / scale
+    info[3] = evel / scale
+    return emax / scale
+
+
+@jit(inline=True)
+def _log(log, cnt, t, hs, err, acc, info, fallback):
+    k = cnt[0]
+    if k < log.shape[0]:
+        log[k, T] = t
+        log[k, H] = hs
+        log[k, ERR] = err
+        log[k, ACC] = acc
+        log[k, JMAX] = info[0]
+        log[k, BAND] = info[1]
+        log[k, EPOS] = info[2]
+        log[k, EVEL] = info[3]
+        log[k, FALLBACK] = 1.0 if fallback else 0.0
+    cnt[0] = k + 1
+
+
+@jit
+def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, log, cnt):
+    """:func:`integrators._chain_to` with ``ctl`` constants and the step log."""
+    h_tick = sc[SCALAR.H]
+    ka = iv[FLAG.CHAIN_TICK]
+    kb = iv[FLAG.TICK]
+    total = (kb - ka) * h_tick
+    t0 = ka * h_tick
+    h_max = iv[FLAG.LAND] * h_tick
+    model = iv[FLAG.MODEL]
+    u = sc[SCALAR.U]
+    tol = sc[SCALAR.TOL]
+    ext = iv[FLAG.EXT]
+    mode = int(ctl[MODE])
+    ki = ctl[KI]
+    kp = ctl[KP]
+    info = np.zeros(4)
+    s = 0.0
+    steps = 0
+    int_hmin = h_max
+    fallback = False
+    h = min(sc[SCALAR.HPROP], h_max)
+    while s < total:
+        rem = total - s
+        if steps >= iv[FLAG.BUDGET] and not fallback:
+            fallback = True
+            sc[SCALAR.NFALLBACK] += 1.0
+        if fallback:
+            h = h_tick
+        hs = it._landing_step(h, rem)
+        if hs != sc[SCALAR.HEVAL]:
+            it._eval_couplers(coach[COACH.X], coach[COACH.V], cpl, model, u, it.GAMMA * hs, ws)
+            sc[SCALAR.HEVAL] = hs
+        it._tick_means(fbt, tet, ka, s / h_tick, (s + hs) / h_tick, ws)
+        if ext:
+            it._static_resistance(coach, iv, gprof, cprof, ws)
+        pext = sc[SCALAR.PEXT]
+        extra_work = it._active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
+        err = _err(hs, coach, cpl, model, u, held, ws, tol, sc[SCALAR.FFLOOR], mode, scr, info)
+        if err > 1.0 and not fallback and hs > it.H_MIN:
+            _log(log, cnt, t0 + s, hs, err, 0.0, info, fallback)
+            sc[SCALAR.PEXT] = pext
+            sc[SCALAR.NREJ] += 1.0
+            sc[SCALAR.HEVAL] = -1.0
+            h = max(hs * max(ctl[FAC_MIN], ctl[SAFETY] * err ** -0.5), it.H_MIN)
+            continue
+        _log(log, cnt, t0 + s, hs, err, 1.0, info, fallback)
+        status = it._fault_check(ws, sc[SCALAR.YLIM])
+        if status != it.OK:
+            return status
+        if ext:
+            sc[SCALAR.WB] += it._accept_external(hs, coach, sc, held, ws)
+        sc[SCALAR.WB] += it._accept_step(coach, held, extra_work, ws, ext)
+        steps += 1
+        if hs < rem:
+            int_hmin = min(int_hmin, hs)
+            sc[SCALAR.HMIN] = min(sc[SCALAR.HMIN], hs)
+        s = total if hs >= rem else s + hs
+        e = max(err, 1e-4)
+        fac = ctl[SAFETY] * e ** -ki * sc[SCALAR.ERRPREV] ** kp
+        fac = min(ctl[FAC_MAX], max(ctl[FAC_MIN], fac))
+        sc[SCALAR.ERRPREV] = e
+        if not fallback:
+            if hs < rem or fac < 1.0:
+                h = hs * fac
+            else:
+                h = max(h, hs * fac)
+            h = max(min(h, h_max), it.H_MIN)
+            sc[SCALAR.HPROP] = h
+        hn = it._landing_step(h, total - s) if s < total else h
+        sc[SCALAR.WC] += it._eval_couplers_work(coach, cpl, model, u, it.GAMMA * hn, ws)
+        sc[SCALAR.HEVAL] = hn
+    iv[FLAG.CHAIN_TICK] = kb
+    sc[SCALAR.NSTEPS] += steps
+    sc[SCALAR.INT_STEPS] = steps
+    sc[SCALAR.INT_STEPS_MAX] = max(sc[SCALAR.INT_STEPS_MAX], steps)
+    sc[SCALAR.INT_HMIN] = int_hmin
+    return it.OK
+
+
+@jit
+def trace_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof,
+                   fbt, tet, ctl, scr, log, cnt):
+    """:func:`integrators.advance_adaptive` through the traced :func:`_chain_to`."""
+    held = np.empty(coach.shape[1], dtype=np.bool_)
+    tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
+                                   rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
+    if iv[FLAG.WS_VALID] == 0:
+        brakes.delay_split(coach[COACH.DELAY], ws[WORK.K0], ws[WORK.FRAC])
+        r = iv[FLAG.TICK] % fbt.shape[0]
+        for i in range(coach.shape[1]):
+            fbt[r, i] = coach[COACH.FB_AVAIL, i]
+            tet[r, i] = coach[COACH.T_EFF, i]
+        sc[SCALAR.HEVAL] = -1.0
+        if iv[FLAG.TICK] == 0:
+            it._eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U],
+                              it.GAMMA * sc[SCALAR.H], ws)
+        iv[FLAG.WS_VALID] = 1
+    land = iv[FLAG.LAND]
+    for k in range(n_ticks):
+        it._brake_tick(coach, sc, iv, ring, tables, ws, fbt, tet)
+        if iv[FLAG.TICK] % land == 0:
+            status = _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr,
+                               log, cnt)
+            if status != it.OK:
+                return k + 1, status
+    if sync and iv[FLAG.CHAIN_TICK] < iv[FLAG.TICK]:
+        status = _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr,
+                           log, cnt)
+        if status != it.OK:
+            return n_ticks, status
+    return n_ticks, it.OK
+
+
+def traced(sim, ctl, max_log: int = 4_000_000):
+    """Route ``sim``'s error-controlled kernel through :func:`trace_adaptive`; return the log."""
+    scr = np.zeros((3, sim.n))
+    log = np.zeros((max_log, 9))
+    cnt = np.zeros(1, dtype=np.int64)
+
+    def kernel(n_steps, sync=False):
+        return trace_adaptive(int(n_steps), sync, sim.coach, sim.cpl, sim.sc, sim.iv, sim.fill,
+                              sim.rel, sim.ring, sim.ws, sim.gprof, sim.cprof, sim.tick_fb,
+                              sim.tick_te, ctl, scr, log, cnt)
+    sim._kernel = kernel
+    return lambda: log[:min(cnt[0], max_log)]
+
+
+def default_ctl(mode: int = 0) -> np.ndarray:
+    """Return the kernel's controller constants with norm variant ``mode``."""
+    ctl = np.zeros(7)
+    ctl[[MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP]] = [mode, it.SAFETY, it.FAC_MIN, it.FAC_MAX,
+                                                     it.PI_KI, it.PI_KP]
+    return ctl
+
+
+def run(case: str, tol: float, ctl: np.ndarray, budget: int, cache: str):
+    """Run ``case`` traced; return (row with errors and step statistics, log)."""
+    import adaptive
+    from train_dynamics.physics import runner, train
+    cfg, inputs, duration = adaptive.case_setup(case, tol, budget)
+    k_out = int(round(duration / adaptive.OUTPUT_DT)) + 1
+    F = np.zeros((k_out, cfg.n_coaches - 1))
+    moving = np.ones(k_out, dtype=bool)
+    pos = [0]
+    holder = {}
+    real_init = train.TrainSimulator.__init__
+
+    def init(self, *a, **k):
+        real_init(self, *a, **k)
+        holder['log'] = traced(self, ctl)
+    train.TrainSimulator.__init__ = init
+    runner.TrainSimulator.__init__ = init
+
+    def on_sample(s):
+        F[pos[0]] = s.sim.coupler_force
+        moving[pos[0]] = not (np.any(s.sim.held) or np.any(s.sim.v <= 0.0))
+        pos[0] += 1
+    t0 = time.process_time()
+    sim = runner.run_simulation(cfg, duration, inputs, on_sample=on_sample)
+    cpu = time.process_time() - t0
+    train.TrainSimulator.__init__ = real_init
+    path = os.path.join(cache, f'trace_{os.getpid()}.npz')
+    np.savez(path, F=F[:pos[0]], moving=moving[:pos[0]])
+    row = adaptive.compare(path, adaptive.reference(case, cache, REPO))
+    log = holder['log']()
+    acc = log[log[:, ACC] == 1.0]
+    rej = log[log[:, ACC] == 0.0]
+    row.update(case=case, tol=tol, mode=int(ctl[MODE]), cpu_s=cpu, fault=sim.fault,
+               steps=int(acc.shape[0]), rejected=int(rej.shape[0]),
+               band_limited=float((acc[:, BAND] < 1.0).mean()) if acc.size else 0.0,
+               near_band=float((acc[:, BAND] < 10.0).mean()) if acc.size else 0.0,
+               vel_dominated=float((acc[:, EVEL] > acc[:, EPOS]).mean()) if acc.size else 0.0,
+               h_median_ms=1e3 * float(np.median(acc[:, H])) if acc.size else 0.0)
+    return row, log
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    ap.add_argument('case')
+    ap.add_argument('tol', type=float)
+    ap.add_argument('--mode', type=int, default=0)
+    ap.add_argument('--budget', type=int, default=1000000)
+    ap.add_argument('--set', action='append', default=[],
+                    help='controller constant NAME=VALUE (SAFETY, FAC_MIN, FAC_MAX, KI, KP)')
+    ap.add_argument('--cache', default='/tmp/td_adaptive_cache')
+    ap.add_argument('--save-log', help='write the step log (.npy)')
+    args = ap.parse_args(argv)
+    sys.path.insert(0, HERE)
+    ctl = default_ctl(args.mode)
+    for item in args.set:
+        name, value = item.split('=')
+        ctl[globals()[name]] = float(value)
+    row, log = run(args.case, args.tol, ctl, args.budget, args.cache)
+    if args.save_log:
+        np.save(args.save_log, log)
+    print(json.dumps(row))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
