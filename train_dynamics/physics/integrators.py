@@ -68,9 +68,8 @@ HOLD_SOLVES = 6
 #: tridiagonal solves of one holding LCP at most (standstill.pivot)
 HOLD_PIVOTS = 12
 
-#: [m/s] a braked coach slower than this is at rest (1 micrometre per second): without it a
-#: coach whose coupler force exactly balances its sliding brake could creep for ever
-V_REST = 1e-6
+#: [m/s] a braked coach slower than this is at rest (standstill.V_REST)
+V_REST = standstill.V_REST
 
 OK = 0
 NON_FINITE = 1
@@ -513,8 +512,9 @@ def _settle(h, held, ws):
     Nothing to do when every held coach is within its brake
     (:func:`standstill.inconsistent`). Else the holding LCP
     on the step (:func:`standstill.effective_rhs`, :func:`standstill.pivot`, at most
-    HOLD_PIVOTS tridiagonal solves) gives the next set; should it end where it began, the
-    coaches over their brake's limit are released.
+    HOLD_PIVOTS tridiagonal solves) gives the next set. Should it end where it began, the
+    coaches over their brake's limit would creep slower than V_REST: at rest (no change),
+    or, when the pivoting hit its cap, they are released.
     """
     if standstill.inconsistent(held, ws, False) == 0:
         return False
@@ -523,10 +523,12 @@ def _settle(h, held, ws):
     for i in range(held.shape[0]):
         before[i] = 2.0 if held[i] else rel_dir[i]
     standstill.effective_rhs(h, held, ws)
-    standstill.pivot(held, ws, HOLD_PIVOTS)
+    solved = standstill.pivot(h, held, ws, HOLD_PIVOTS) > 0
     for i in range(held.shape[0]):
-        if before[i] != (2.0 if held[i] else rel_dir[i]):
+        if (before[i] >= 2.0) != held[i] or (before[i] < 2.0 and before[i] != rel_dir[i]):
             return True
+    if solved:      # the held coaches over their limit would creep slower than V_REST
+        return False
     standstill.inconsistent(held, ws, True)
     return True
 

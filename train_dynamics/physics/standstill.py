@@ -25,6 +25,10 @@ from __future__ import annotations
 from train_dynamics.physics._jit import jit
 from train_dynamics.physics.layout import SCALAR, WORK
 
+#: [m/s] a braked vehicle slower than this is at rest (1 micrometre per second): without it
+#: a vehicle whose coupler force exactly balances its sliding brake could creep for ever
+V_REST = 1e-6
+
 #: relative margin on the brake's limit: a holding force up to Fb (1 + HOLD_MARGIN) holds
 HOLD_MARGIN = 1e-12
 #: block pivots without fewer inconsistent vehicles before the single (Murty) pivots
@@ -57,7 +61,8 @@ def stick(held, masses, ws, sc):
     """
     Stop the vehicles released from rest that end the step moving against their friction.
 
-    Such a vehicle (VSTART = 0, RELDIR d, d WORK.VNEW < 0) slid and stuck within the step:
+    Such a vehicle (VSTART = 0, RELDIR d, d WORK.VNEW < 0, or braked and slower than V_REST,
+    as a moving one stops in integrators._stops) slid and stuck within the step:
     it ends at rest (VNEW = 0) and held, its friction over the step stays the sliding one
     (WORK.HOLD = SIGNED, booked as before); the impulse -m v' [N s] goes to SCALAR.PEXT
     (``sc``). Return the kinetic energy m v'^2 / 2 [J] the brakes took.
@@ -67,9 +72,12 @@ def stick(held, masses, ws, sc):
     rel_dir = ws[WORK.RELDIR]
     hold = ws[WORK.HOLD]
     signed = ws[WORK.SIGNED]
+    fb = ws[WORK.FB]
     work = 0.0
     for i in range(held.shape[0]):
-        if (not held[i]) and v_start[i] == 0.0 and rel_dir[i] * v_new[i] < 0.0:
+        if held[i] or v_start[i] != 0.0 or rel_dir[i] == 0.0:
+            continue
+        if rel_dir[i] * v_new[i] < 0.0 or (fb[i] > 0.0 and abs(v_new[i]) < V_REST):
             vi = v_new[i]
             work += 0.5 * masses[i] * vi * vi
             sc[SCALAR.PEXT] -= masses[i] * vi
@@ -148,12 +156,13 @@ def _solve_set(held, ws):
 
 
 @jit(inline=True)
-def _pivot_once(held, ws, single):
+def _pivot_once(h, held, ws, single):
     """
     Check the set against the solution in WORK.LZ; flip the inconsistent vehicles at rest.
 
-    All of them (block pivot), or only the last one (``single``: Murty's rule). Return
-    how many were inconsistent.
+    All of them (block pivot), or only the last one (``single``: Murty's rule). A released
+    vehicle that would slide slower than V_REST over the step (2 h |z|, h [s]) is at rest:
+    held for good in this LCP (WORK.LS = 3). Return how many were inconsistent.
     """
     kk = ws[WORK.KK]
     r = ws[WORK.LR]
@@ -185,6 +194,12 @@ def _pivot_once(held, ws, single):
             if not single:
                 held[i] = True
                 rel_dir[i] = 0.0
+        elif 2.0 * h * abs(z[i]) < V_REST and fb[i] > 0.0:
+            held[i] = True      # creeps: at rest, not to be released again
+            rel_dir[i] = 0.0
+            entry[i] = 3.0
+            count += 1
+            continue
         if bad:
             count += 1
             last = i
@@ -204,21 +219,21 @@ def _pivot_once(held, ws, single):
 
 
 @jit(inline=True)
-def pivot(held, ws, max_pivots):
+def pivot(h, held, ws, max_pivots):
     """
     Find the consistent set of the LCP on WORK.LR by block principal pivoting; in place.
 
-    Starts from the set in ``held``, WORK.RELDIR and WORK.LS (the set the step was solved
-    with: 2 held, else RELDIR): only the vehicles held there take part, the ones released
-    before in the step keep sliding (so the step's set only ever releases, and its solves
-    end). At most ``max_pivots`` tridiagonal solves. Return the number of solves, negative
+    Starts from the set in ``held``, WORK.RELDIR and WORK.LS (the set the step of h [s] was
+    solved with: 2 held, else RELDIR): only the vehicles held there take part, the ones
+    released before in the step keep sliding (so the step's set only ever releases, and its
+    solves end). At most ``max_pivots`` tridiagonal solves. Return the number of solves, negative
     when the cap stopped it unsolved.
     """
     best = held.shape[0] + 1
     stall = 0
     for k in range(max_pivots):
         _solve_set(held, ws)
-        count = _pivot_once(held, ws, stall >= STALL_PIVOTS)
+        count = _pivot_once(h, held, ws, stall >= STALL_PIVOTS)
         if count == 0:
             return k + 1
         if count < best:
