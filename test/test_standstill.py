@@ -1,4 +1,4 @@
-"""Standstill (issue 14): the brakes hold the vehicles at rest, solved as a complementarity problem."""
+"""Standstill (issue 14): brakes holding the vehicles at rest, a complementarity problem."""
 import numpy as np
 import pytest
 
@@ -85,8 +85,7 @@ def test_brake_holds_on_a_gradient_with_the_downhill_force(gradient):
 
 @pytest.mark.parametrize('gradient', [-40.0, 40.0])
 @pytest.mark.parametrize('davis_a', [0.0, 3000.0])
-def test_released_vehicle_slides_downhill_with_the_closed_form_acceleration(gradient,
-                                                                           davis_a):
+def test_released_vehicle_slides_downhill_at_the_closed_form_acceleration(gradient, davis_a):
     """
     Downhill force above brake + static resistance: it slides downhill, never uphill.
 

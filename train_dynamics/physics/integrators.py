@@ -25,10 +25,13 @@ diagonally dominant: masses on the diagonal, k > k_friction in every branch).
 Braking is friction: a coach at rest stays at rest while the braking force can hold it
 (|net coupler force| <= Fb), and the brake never pushes a coach backwards. The step treats
 resting coaches as held (their rows fixed at zero velocity) and finds the set of held
-coaches by a short active-set iteration: a held coach whose required holding force exceeds
-the available braking force is released, a moving coach whose velocity would change sign is
-stopped. Momentum bookkeeping is exact: the held coaches' brake force is the one that the
-stage equations require.
+coaches by a short, capped active-set iteration: a moving coach whose velocity would change
+sign is stopped; then the coaches at rest whose required holding force exceeds the
+available braking force make the holding a box-constrained LCP on the stage matrix
+(:mod:`train_dynamics.physics.standstill`), whose set the step is solved with once more; a
+coach released from rest that ends the step moving against its brake sticks. Momentum
+bookkeeping is exact: the held coaches' brake force is the one that the stage equations
+require.
 
 One step of :func:`advance_chain`, in named parts:
 
@@ -36,7 +39,7 @@ One step of :func:`advance_chain`, in named parts:
    depend on the motion);
 2. :func:`_braking_force_trapezoid`: the braking force over the step, eq. (13);
 3. :func:`_active_set_step`: :func:`_ros2_step` with the active set of held coaches
-   (:func:`_signed_brake`, :func:`_release_slipping`, :func:`_hold_stopping`);
+   (:func:`_signed_brake`, :func:`_hold_stopping`, :func:`_settle`);
 4. :func:`_fault_check`, then :func:`_accept_step` and the couplers at the new state
    (:func:`_eval_couplers_work`).
 
