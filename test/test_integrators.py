@@ -81,7 +81,7 @@ def test_kernel_cache_key_covers_every_kernel_source():
     """
     folder = Path(integrators.__file__).parent
     kernels = {p.name for p in folder.glob('*.py') if '_jit.py' in _physics_imports(p)}
-    assert {'brakes.py', 'couplers.py', 'integrators.py'} <= kernels
+    assert {'brakes.py', 'couplers.py', 'integrators.py', 'standstill.py'} <= kernels
     needed, todo = set(), list(kernels)
     while todo:
         name = todo.pop()

@@ -36,7 +36,7 @@ _FASTMATH = {'afn', 'contract', 'arcp', 'nsz'}
 
 #: the modules (of this folder) whose compiled code depends on each other
 KERNEL_SOURCES = ('_jit.py', 'brakes.py', 'couplers.py', 'integrators.py', 'layout.py',
-                  'pneumatic.py', 'resistance.py', 'track.py', 'traction.py')
+                  'pneumatic.py', 'resistance.py', 'standstill.py', 'track.py', 'traction.py')
 
 _cache_dir: str | None = None
 

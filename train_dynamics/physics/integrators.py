@@ -25,10 +25,13 @@ diagonally dominant: masses on the diagonal, k > k_friction in every branch).
 Braking is friction: a coach at rest stays at rest while the braking force can hold it
 (|net coupler force| <= Fb), and the brake never pushes a coach backwards. The step treats
 resting coaches as held (their rows fixed at zero velocity) and finds the set of held
-coaches by a short active-set iteration: a held coach whose required holding force exceeds
-the available braking force is released, a moving coach whose velocity would change sign is
-stopped. Momentum bookkeeping is exact: the held coaches' brake force is the one that the
-stage equations require.
+coaches by a short, capped active-set iteration: a moving coach whose velocity would change
+sign is stopped; then the coaches at rest whose required holding force exceeds the
+available braking force make the holding a box-constrained LCP on the stage matrix
+(:mod:`train_dynamics.physics.standstill`), whose set the step is solved with once more; a
+coach released from rest that ends the step moving against its brake sticks. Momentum
+bookkeeping is exact: the held coaches' brake force is the one that the stage equations
+require.
 
 One step of :func:`advance_chain`, in named parts:
 
@@ -36,7 +39,7 @@ One step of :func:`advance_chain`, in named parts:
    depend on the motion);
 2. :func:`_braking_force_trapezoid`: the braking force over the step, eq. (13);
 3. :func:`_active_set_step`: :func:`_ros2_step` with the active set of held coaches
-   (:func:`_signed_brake`, :func:`_release_slipping`, :func:`_hold_stopping`);
+   (:func:`_signed_brake`, :func:`_hold_stopping`, :func:`_settle`);
 4. :func:`_fault_check`, then :func:`_accept_step` and the couplers at the new state
    (:func:`_eval_couplers_work`).
 
@@ -56,16 +59,20 @@ import math
 
 import numpy as np
 
-from train_dynamics.physics import brakes, couplers, traction
+from train_dynamics.physics import brakes, couplers, standstill, traction
 from train_dynamics.physics._jit import jit
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
 from train_dynamics.physics.track import profile_mean
 
 GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 
-#: [m/s] a braked coach slower than this is at rest (1 micrometre per second): without it a
-#: coach whose coupler force exactly balances its sliding brake could creep for ever
-V_REST = 1e-6
+#: chain solves per step at most: the first, then after stops or a new holding set
+HOLD_SOLVES = 6
+#: tridiagonal solves of one holding LCP at most (standstill.pivot)
+HOLD_PIVOTS = 12
+
+#: [m/s] a braked coach slower than this is at rest (standstill.V_REST)
+V_REST = standstill.V_REST
 
 OK = 0
 NON_FINITE = 1
@@ -463,28 +470,6 @@ def _signed_brake(ws):
 
 
 @jit(inline=True)
-def _release_slipping(held, ws):
-    """
-    Release the held coaches whose holding force exceeds the braking force [N].
-
-    Such a coach (|WORK.HOLD| > WORK.FB) slides, braked against its motion (WORK.RELDIR).
-    Return whether any was released.
-    """
-    hold = ws[WORK.HOLD]
-    fb = ws[WORK.FB]
-    rel_dir = ws[WORK.RELDIR]
-    v_start = ws[WORK.VSTART]
-    changed = False
-    for i in range(held.shape[0]):
-        if held[i] and abs(hold[i]) > fb[i] * (1.0 + 1e-12):
-            held[i] = False
-            rel_dir[i] = 1.0 if hold[i] > 0.0 else -1.0
-            v_start[i] = 0.0
-            changed = True
-    return changed
-
-
-@jit(inline=True)
 def _hold_stopping(held, masses, ws, extra_work, sc):
     """
     Hold the moving coaches that stop within the step from the step's start.
@@ -509,15 +494,63 @@ def _hold_stopping(held, masses, ws, extra_work, sc):
 
 
 @jit(inline=True)
+def _stopping(held, ws):
+    """Return how many moving coaches stop within the step (:func:`_hold_stopping` would)."""
+    v_start = ws[WORK.VSTART]
+    v_new = ws[WORK.VNEW]
+    fb = ws[WORK.FB]
+    rel_dir = ws[WORK.RELDIR]
+    count = 0
+    for i in range(held.shape[0]):
+        if (not held[i]) and rel_dir[i] == 0.0 and _stops(v_start[i], v_new[i], fb[i]):
+            count += 1
+    return count
+
+
+@jit(inline=True)
+def _settle(h, held, ws):
+    """
+    Make the set of the coaches at rest consistent with the step just solved; return changed.
+
+    Nothing to do when every held coach is within its brake
+    (:func:`standstill.inconsistent`). Else the holding LCP
+    on the step (:func:`standstill.effective_rhs`, :func:`standstill.pivot`, at most
+    HOLD_PIVOTS tridiagonal solves) gives the next set. Should it end where it began, the
+    coaches over their brake's limit would creep slower than V_REST: at rest (no change),
+    or, when the pivoting hit its cap, they are released.
+    """
+    if standstill.inconsistent(held, ws, False) == 0:
+        return False
+    rel_dir = ws[WORK.RELDIR]
+    before = ws[WORK.LS]
+    for i in range(held.shape[0]):
+        before[i] = 2.0 if held[i] else rel_dir[i]
+    standstill.effective_rhs(h, held, ws)
+    solved = standstill.pivot(h, held, ws, HOLD_PIVOTS) > 0
+    for i in range(held.shape[0]):
+        if (before[i] >= 2.0) != held[i] or (before[i] < 2.0 and before[i] != rel_dir[i]):
+            return True
+    if solved:      # the held coaches over their limit would creep slower than V_REST
+        return False
+    standstill.inconsistent(held, ws, True)
+    return True
+
+
+@jit(inline=True)
 def _active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
     """
     Do one ROS2 step of the chain with the active set of held coaches; return work [J].
 
-    Starts from the coaches held at the end of the last step (COACH.HELD) and iterates (at
-    most N + 2 times): release the held coaches the brake cannot hold, else stop the
-    moving coaches whose velocity would change sign. WORK.FB is the braking force over the
-    step [N]. The returned work is the kinetic energy of the coaches stopped at the step's
-    start. The new state and the holding forces are left in WORK.XNEW, VNEW, HOLD.
+    Starts from the coaches held at the end of the last step (COACH.HELD) and solves the
+    step (at most HOLD_SOLVES times): first the moving coaches whose velocity would change
+    sign stop at the step's start (:func:`_hold_stopping`, the couplers then re-evaluated),
+    else the coaches at rest take the holding LCP's set (:func:`_settle`). A step that ends
+    at the cap with coaches still to stop or over their brake's limit is counted
+    (SCALAR.HOLD_CAPPED), the extra solves in SCALAR.HOLD_SOLVES. Coaches released from
+    rest that end the step moving against their friction stick (:func:`standstill.stick`).
+    WORK.FB is the braking force over the step [N]. The returned work is the kinetic energy
+    of the coaches stopped at the step's start or stuck at its end. The new state and the
+    holding forces are left in WORK.XNEW, VNEW, HOLD.
     """
     n = held.shape[0]
     u = sc[SCALAR.U]
@@ -532,17 +565,22 @@ def _active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
         rel_dir[i] = 0.0
         v_start[i] = v[i]
     extra_work = 0.0
-    for it in range(n + 2):
-        if it > 0:   # the active set changed some starting velocities
+    stale = False
+    for it in range(HOLD_SOLVES):
+        if stale:   # stopped coaches changed some starting velocities
             _eval_couplers(x, v_start, cpl, model, u, GAMMA * h, ws)
+            stale = False
         _signed_brake(ws)
         _ros2_step(h, coach, cpl, model, u, held, ws, iv[FLAG.EXT], iv[FLAG.TRACK], gprof)
-        changed = _release_slipping(held, ws)
-        if not changed:
-            changed, extra_work = _hold_stopping(held, coach[COACH.MASS], ws, extra_work, sc)
-        if not changed:
+        if it == HOLD_SOLVES - 1:
+            if _stopping(held, ws) + standstill.inconsistent(held, ws, False) > 0:
+                sc[SCALAR.HOLD_CAPPED] += 1.0
             break
-    return extra_work
+        stale, extra_work = _hold_stopping(held, coach[COACH.MASS], ws, extra_work, sc)
+        if not (stale or _settle(h, held, ws)):
+            break
+        sc[SCALAR.HOLD_SOLVES] += 1.0
+    return extra_work + standstill.stick(held, coach[COACH.MASS], ws, sc)
 
 
 # ----------------------------------------------------------------------------- one step

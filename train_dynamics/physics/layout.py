@@ -102,6 +102,9 @@ ScalarSlots = namedtuple('ScalarSlots', [
     'INT_STEPS',    # chain steps of the last output period
     'INT_STEPS_MAX',    # largest INT_STEPS since reset
     'INT_HMIN',     # smallest step of the last output period [s]
+    # standstill (issue 14; standstill.py): the holding LCP
+    'HOLD_SOLVES',  # chain solves beyond the first of each step (active set changes)
+    'HOLD_CAPPED',  # steps that ended at the iteration cap with the set still inconsistent
 ])
 SCALAR = _indices(ScalarSlots)
 
@@ -156,5 +159,11 @@ WorkRows = namedtuple('WorkRows', [
     'TR2',          # traction force at stage 2 [N]
     'GR1',          # gradient force at stage 1 [N]
     'GR2',          # gradient force at stage 2 [N]
+    # standstill (issue 14; standstill.py): the holding LCP's scratch
+    'LZ',           # velocity change over the step per 2 h [m/s^2]
+    'LR',           # right-hand side r = A z + f of the step just solved [N]
+    'LC',           # Thomas algorithm: upper factor
+    'LW',           # Thomas algorithm: inverse pivots [1/kg]
+    'LS',           # the set before the pivoting (2 held, else WORK.RELDIR)
 ])
 WORK = _indices(WorkRows)

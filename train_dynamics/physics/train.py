@@ -328,12 +328,15 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     @property
     def integration_stats(self) -> dict:
         """
-        Return the error-controlled stepping's counters (issue 14; zeros at fixed step).
+        Return the integration counters (issue 14): error control (zeros at fixed step), holding.
 
         steps, rejected: chain steps since reset; h_min [s]: smallest step (not counting
         the steps shortened to land on an output); steps_last_period, h_min_last_period:
         of the last output period; steps_max_period; fallback_periods: periods that ran out
-        of ``integration_max_steps`` and finished at the fixed step.
+        of ``integration_max_steps`` and finished at the fixed step. Standstill (both
+        stepping modes): hold_solves, the chain solves beyond the first of each step (the
+        holding LCP's new sets, coaches stopping); hold_capped, steps that reached the
+        iteration cap with the set still inconsistent (the step finishes all the same).
         """
         sc = self.sc
         return {'adaptive': self.adaptive, 'steps': int(sc[SCALAR.NSTEPS]),
@@ -341,7 +344,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                 'steps_last_period': int(sc[SCALAR.INT_STEPS]),
                 'h_min_last_period': float(sc[SCALAR.INT_HMIN]),
                 'steps_max_period': int(sc[SCALAR.INT_STEPS_MAX]),
-                'fallback_periods': int(sc[SCALAR.NFALLBACK])}
+                'fallback_periods': int(sc[SCALAR.NFALLBACK]),
+                'hold_solves': int(sc[SCALAR.HOLD_SOLVES]),
+                'hold_capped': int(sc[SCALAR.HOLD_CAPPED])}
 
     def advance_to(self, t: float) -> int:
         """Integrate whole steps until ``self.t >= t - h/2``; return the steps done."""
