@@ -1,9 +1,47 @@
-"""ament_python build of train_dynamics (colcon build) and pip editable install (make venv)."""
+"""
+ament_python build of train_dynamics (colcon build) and pip editable install (make venv).
+
+``build`` also compiles the numba kernels into the built package
+(``train_dynamics/physics/_prebuilt/numba-<code version>``, see ``physics/_jit.py``) so the
+first ``ros2 run`` after ``colcon build`` loads machine code instead of compiling for 10-60 s.
+``TRAIN_DYNAMICS_PREBUILD=0`` skips that; without numba, or when it fails, the build goes on
+and the kernels compile at the first start as before. Editable installs (``make venv``,
+``colcon build --symlink-install``) run from the sources: they use the user cache, which
+``make venv`` fills with ``python -m train_dynamics.physics.prebuild``.
+"""
 from glob import glob
+import os
+import subprocess
+import sys
 
 from setuptools import find_packages, setup
+from setuptools.command.build_py import build_py
 
 package_name = 'train_dynamics'
+
+
+class BuildPyPrebuild(build_py):
+    """build_py that then compiles the kernels of the built copy into it."""
+
+    def run(self):
+        """Build the package, then run ``train_dynamics.physics.prebuild`` on the copy."""
+        super().run()
+        if getattr(self, 'editable_mode', False) or self.dry_run or os.environ.get(
+                'TRAIN_DYNAMICS_PREBUILD', '1') == '0':
+            return
+        lib = os.path.abspath(self.build_lib)
+        dest = os.path.join(lib, package_name, 'physics', '_prebuilt')
+        env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+            [lib] + [p for p in os.environ.get('PYTHONPATH', '').split(os.pathsep) if p]))
+        print(f'compiling the numba kernels into {dest} (TRAIN_DYNAMICS_PREBUILD=0 skips)',
+              flush=True)
+        result = subprocess.run(
+            [sys.executable, '-m', f'{package_name}.physics.prebuild', '--into', dest],
+            cwd=lib, env=env, check=False)
+        if result.returncode != 0:
+            print('WARNING: the numba kernels were not compiled at build time (see above): '
+                  'the first start compiles them', file=sys.stderr)
+
 
 setup(
     name=package_name,
@@ -16,7 +54,8 @@ setup(
         ('share/' + package_name + '/launch', sorted(glob('launch/*.py'))),
     ],
     install_requires=['setuptools'],
-    zip_safe=True,
+    zip_safe=False,
+    cmdclass={'build_py': BuildPyPrebuild},
     maintainer='train_dynamics maintainers',
     maintainer_email='train_dynamics@example.com',
     description='Longitudinal train dynamics with coupler friction and pneumatic brakes '
