@@ -4,8 +4,9 @@ Compile the numba kernels ahead of the first start (``python -m train_dynamics.p
 ``make venv`` runs it to fill the user cache; ``setup.py build`` (so ``colcon build`` and
 ``pip install``) runs it with ``--into <build>/train_dynamics/physics/_prebuilt`` so the
 installed package carries the compiled kernels of its own code version (see ``_jit.py``).
-It runs :func:`train_dynamics.physics.train.warmup` (every kernel variant a start can use),
-which loads from or compiles into the user cache, then copies this version's folder of it.
+It runs :func:`train_dynamics.physics.train.warmup` (the simulator's kernel variants) and
+the run metrics as ``sim_node`` and the offline command feed them (their compiled elastic
+energy), which loads from or compiles into the user cache, then copies this version's folder.
 """
 from __future__ import annotations
 
@@ -16,7 +17,21 @@ import sys
 import time
 
 from train_dynamics.physics import _jit
-from train_dynamics.physics.train import warmup
+from train_dynamics.physics.metrics import RunMetrics
+from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.train import TrainSimulator, warmup
+
+
+def warm_metrics() -> None:
+    """Feed the run metrics of the default train as the node does (``ros/outputs.py``)."""
+    cfg = SimConfig.from_dict({})
+    sim = TrainSimulator(cfg)
+    metrics = RunMetrics.for_run(cfg, sim)
+    for _ in range(3):
+        sim.advance(5)
+        metrics.add(sim.t, sim.y, sim.ydot, sim.coupler_force, sim.x, sim.v, sim.brake_force)
+    metrics.diagnostic()
+    metrics.flat()
 
 
 def copy_version(dest_root: str) -> str:
@@ -45,6 +60,7 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     t0 = time.perf_counter()
     warmup()
+    warm_metrics()
     stats = _jit.cache_stats()
     print(f'train_dynamics: kernels ready in {time.perf_counter() - t0:.1f} s '
           f'({stats["compiled"]} compiled, {stats["loaded"]} loaded from the cache '
