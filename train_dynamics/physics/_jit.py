@@ -23,7 +23,8 @@ by ``setup.py build`` (so by ``colcon build`` and ``pip install``; read-only at 
 (default ``~/.cache/train_dynamics``), where what compiles at run time is written; a private
 folder of the system's temporary directory when that is not writable, and nowhere (compiled
 in memory each start) when none is. The user cache keeps the folders of the few most recently
-used code versions and of all used in the last two weeks.
+used code versions and of all used in the last two weeks. ``NUMBA_CACHE_DIR`` does not apply
+to these kernels (numba's own cache would file them by path).
 """
 from __future__ import annotations
 
@@ -45,6 +46,9 @@ except ImportError:  # pragma: no cover
     _numba = None
 
 HAVE_NUMBA = _numba is not None
+#: numba's cache classes this module builds on (numba.core.caching, stable since 0.4x)
+_CACHE_API = HAVE_NUMBA and all(hasattr(_caching, name) for name in (
+    '_CacheLocator', 'CompileResultCacheImpl', 'FunctionCache', 'IndexDataCacheFile'))
 
 #: LLVM fast-math flags that keep IEEE NaN and infinity semantics (the fault checks rely
 #: on them): approximate functions, contraction (FMA), reciprocal and sign-of-zero freedom.
@@ -158,7 +162,7 @@ def _prune(root: str, keep: str) -> None:
             continue
 
 
-if HAVE_NUMBA:
+if _CACHE_API:
     class _KernelLocator(_caching._CacheLocator):
         """File a kernel under the code version (:func:`source_digest`), not its path."""
 
@@ -239,8 +243,8 @@ if HAVE_NUMBA:
 
 def cache_stats() -> dict:
     """Return the kernel signatures loaded from the cache and compiled in this process."""
-    hits = sum(sum(d.stats.cache_hits.values()) for d in _dispatchers)
-    misses = sum(sum(d.stats.cache_misses.values()) for d in _dispatchers)
+    hits = sum(sum(getattr(d, '_cache_hits', {}).values()) for d in _dispatchers)
+    misses = sum(sum(getattr(d, '_cache_misses', {}).values()) for d in _dispatchers)
     return {'loaded': hits, 'compiled': misses}
 
 
@@ -257,6 +261,12 @@ def jit(func=None, *, inline: bool = False):
     if _numba is None:
         return func
     options = {'nogil': True, 'fastmath': _FASTMATH, 'inline': 'always' if inline else 'never'}
+    if not _CACHE_API:     # pragma: no cover - another numba: its own cache, in our folder
+        saved, _numba.config.CACHE_DIR = _numba.config.CACHE_DIR, kernel_cache_dir()
+        try:
+            return _numba.njit(cache=bool(kernel_cache_dir()), **options)(func)
+        finally:
+            _numba.config.CACHE_DIR = saved
     dispatcher = _numba.njit(cache=False, **options)(func)
     if isinstance(dispatcher, _Dispatcher):   # not NUMBA_DISABLE_JIT
         dispatcher._cache = KernelCache(func)       # what Dispatcher.enable_caching sets
