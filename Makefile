@@ -47,7 +47,7 @@ $(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml
 	$(VPY) -m pip install --no-deps --no-build-isolation --use-pep517 -e .
 	# compile the numba kernels now into the user cache (~/.cache/train_dynamics/numba-<code
 	# version>, keyed by the sources' content): the first run starts in about a second
-	$(VPY) -m train_dynamics.physics.prebuild
+	$(VPY) -m train_dynamics.cli.prebuild
 	@touch "$@"
 
 test: venv

@@ -7,7 +7,7 @@ first ``ros2 run`` after ``colcon build`` loads machine code instead of compilin
 ``TRAIN_DYNAMICS_PREBUILD=0`` skips that; without numba, or when it fails, the build goes on
 and the kernels compile at the first start as before. Editable installs (``make venv``,
 ``colcon build --symlink-install``) run from the sources: they use the user cache, which
-``make venv`` fills with ``python -m train_dynamics.physics.prebuild``.
+``make venv`` fills with ``python -m train_dynamics.cli.prebuild``.
 """
 from glob import glob
 import os
@@ -24,7 +24,7 @@ class BuildPyPrebuild(build_py):
     """build_py that then compiles the kernels of the built copy into it."""
 
     def run(self):
-        """Build the package, then run ``train_dynamics.physics.prebuild`` on the copy."""
+        """Build the package, then run ``train_dynamics.cli.prebuild`` on the copy."""
         super().run()
         if getattr(self, 'editable_mode', False) or self.dry_run or os.environ.get(
                 'TRAIN_DYNAMICS_PREBUILD', '1') == '0':
@@ -36,7 +36,7 @@ class BuildPyPrebuild(build_py):
         print(f'compiling the numba kernels into {dest} (TRAIN_DYNAMICS_PREBUILD=0 skips)',
               flush=True)
         result = subprocess.run(
-            [sys.executable, '-m', f'{package_name}.physics.prebuild', '--into', dest],
+            [sys.executable, '-m', f'{package_name}.cli.prebuild', '--into', dest],
             cwd=lib, env=env, check=False)
         if result.returncode != 0:
             print('WARNING: the numba kernels were not compiled at build time (see above): '

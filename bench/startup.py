@@ -113,7 +113,7 @@ def run(repeats: int = 3, cold_repeats: int = 1, colcon: bool = True, log=print)
                 runs.append(first_output(lst, module, env, REPO))
                 log(f'startup: venv, cold: {runs[-1]} s')
             res['cold'] = runs
-            subprocess.run([sys.executable, '-m', 'train_dynamics.physics.prebuild'],
+            subprocess.run([sys.executable, '-m', 'train_dynamics.cli.prebuild'],
                            cwd=REPO, env=U.ros_env(), check=True, capture_output=True)
             res['warm'] = [first_output(lst, module, U.ros_env(), REPO) for _ in range(repeats)]
             log(f'startup: venv, warm: {res["warm"]} s')

@@ -1,5 +1,5 @@
 """
-Compile the numba kernels ahead of the first start (``python -m train_dynamics.physics.prebuild``).
+Compile the numba kernels before the first start: ``python -m train_dynamics.cli.prebuild``.
 
 ``make venv`` runs it to fill the user cache; ``setup.py build`` (so ``colcon build`` and
 ``pip install``) runs it with ``--into <build>/train_dynamics/physics/_prebuilt`` so the
