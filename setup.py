@@ -11,12 +11,14 @@ and the kernels compile at the first start as before.
 """
 from glob import glob
 import os
+import shutil
 import subprocess
 import sys
 
 from setuptools import find_packages, setup
 from setuptools.command.build_py import build_py
 from setuptools.command.develop import develop
+from setuptools.command.install_lib import install_lib
 
 package_name = 'train_dynamics'
 
@@ -49,6 +51,21 @@ class BuildPyPrebuild(build_py):
             prebuild(lib, os.path.join(lib, package_name, 'physics', '_prebuilt'))
 
 
+class InstallLibPrebuilt(install_lib):
+    """install_lib that drops the kernels of earlier code versions from the install."""
+
+    def run(self):
+        """Install the built package, then keep only the ``_prebuilt`` versions just built."""
+        super().run()
+        sub = os.path.join(package_name, 'physics', '_prebuilt')
+        built, installed = (os.path.join(d, sub) for d in (self.build_dir, self.install_dir))
+        if os.path.isdir(built) and os.path.isdir(installed) and not self.dry_run:
+            keep = set(os.listdir(built))
+            for name in os.listdir(installed):
+                if name.startswith('numba-') and name not in keep:
+                    shutil.rmtree(os.path.join(installed, name), ignore_errors=True)
+
+
 class DevelopPrebuild(develop):
     """develop (``colcon build --symlink-install``) that then fills the user cache."""
 
@@ -71,7 +88,8 @@ setup(
     ],
     install_requires=['setuptools'],
     zip_safe=False,
-    cmdclass={'build_py': BuildPyPrebuild, 'develop': DevelopPrebuild},
+    cmdclass={'build_py': BuildPyPrebuild, 'develop': DevelopPrebuild,
+              'install_lib': InstallLibPrebuilt},
     maintainer='train_dynamics maintainers',
     maintainer_email='train_dynamics@example.com',
     description='Longitudinal train dynamics with coupler friction and pneumatic brakes '
