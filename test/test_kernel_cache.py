@@ -21,7 +21,7 @@ from train_dynamics.physics import _jit
 pytestmark = pytest.mark.skipif(not _jit.HAVE_NUMBA, reason='numba is not installed')
 
 REPO = Path(__file__).resolve().parents[1]
-PROBE_KERNEL = '''
+PROBE_KERNEL = """
 from train_dynamics.physics._jit import jit
 from train_dynamics.physics.layout import COACH
 
@@ -29,8 +29,8 @@ from train_dynamics.physics.layout import COACH
 @jit
 def probe(x):
     return 2.0 * x + COACH.V
-'''
-PROBE = '''
+"""
+PROBE = """
 import json
 import os
 import tempfile
@@ -39,7 +39,7 @@ from train_dynamics.physics import _jit
 from train_dynamics.physics._probe_kernel import probe
 print(json.dumps({'value': probe(1.5), **_jit.cache_stats(), 'dir': _jit.kernel_cache_dir(),
                   'file': _jit.__file__}))
-'''
+"""
 
 
 def _copy(dest: Path) -> Path:
