@@ -55,8 +55,13 @@ def _args() -> list[str]:
 
 
 def first_output(lst: U.Listener, cmd: list[str], env: dict, cwd: str,
-                 timeout: float = 300.0) -> float | None:
-    """Start ``cmd``; return the seconds to its first ``couplers`` message (None: none)."""
+                 timeout: float = 300.0, cpu: list | None = None) -> float | None:
+    """
+    Start ``cmd``; return the seconds to its first ``couplers`` message (None: none).
+
+    ``cpu``: gets the process's CPU seconds (user + system) at that moment appended, a
+    figure the other load on the machine barely changes.
+    """
     lst.first_arrival = None
     with tempfile.TemporaryFile('w+') as log:
         t0 = time.monotonic()
@@ -66,6 +71,8 @@ def first_output(lst: U.Listener, cmd: list[str], env: dict, cwd: str,
                 and proc.poll() is None:
             time.sleep(0.001)
         first = lst.first_arrival - t0 if lst.first_arrival is not None else None
+        if cpu is not None:
+            cpu.append(U.proc_cpu_seconds(proc.pid))
         U.stop_node(proc)
     time.sleep(0.5)
     return first
@@ -110,12 +117,15 @@ def run(repeats: int = 3, cold_repeats: int = 1, colcon: bool = True, log=print)
             runs = []
             for k in range(cold_repeats):
                 env = dict(U.ros_env(), TRAIN_DYNAMICS_CACHE_DIR=os.path.join(tmp, f'cold{k}'))
-                runs.append(first_output(lst, module, env, REPO))
+                runs.append(first_output(lst, module, env, REPO,
+                                         cpu=res.setdefault('cold_cpu', [])))
                 log(f'startup: venv, cold: {runs[-1]} s')
             res['cold'] = runs
             subprocess.run([sys.executable, '-m', 'train_dynamics.cli.prebuild'],
                            cwd=REPO, env=U.ros_env(), check=True, capture_output=True)
-            res['warm'] = [first_output(lst, module, U.ros_env(), REPO) for _ in range(repeats)]
+            res['warm'] = [first_output(lst, module, U.ros_env(), REPO,
+                                        cpu=res.setdefault('warm_cpu', []))
+                           for _ in range(repeats)]
             log(f'startup: venv, warm: {res["warm"]} s')
             if colcon:
                 ws, env = colcon_workspace(tmp, log)
@@ -124,7 +134,8 @@ def run(repeats: int = 3, cold_repeats: int = 1, colcon: bool = True, log=print)
                 runs = []
                 for k in range(repeats):
                     env['TRAIN_DYNAMICS_CACHE_DIR'] = os.path.join(tmp, f'installed{k}')
-                    runs.append(first_output(lst, exe, env, ws))
+                    runs.append(first_output(lst, exe, env, ws,
+                                             cpu=res.setdefault('installed_cpu', [])))
                     written = [n for _, _, files in os.walk(env['TRAIN_DYNAMICS_CACHE_DIR'])
                                for n in files]
                     res.setdefault('installed_compiled_files', []).append(len(written))
@@ -147,15 +158,16 @@ def _fmt(values: list) -> str:
 
 def table(res: dict) -> str:
     """Return the markdown table of :func:`run`'s result."""
-    rows = ['| sim_node start | starts | first output [s] (min / median / max) |',
-            '| --- | ---: | ---: |']
+    rows = ['| sim_node start | starts | first output [s] (min / median / max) | its CPU time '
+            'until then [s] (min / median / max) |', '| --- | ---: | ---: | ---: |']
     labels = (('cold', 'venv, cold: empty kernel cache (every kernel compiles)'),
               ('warm', 'venv, warm: user cache filled by `make venv`'),
               ('installed', 'after `colcon build` in a fresh workspace, first start '
                             '(empty user cache: the kernels the build compiled)'))
     for key, label in labels:
         if key in res:
-            rows.append(f'| {label} | {len(res[key])} | {_fmt(res[key])} |')
+            rows.append(f'| {label} | {len(res[key])} | {_fmt(res[key])} | '
+                        f"{_fmt(res.get(key + '_cpu', []))} |")
     rows.append('')
     rows.append(f"Load average (1 min) before / after: {res['load_before']:.2f} / "
                 f"{res['load_after']:.2f} (2 cores).")
