@@ -1,9 +1,80 @@
-"""ament_python build of train_dynamics (colcon build) and pip editable install (make venv)."""
+"""
+ament_python build of train_dynamics (colcon build) and pip editable install (make venv).
+
+``build`` also compiles the numba kernels into the built package
+(``train_dynamics/physics/_prebuilt/numba-<code version>``, see ``physics/_jit.py``) so the
+first ``ros2 run`` after ``colcon build`` loads machine code instead of compiling for 10-60 s.
+``develop`` (``colcon build --symlink-install``, which runs the sources) compiles them into
+the user cache instead, as ``make venv`` does (``python -m train_dynamics.cli.prebuild``).
+``TRAIN_DYNAMICS_PREBUILD=0`` skips that; without numba, or when it fails, the build goes on
+and the kernels compile at the first start as before.
+"""
 from glob import glob
+import os
+import shutil
+import subprocess
+import sys
 
 from setuptools import find_packages, setup
+from setuptools.command.build_py import build_py
+from setuptools.command.develop import develop
+from setuptools.command.install_lib import install_lib
 
 package_name = 'train_dynamics'
+
+
+def prebuild(lib: str, into: str | None) -> None:
+    """Run ``train_dynamics.cli.prebuild`` on the package in ``lib`` (never fails the build)."""
+    if os.environ.get('TRAIN_DYNAMICS_PREBUILD', '1') == '0':
+        return
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join(
+        [lib] + [p for p in os.environ.get('PYTHONPATH', '').split(os.pathsep) if p]))
+    where = into or 'the user cache'
+    print(f'compiling the numba kernels into {where} (TRAIN_DYNAMICS_PREBUILD=0 skips)',
+          flush=True)
+    result = subprocess.run([sys.executable, '-m', f'{package_name}.cli.prebuild']
+                            + (['--into', into] if into else []),
+                            cwd=lib, env=env, check=False)
+    if result.returncode != 0:
+        print('WARNING: the numba kernels were not compiled at build time (see above): '
+              'the first start compiles them', file=sys.stderr)
+
+
+class BuildPyPrebuild(build_py):
+    """build_py that then compiles the kernels of the built copy into it."""
+
+    def run(self):
+        """Build the package, then compile its kernels into ``physics/_prebuilt``."""
+        super().run()
+        if not (getattr(self, 'editable_mode', False) or self.dry_run):
+            lib = os.path.abspath(self.build_lib)
+            prebuild(lib, os.path.join(lib, package_name, 'physics', '_prebuilt'))
+
+
+class InstallLibPrebuilt(install_lib):
+    """install_lib that drops the kernels of earlier code versions from the install."""
+
+    def run(self):
+        """Install the built package, then keep only the ``_prebuilt`` versions just built."""
+        super().run()
+        sub = os.path.join(package_name, 'physics', '_prebuilt')
+        built, installed = (os.path.join(d, sub) for d in (self.build_dir, self.install_dir))
+        if os.path.isdir(built) and os.path.isdir(installed) and not self.dry_run:
+            keep = set(os.listdir(built))
+            for name in os.listdir(installed):
+                if name.startswith('numba-') and name not in keep:
+                    shutil.rmtree(os.path.join(installed, name), ignore_errors=True)
+
+
+class DevelopPrebuild(develop):
+    """develop (``colcon build --symlink-install``) that then fills the user cache."""
+
+    def run(self):
+        """Link the sources, then compile their kernels into the user cache."""
+        super().run()
+        if not (self.uninstall or self.dry_run):
+            prebuild(os.path.dirname(os.path.abspath(__file__)), None)
+
 
 setup(
     name=package_name,
@@ -16,7 +87,9 @@ setup(
         ('share/' + package_name + '/launch', sorted(glob('launch/*.py'))),
     ],
     install_requires=['setuptools'],
-    zip_safe=True,
+    zip_safe=False,
+    cmdclass={'build_py': BuildPyPrebuild, 'develop': DevelopPrebuild,
+              'install_lib': InstallLibPrebuilt},
     maintainer='train_dynamics maintainers',
     maintainer_email='train_dynamics@example.com',
     description='Longitudinal train dynamics with coupler friction and pneumatic brakes '

@@ -413,7 +413,8 @@ def startup_probe() -> dict:
 def measure_startup() -> dict:
     out = {}
     with tempfile.TemporaryDirectory(prefix='td_numba_cold_') as tmp:
-        env = dict(os.environ, NUMBA_CACHE_DIR=tmp)
+        # an empty kernel cache (physics/_jit.py): every kernel the start needs compiles
+        env = dict(os.environ, TRAIN_DYNAMICS_CACHE_DIR=tmp)
         out['cold'] = _run_sub(['--startup'], env=env)
     out['warm'] = _run_sub(['--startup'])
     out['warm2'] = _run_sub(['--startup'])

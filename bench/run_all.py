@@ -155,7 +155,7 @@ def baseline_table(rows: list[dict]) -> str:
 def startup_table(st: dict) -> str:
     out = ['| numba cache | import train_dynamics.physics.train [s] | first TrainSimulator '
            '+ first output (10 ms) [s] | total [s] |', '| --- | ---: | ---: | ---: |']
-    for k, label in (('cold', 'cold (empty NUMBA_CACHE_DIR: compiles)'),
+    for k, label in (('cold', 'cold (empty TRAIN_DYNAMICS_CACHE_DIR: compiles)'),
                      ('warm', 'warm (cache loaded)'), ('warm2', 'warm, again')):
         s = st[k]
         out.append(f"| {label} | {s['import_s']:.2f} | {s['first_output_s']:.2f} | "
@@ -300,8 +300,10 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
             baseline_table(core_res['baseline']), '',
             '### Start-up of the core (numba)', '',
             'Fresh process each: `import train_dynamics.physics.train`, then a 30-coach simulator '
-            'and its first 10 ms. Cold = empty numba cache (first run after install or after a '
-            'source change: every kernel compiles); warm = cache loaded from `__pycache__`.',
+            'and its first 10 ms. Cold = empty kernel cache (a source change, or an install '
+            'without the build-time kernels: every kernel compiles); warm = kernels loaded from '
+            'the cache (`~/.cache/train_dynamics/numba-<code version>`, see '
+            '`physics/_jit.py`).',
             '', startup_table(core_res['startup']), '']
     if node_res:
         p = node_res['params']
@@ -321,6 +323,11 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
                             f'60 s run: {best / a:.2f} / {best / b:.2f} (run '
                             f"{node_res.get('attempt', 1)}; a run below {core.SLOW_HOST:g} is "
                             'done once more, keeping the run at the higher host speed).']
+        if node_res.get('startup_cases'):
+            import startup as startupbench
+            parts += ['### Node start-up to first output: cold, warm, after a colcon build', '',
+                      startupbench.DESCRIPTION, '',
+                      startupbench.table(node_res['startup_cases']), '']
     parts += [soak_section(), '', sweepbench.sweep_section(), '', memory_section(), '']
     return '\n'.join(parts)
 
@@ -376,6 +383,9 @@ def main(argv=None) -> int:
             log('node: start-up spread (4 more starts)')
             node_res['startup_trials'] = nodebench.startup_trials(log=log)
             nodebench.apply_startup_target(node_res)
+            log('node: start-up cold, warm and after a colcon build (bench/startup.py)')
+            import startup as startupbench
+            node_res['startup_cases'] = startupbench.run(log=log)
         except Exception as exc:  # noqa: BLE001 - report and keep the core results
             log(f'node benchmark failed: {exc}')
     pneu_md = ''

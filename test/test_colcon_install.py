@@ -9,6 +9,10 @@ Uses the colcon of the running virtual environment (requirements.txt pins it). T
 ``sim_node`` and ``brake_valve`` run together over DDS (loopback, the session's domain): the
 test sees ``couplers`` and ``brake_pipe/pressure`` messages, then stops both with SIGINT /
 SIGTERM and expects a clean exit.
+
+The build compiles the numba kernels into the installed package (``setup.py build``, see
+``physics/_jit.py``): the installed executables start with an empty user cache
+(``TRAIN_DYNAMICS_CACHE_DIR``) and must not compile anything, i.e. write nothing there.
 """
 from __future__ import annotations
 
@@ -78,10 +82,20 @@ def workspace(tmp_path_factory):
     env.pop('PYTHONPATH', None)
     env.pop('AMENT_PREFIX_PATH', None)
     env.pop('COLCON_PREFIX_PATH', None)
+    env.pop('TRAIN_DYNAMICS_PREBUILD', None)          # the build compiles the kernels
     build = subprocess.run([str(colcon), 'build', '--base-paths', 'src'], cwd=ws, env=env,
                            capture_output=True, text=True, timeout=600)
     assert build.returncode == 0, f'colcon build failed:\n{build.stdout}\n{build.stderr}'
-    return ws, _sourced_env(ws, env)
+    env = _sourced_env(ws, env)
+    # the first start after the install: an empty user cache (whatever the build used)
+    env['TRAIN_DYNAMICS_CACHE_DIR'] = str(ws / 'user_cache')
+    env.pop('NUMBA_DISABLE_JIT', None)
+    return ws, env
+
+
+def _compiled_at_run_time(ws: Path) -> list[str]:
+    """Return the kernel cache files the installed executables wrote (they compiled those)."""
+    return sorted(p.name for p in (ws / 'user_cache').rglob('*') if p.is_file())
 
 
 def test_colcon_build_installs_where_ros2_run_looks(workspace):
@@ -108,6 +122,33 @@ def test_colcon_build_installs_where_ros2_run_looks(workspace):
     for exe in EXECUTABLES:
         path = Path(prefix) / 'lib' / 'train_dynamics' / exe
         assert path.is_file() and os.access(path, os.X_OK), f'{exe} not installed at {path}'
+
+
+def test_build_prebuilds_the_kernels_of_the_installed_sources(workspace):
+    ws, env = workspace
+    probe = subprocess.run(
+        [sys.executable, '-c',
+         'from train_dynamics.physics import _jit\n'
+         'print(_jit.prebuilt_dir())'],
+        cwd=ws, env=env, capture_output=True, text=True, timeout=60)
+    assert probe.returncode == 0, probe.stderr
+    prebuilt = Path(probe.stdout.strip())
+    assert prebuilt.resolve().is_relative_to((ws / 'install').resolve()), prebuilt
+    # the folder named after the installed sources' digest holds the chain kernel
+    assert list(prebuilt.glob('integrators.advance_chain-*.nbi')), prebuilt
+    assert list(prebuilt.glob('integrators.advance_chain-*.nbc')), prebuilt
+
+
+def test_installed_offline_command_starts_warm(workspace, tmp_path):
+    ws, env = workspace
+    exe = ws / 'install' / 'train_dynamics' / 'lib' / 'train_dynamics' / 'train-dynamics'
+    params = ws / 'install' / 'train_dynamics' / 'share' / 'train_dynamics' / 'config'
+    out = subprocess.run([str(exe), 'simulate', '--params', str(params / 'paper_3coach.yaml'),
+                          '--duration', '0.2', '--output', str(tmp_path / 'run'), '-q'],
+                         cwd=ws, env=env, capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    assert (tmp_path / 'run').is_dir()
+    assert _compiled_at_run_time(ws) == []
 
 
 def test_installed_offline_command_runs(workspace):
@@ -137,8 +178,8 @@ def _run_installed(ws, env, nodes, spin_until, want_couplers):
             logs[name] = open(ws / f'{name}.log', 'w+')
             procs[name] = subprocess.Popen([str(lib / name), *args], cwd=ws, env=env,
                                            stdout=logs[name], stderr=subprocess.STDOUT)
-        # generous: the installed copy has no numba cache yet, so sim_node compiles its
-        # kernels on first start (~30 s on a 2-core machine)
+        # generous: should the build not have compiled the kernels, sim_node compiles them
+        # on its first start (~30 s on a loaded 2-core machine; the test then fails below)
         ok = spin_until(listener, lambda: len(pressures) >= 5 and (
             len(couplers) >= 5 or not want_couplers), timeout=150.0)
         for name, proc in procs.items():
@@ -177,6 +218,8 @@ def test_installed_sim_node_runs_with_brake_valve(workspace, rclpy_context, spin
     }, spin_until, want_couplers=True)
     msg = couplers[-1]
     assert list(msg.name) == ['coupler_1', 'coupler_2']                # paper's 3 coaches
+    # the first start after the install loaded the build's kernels: it compiled nothing
+    assert _compiled_at_run_time(ws) == []
     assert len(msg.position) == len(msg.velocity) == len(msg.effort) == 2
     # absolute Pa, between the vented (atmospheric) and the charged pipe, venting only
     values = [m.fluid_pressure for m in pressures]

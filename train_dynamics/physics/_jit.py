@@ -1,34 +1,54 @@
 """
-Compile the physics kernels with numba when it is installed.
+Compile the physics kernels with numba when it is installed, cached by content.
 
 The model code is written once, per coach or per coupler, with loops where numpy would
-allocate temporaries; numba compiles it to machine code and caches it on disk so a new
-process starts in about a second instead of compiling for half a minute. Without numba (or
+allocate temporaries; numba compiles it to machine code (10-60 s) and this module caches
+that code on disk so that a new process loads it in well under a second. Without numba (or
 with ``NUMBA_DISABLE_JIT=1``) the very same functions run as plain Python: correct, slow.
 
-Cache location. numba keys a cached function on its own file only: a kernel in
-``integrators.py`` that inlines a function of ``brakes.py``, or freezes a constant of
-``layout.py``, keeps running the OLD code after that file changes. So the cache lives in a
-directory named after a hash of all the kernel sources (:data:`KERNEL_SOURCES`: every
-physics module with compiled functions and every module they take code or constants from;
-``test_integrators.py`` checks the list) and the numba and Python versions:
-``$TRAIN_DYNAMICS_CACHE_DIR`` or ``$XDG_CACHE_HOME/train_dynamics`` (default
-``~/.cache/train_dynamics``), one ``numba-<hash>`` folder per code version; the system's
-temporary directory when that is not writable. ``NUMBA_CACHE_DIR``, when set, wins.
+Cache key. numba's own cache files a function under the path of its source folder and
+checks only that one file: a copy of the package elsewhere (a colcon ``build``/``install``
+tree, a fresh clone) compiles again, and a kernel of ``integrators.py`` that inlines a
+function of ``brakes.py`` or freezes a constant of ``layout.py`` would keep running OLD code
+after that file changed. Here every kernel is filed under :func:`source_digest`: a hash of
+all kernel sources (:data:`KERNEL_SOURCES`; ``test_integrators.py`` checks the list) and of
+the Python, numba, llvmlite and numpy versions, never of a path. One folder
+``numba-<digest>`` per code version; inside it numba's index keys each entry by the
+function, its argument types and the CPU (name and features), so a changed source, a new
+numba or another CPU can never load old machine code: it compiles instead.
+
+Where. Entries are read from (1) ``_prebuilt/numba-<digest>`` next to this file, written
+by ``setup.py build`` (so by ``colcon build`` and ``pip install``; read-only at run time), then
+(2) the user cache ``$TRAIN_DYNAMICS_CACHE_DIR`` or ``$XDG_CACHE_HOME/train_dynamics``
+(default ``~/.cache/train_dynamics``), where what compiles at run time is written; a private
+folder of the system's temporary directory when that is not writable, and nowhere (compiled
+in memory each start) when none is. The user cache keeps the folders of the few most recently
+used code versions and of all used in the last two weeks. ``NUMBA_CACHE_DIR`` does not apply
+to these kernels (numba's own cache would file them by path).
 """
 from __future__ import annotations
 
 import hashlib
 import os
+import pickle
+import shutil
 import sys
 import tempfile
+import time
 
 try:  # pragma: no cover - exercised by the installed environment
+    import llvmlite
     import numba as _numba
+    from numba.core import caching as _caching
+    from numba.core.dispatcher import Dispatcher as _Dispatcher
+    import numpy
 except ImportError:  # pragma: no cover
     _numba = None
 
 HAVE_NUMBA = _numba is not None
+#: numba's cache classes this module builds on (numba.core.caching, stable since 0.4x)
+_CACHE_API = HAVE_NUMBA and all(hasattr(_caching, name) for name in (
+    '_CacheLocator', 'CompileResultCacheImpl', 'FunctionCache', 'IndexDataCacheFile'))
 
 #: LLVM fast-math flags that keep IEEE NaN and infinity semantics (the fault checks rely
 #: on them): approximate functions, contraction (FMA), reciprocal and sign-of-zero freedom.
@@ -38,43 +58,199 @@ _FASTMATH = {'afn', 'contract', 'arcp', 'nsz'}
 KERNEL_SOURCES = ('_jit.py', 'brakes.py', 'couplers.py', 'integrators.py', 'layout.py',
                   'pneumatic.py', 'resistance.py', 'standstill.py', 'track.py', 'traction.py')
 
-_cache_dir: str | None = None
+#: the folder (next to this file) of the kernels compiled at build time
+PREBUILT = '_prebuilt'
+
+#: the user cache keeps the folders of the KEEP_VERSIONS most recently used code versions and
+#: of all used within MAX_AGE_S
+KEEP_VERSIONS = 4
+MAX_AGE_S = 14 * 86400.0
+
+_HERE = os.path.dirname(os.path.abspath(__file__))
+_state: dict = {}
+_dispatchers: list = []
+
+
+def source_digest(folder: str = _HERE) -> str:
+    """Return the hex digest of the kernel sources in ``folder`` and the compiler versions."""
+    digest = hashlib.sha256()
+    for name in KERNEL_SOURCES:
+        digest.update(name.encode() + b'\0')
+        try:
+            with open(os.path.join(folder, name), 'rb') as fh:
+                digest.update(fh.read())
+        except OSError:
+            digest.update(b'missing')
+    versions = (sys.version_info[:2], sys.implementation.cache_tag,
+                getattr(_numba, '__version__', ''),
+                getattr(llvmlite, '__version__', '') if HAVE_NUMBA else '',
+                getattr(numpy, '__version__', '') if HAVE_NUMBA else '')
+    digest.update(repr(versions).encode())
+    return digest.hexdigest()
+
+
+def _digest() -> str:
+    """Return :func:`source_digest` of this package (computed once per process)."""
+    if 'digest' not in _state:
+        _state['digest'] = source_digest()
+    return _state['digest']
+
+
+def _tag() -> str:
+    return 'numba-' + _digest()[:20]
+
+
+def user_cache_root() -> str:
+    """Return the folder holding the user cache's ``numba-<digest>`` folders."""
+    return os.environ.get('TRAIN_DYNAMICS_CACHE_DIR') or os.path.join(
+        os.environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache'),
+        'train_dynamics')
+
+
+def prebuilt_dir() -> str:
+    """Return the build-time kernel folder of this code version (it may not exist)."""
+    return os.path.join(_HERE, PREBUILT, _tag())
+
+
+def _private_tmp_root() -> str | None:
+    """Return a temporary folder only this user can write (cache files are pickles)."""
+    uid = os.getuid() if hasattr(os, 'getuid') else 0
+    root = os.path.join(tempfile.gettempdir(), f'train_dynamics_cache-{uid}')
+    try:
+        os.makedirs(root, mode=0o700, exist_ok=True)
+        st = os.stat(root)
+    except OSError:
+        return None
+    if st.st_uid != uid or st.st_mode & 0o022:
+        return None
+    return root
 
 
 def kernel_cache_dir() -> str:
-    """Return the directory of the compiled-kernel cache for this version of the sources."""
-    global _cache_dir
-    if _cache_dir is not None:
-        return _cache_dir
-    digest = hashlib.sha256()
-    here = os.path.dirname(os.path.abspath(__file__))
-    for name in KERNEL_SOURCES:
-        try:
-            with open(os.path.join(here, name), 'rb') as fh:
-                digest.update(fh.read())
-        except OSError:
-            digest.update(name.encode())
-    digest.update(f'{sys.version_info[:2]} {getattr(_numba, "__version__", "")}'.encode())
-    tag = 'numba-' + digest.hexdigest()[:16]
-    base = os.environ.get('TRAIN_DYNAMICS_CACHE_DIR') or os.path.join(
-        os.environ.get('XDG_CACHE_HOME') or os.path.join(os.path.expanduser('~'), '.cache'),
-        'train_dynamics')
-    for root in (base, os.path.join(tempfile.gettempdir(), 'train_dynamics_cache')):
-        path = os.path.join(root, tag)
+    """Return the writable cache folder of this code version; '' when there is none."""
+    if 'dir' in _state:
+        return _state['dir']
+    _state['dir'] = ''
+    for root in (user_cache_root(), _private_tmp_root()):
+        if not root:
+            continue
+        path = os.path.join(root, _tag())
         try:
             os.makedirs(path, exist_ok=True)
-            if os.access(path, os.W_OK):
-                _cache_dir = path
-                return path
+            tempfile.TemporaryFile(dir=path).close()
         except OSError:
             continue
-    _cache_dir = ''
-    return _cache_dir
+        _state['dir'] = path
+        _prune(root, keep=path)
+        break
+    return _state['dir']
+
+
+def _prune(root: str, keep: str) -> None:
+    """Remove the code versions in ``root`` unused for MAX_AGE_S beyond KEEP_VERSIONS."""
+    try:
+        os.utime(keep)                       # mark this version as used now
+        folders = [os.path.join(root, n) for n in os.listdir(root) if n.startswith('numba-')]
+        folders.sort(key=lambda p: os.stat(p).st_mtime, reverse=True)
+    except OSError:
+        return
+    for path in folders[KEEP_VERSIONS:]:
+        try:
+            if path != keep and time.time() - os.stat(path).st_mtime > MAX_AGE_S:
+                shutil.rmtree(path, ignore_errors=True)
+        except OSError:
+            continue
+
+
+if _CACHE_API:
+    class _KernelLocator(_caching._CacheLocator):
+        """File a kernel under the code version (:func:`source_digest`), not its path."""
+
+        def __init__(self, py_func, py_file: str):
+            self._py_file = py_file
+            self._lineno = py_func.__code__.co_firstlineno
+
+        def ensure_cache_path(self):
+            """Create the writable folder; raise OSError when there is none."""
+            if not kernel_cache_dir():
+                raise OSError('no writable kernel cache folder')
+
+        def get_cache_path(self) -> str:
+            """Return the writable folder ('' when there is none)."""
+            return kernel_cache_dir()
+
+        def get_source_stamp(self) -> str:
+            """Return the digest of all kernel sources (the folder name has its prefix)."""
+            return _digest()
+
+        def get_disambiguator(self) -> str:
+            """Return the function's first line (two functions of one name in one file)."""
+            return str(self._lineno)
+
+        @classmethod
+        def from_function(cls, py_func, py_file: str):
+            """Return the locator of ``py_func``."""
+            return cls(py_func, py_file)
+
+    class _KernelCacheImpl(_caching.CompileResultCacheImpl):
+        """numba's compile-result cache with :class:`_KernelLocator` as the only locator."""
+
+        def __init__(self, py_func):  # numba's __init__ less its locator search
+            self._lineno = py_func.__code__.co_firstlineno
+            self._locator = _KernelLocator(py_func, py_func.__code__.co_filename)
+            modname = os.path.splitext(os.path.basename(py_func.__code__.co_filename))[0]
+            self._filename_base = self.get_filename_base(
+                f'{modname}.{py_func.__qualname__}', getattr(sys, 'abiflags', ''))
+
+    class KernelCache(_caching.FunctionCache):
+        """
+        Load a kernel from the build-time folder, then the user cache; save to the latter.
+
+        A file that cannot be read (truncated, from a foreign numba) is a miss, a cache that
+        cannot be written leaves the compiled code in memory: neither stops the simulation.
+        """
+
+        _impl_class = _KernelCacheImpl
+
+        def __init__(self, py_func):
+            super().__init__(py_func)
+            base, stamp = self._impl.filename_base, _digest()
+            self._files = [_caching.IndexDataCacheFile(d, base, stamp)
+                           for d in (prebuilt_dir(), kernel_cache_dir()) if d]
+
+        def _load_overload(self, sig, target_context):
+            if not self._enabled:
+                return None
+            key = self._index_key(sig, target_context.codegen())
+            for cache_file in self._files:
+                try:
+                    data = cache_file.load(key)
+                    if data is not None:
+                        return self._impl.rebuild(target_context, data)
+                except (OSError, EOFError, pickle.UnpicklingError, AttributeError,
+                        ImportError, IndexError, KeyError, TypeError, ValueError):
+                    continue
+            return None
+
+        def _save_overload(self, sig, data):
+            if not kernel_cache_dir():
+                return
+            try:
+                super()._save_overload(sig, data)
+            except OSError:
+                pass
+
+
+def cache_stats() -> dict:
+    """Return the kernel signatures loaded from the cache and compiled in this process."""
+    hits = sum(sum(getattr(d, '_cache_hits', {}).values()) for d in _dispatchers)
+    misses = sum(sum(getattr(d, '_cache_misses', {}).values()) for d in _dispatchers)
+    return {'loaded': hits, 'compiled': misses}
 
 
 def jit(func=None, *, inline: bool = False):
     """
-    Compile ``func`` with numba, cached in :func:`kernel_cache_dir`; without numba keep it.
+    Compile ``func`` with numba, cached by content (see the module); without numba keep it.
 
     ``@jit(inline=True)``: numba inlines the function into its compiled callers (at its IR
     level), for the named steps of a kernel that run once per step: a call costs the
@@ -85,14 +261,14 @@ def jit(func=None, *, inline: bool = False):
     if _numba is None:
         return func
     options = {'nogil': True, 'fastmath': _FASTMATH, 'inline': 'always' if inline else 'never'}
-    if os.environ.get('NUMBA_CACHE_DIR'):
-        return _numba.njit(cache=True, **options)(func)
-    path = kernel_cache_dir()
-    if not path:       # nowhere to write: compile in memory
-        return _numba.njit(cache=False, **options)(func)
-    saved = _numba.config.CACHE_DIR
-    _numba.config.CACHE_DIR = path     # read when the dispatcher sets up its cache
-    try:
-        return _numba.njit(cache=True, **options)(func)
-    finally:
-        _numba.config.CACHE_DIR = saved
+    if not _CACHE_API:     # pragma: no cover - another numba: its own cache, in our folder
+        saved, _numba.config.CACHE_DIR = _numba.config.CACHE_DIR, kernel_cache_dir()
+        try:
+            return _numba.njit(cache=bool(kernel_cache_dir()), **options)(func)
+        finally:
+            _numba.config.CACHE_DIR = saved
+    dispatcher = _numba.njit(cache=False, **options)(func)
+    if isinstance(dispatcher, _Dispatcher):   # not NUMBA_DISABLE_JIT
+        dispatcher._cache = KernelCache(func)       # what Dispatcher.enable_caching sets
+        _dispatchers.append(dispatcher)
+    return dispatcher

@@ -1,0 +1,152 @@
+"""
+The compiled-kernel cache (``physics/_jit.py``): keyed by content, never stale, never fatal.
+
+Each case runs a fresh interpreter on a copy of the package (``train_dynamics`` only) with a
+small probe kernel added to ``physics/`` and an own ``TRAIN_DYNAMICS_CACHE_DIR``; the probe
+prints its result and ``_jit.cache_stats()`` (signatures loaded from the cache / compiled).
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+import shutil
+import subprocess
+import sys
+
+import pytest
+
+from train_dynamics.physics import _jit
+
+pytestmark = pytest.mark.skipif(not _jit.HAVE_NUMBA, reason='numba is not installed')
+
+REPO = Path(__file__).resolve().parents[1]
+PROBE_KERNEL = """
+from train_dynamics.physics._jit import jit
+from train_dynamics.physics.layout import COACH
+
+
+@jit
+def probe(x):
+    return 2.0 * x + COACH.V
+"""
+PROBE = """
+import json
+import os
+import tempfile
+tempfile.tempdir = os.environ.get('PROBE_TMPDIR') or None   # the last fall-back folder
+from train_dynamics.physics import _jit
+from train_dynamics.physics._probe_kernel import probe
+print(json.dumps({'value': probe(1.5), **_jit.cache_stats(), 'dir': _jit.kernel_cache_dir(),
+                  'file': _jit.__file__}))
+"""
+
+
+def _copy(dest: Path) -> Path:
+    """Copy the package to ``dest`` with the probe kernel; return the copy's physics folder."""
+    shutil.copytree(REPO / 'train_dynamics', dest / 'train_dynamics',
+                    ignore=shutil.ignore_patterns('__pycache__', '_prebuilt'))
+    physics = dest / 'train_dynamics' / 'physics'
+    (physics / '_probe_kernel.py').write_text(PROBE_KERNEL)
+    return physics
+
+
+def _run(root: Path, cache: Path, **env) -> dict:
+    """Run the probe on the copy at ``root`` with the user cache ``cache``; return its report."""
+    full = dict(os.environ, PYTHONPATH=str(root), TRAIN_DYNAMICS_CACHE_DIR=str(cache), **env)
+    full.pop('NUMBA_DISABLE_JIT', None)
+    out = subprocess.run([sys.executable, '-c', PROBE], cwd=root, env=full,
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout.strip().splitlines()[-1])
+    assert Path(report['file']).is_relative_to(root), report['file']   # the copy ran
+    return report
+
+
+def _expected(physics: Path) -> float:
+    layout = {}
+    exec(compile((physics / 'layout.py').read_text(), 'layout.py', 'exec'), layout)
+    return 3.0 + layout['COACH'].V
+
+
+def test_a_copy_elsewhere_loads_the_kernels_another_copy_compiled(tmp_path):
+    cache = tmp_path / 'cache'
+    first, second = _copy(tmp_path / 'a'), _copy(tmp_path / 'b' / 'deeper')
+    (second / 'integrators.py').touch()               # a new mtime changes nothing
+    a = _run(tmp_path / 'a', cache)
+    assert (a['compiled'], a['loaded']) == (1, 0)
+    b = _run(tmp_path / 'b' / 'deeper', cache)
+    assert (b['compiled'], b['loaded']) == (0, 1)
+    assert a['dir'] == b['dir'] and Path(a['dir']).parent == cache
+    assert a['value'] == b['value'] == _expected(first)
+
+
+def test_a_change_in_any_kernel_source_compiles_again(tmp_path):
+    """
+    Check that an edit of a module the kernel takes a constant from is never served stale.
+
+    The probe's own file is unchanged; ``layout.py`` swaps two coach rows so ``COACH.V``
+    (frozen into the machine code) changes: the old code would return the old value.
+    """
+    cache = tmp_path / 'cache'
+    physics = _copy(tmp_path / 'a')
+    old = _run(tmp_path / 'a', cache)
+    assert old['value'] == _expected(physics)
+    layout = physics / 'layout.py'
+    lines = layout.read_text().splitlines(keepends=True)
+    i = next(k for k, line in enumerate(lines) if line.strip().startswith("'X',"))
+    j = next(k for k, line in enumerate(lines) if line.strip().startswith("'V',"))
+    lines[i], lines[j] = lines[j], lines[i]
+    layout.write_text(''.join(lines))
+    new = _run(tmp_path / 'a', cache)
+    assert (new['compiled'], new['loaded']) == (1, 0)
+    assert new['dir'] != old['dir']
+    assert new['value'] == _expected(physics) != old['value']
+    again = _run(tmp_path / 'a', cache)
+    assert (again['compiled'], again['loaded'], again['value']) == (0, 1, new['value'])
+
+
+def test_source_digest_covers_every_kernel_source(tmp_path):
+    physics = _copy(tmp_path / 'a')
+    base = _jit.source_digest(str(physics))
+    assert base == _jit.source_digest(str(REPO / 'train_dynamics' / 'physics'))
+    for name in _jit.KERNEL_SOURCES:
+        path = physics / name
+        original = path.read_bytes()
+        path.write_bytes(original + b'\n')
+        assert _jit.source_digest(str(physics)) != base, name
+        path.write_bytes(original)
+    assert _jit.source_digest(str(physics)) == base
+
+
+def test_no_writable_cache_compiles_in_memory(tmp_path):
+    blocker = tmp_path / 'file'
+    blocker.write_text('not a folder')
+    _copy(tmp_path / 'a')
+    for _ in range(2):
+        rep = _run(tmp_path / 'a', blocker / 'cache', PROBE_TMPDIR=str(blocker / 'tmp'))
+        assert (rep['compiled'], rep['loaded'], rep['dir']) == (1, 0, '')
+        assert rep['value'] == _expected(tmp_path / 'a' / 'train_dynamics' / 'physics')
+
+
+def test_a_damaged_cache_file_is_a_miss_not_a_failure(tmp_path):
+    cache = tmp_path / 'cache'
+    _copy(tmp_path / 'a')
+    first = _run(tmp_path / 'a', cache)
+    data = list(Path(first['dir']).glob('_probe_kernel.probe-*.nbc'))
+    assert len(data) == 1
+    data[0].write_bytes(data[0].read_bytes()[:40])
+    rep = _run(tmp_path / 'a', cache)
+    assert (rep['compiled'], rep['loaded']) == (1, 0)
+    assert rep['value'] == first['value']
+
+
+def test_prebuilt_kernels_are_read_before_the_user_cache(tmp_path):
+    """What ``setup.py build`` leaves in ``physics/_prebuilt`` serves an empty user cache."""
+    physics = _copy(tmp_path / 'a')
+    warm = _run(tmp_path / 'a', tmp_path / 'build_cache')
+    shutil.copytree(warm['dir'], physics / _jit.PREBUILT / Path(warm['dir']).name)
+    empty = tmp_path / 'empty'
+    rep = _run(tmp_path / 'a', empty)
+    assert (rep['compiled'], rep['loaded']) == (0, 1)
+    assert not any(p.is_file() for p in empty.rglob('*'))      # nothing written
