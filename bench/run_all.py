@@ -234,6 +234,17 @@ def memory_section() -> str:
                          '## Memory of the offline commands (bench/memory.py)')
 
 
+#: the error-controlled stepping's accuracy/speed tables (issue 14): ``python bench/adaptive.py``
+#: measures them (references at tolerance 1e-6 take ~15 min of CPU, so not on every run)
+ADAPTIVE_MD = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'adaptive_results.md')
+
+
+def adaptive_section() -> str:
+    """Return the error-controlled stepping section, as bench/adaptive.py last measured it."""
+    return saved_section(ADAPTIVE_MD, '<!-- adaptive: begin -->', '<!-- adaptive: end -->',
+                         '## Error-controlled stepping (bench/adaptive.py)')
+
+
 def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None) -> str:
     import node as nodebench
     parts = ['# Benchmark results (`make bench`)', '',
@@ -328,7 +339,8 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
             parts += ['### Node start-up to first output: cold, warm, after a colcon build', '',
                       startupbench.DESCRIPTION, '',
                       startupbench.table(node_res['startup_cases']), '']
-    parts += [soak_section(), '', sweepbench.sweep_section(), '', memory_section(), '']
+    parts += [adaptive_section(), '', soak_section(), '', sweepbench.sweep_section(), '',
+              memory_section(), '']
     return '\n'.join(parts)
 
 

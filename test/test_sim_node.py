@@ -357,6 +357,10 @@ def test_clock_monotonic_and_reset_restarts_with_pending_changes(harness):
     assert harness.wait(lambda: diag_values(diags, 'train_dynamics: simulation') is not None
                         and 'num_coaches: 3 -> 4' in diag_values(
                             diags, 'train_dynamics: simulation')['pending_changes'], 5.0)
+    # The standstill counters (issue 14) in both stepping modes; not error control's.
+    simulation = diag_values(diags, 'train_dynamics: simulation')
+    assert simulation['hold_capped'] == '0' and int(simulation['hold_solves']) >= 0
+    assert 'fallback_periods' not in simulation
     n_before = len(couplers)
     assert len(couplers[-1].name) == 2
     t_before = node.sim_time

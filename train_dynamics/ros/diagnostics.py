@@ -62,14 +62,19 @@ class SimulationReport:
 
 def integration_values(stats: dict | None) -> dict[str, str]:
     """
-    Return the diagnostics values of the error-controlled stepping (issue 14).
+    Return the diagnostics values of the integration (issue 14).
 
-    ``stats``: :attr:`TrainSimulator.integration_stats`; empty when None or fixed step.
+    ``stats``: :attr:`TrainSimulator.integration_stats`. The standstill counters
+    (hold_solves, hold_capped) in both stepping modes; the error control's counters only
+    when it runs. Empty when None.
     """
-    if not stats or not stats.get('adaptive'):
+    if not stats:
         return {}
+    hold = {'hold_solves': str(stats['hold_solves']), 'hold_capped': str(stats['hold_capped'])}
+    if not stats.get('adaptive'):
+        return hold
     h_min = stats['h_min']
-    return {
+    return hold | {
         'chain_steps': str(stats['steps']), 'step_rejections': str(stats['rejected']),
         'smallest_step_s': f'{h_min:.3e}' if h_min != float('inf') else '',
         'steps_last_output_period': str(stats['steps_last_period']),
