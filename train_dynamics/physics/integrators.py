@@ -59,7 +59,7 @@ import numpy as np
 from train_dynamics.physics import brakes, couplers, traction
 from train_dynamics.physics._jit import jit
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
-from train_dynamics.physics.track import profile_mean
+from train_dynamics.physics.track import profile_mean_near
 
 GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 
@@ -79,7 +79,23 @@ STATUS_TEXT = {
 
 def make_workspace(n: int) -> np.ndarray:
     """Return the kernel's scratch memory for n coaches: len(WORK) rows of n."""
-    return np.zeros((len(WORK), n))
+    ws = np.zeros((len(WORK), n))
+    invalidate_caches(ws)
+    return ws
+
+
+@jit(inline=True)
+def invalidate_caches(ws):
+    """
+    Forget the static resistance cached per vehicle (WORK.XKEY, see :func:`_static_resistance`).
+
+    Call it when a vehicle's resistance constants or the track change without a new
+    simulator (nothing does today: they are fixed per simulator, reset() rewrites the same
+    values). The couplers' cache (WORK.YKEY, VKEY) is renewed by every :func:`_eval_couplers`.
+    """
+    xkey = ws[WORK.XKEY]
+    for i in range(xkey.shape[0]):
+        xkey[i] = np.nan
 
 
 # ----------------------------------------------------------------------------- couplers
@@ -156,7 +172,8 @@ def _eval_couplers(x, v, cpl, model, u, gh, ws):
 
     Coupler j: y = x_j - x_{j+1} (eq. 9), force law eqs. (2)-(4) / (14)-(16) with the
     constants of ``cpl`` [N/m]; the weight is g h dF/dydot + (g h)^2 dF/dy (rows WORK.F,
-    DFDY, KK).
+    DFDY, KK). Each coupler's (y, ydot) goes to WORK.YKEY, VKEY and g h [s] to column N-1 of
+    VKEY: the key of :func:`_eval_couplers_work`'s cache.
     """
     ke = cpl[COUPLER.KE]
     kf = cpl[COUPLER.KF]
@@ -170,8 +187,11 @@ def _eval_couplers(x, v, cpl, model, u, gh, ws):
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
+    ykey = ws[WORK.YKEY]
+    vkey = ws[WORK.VKEY]
     h = gh / GAMMA
-    for j in range(x.shape[0] - 1):
+    n = x.shape[0]
+    for j in range(n - 1):
         y = x[j] - x[j + 1]
         ydot = v[j] - v[j + 1]
         f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j],
@@ -179,6 +199,9 @@ def _eval_couplers(x, v, cpl, model, u, gh, ws):
         F0[j] = f
         dfdy[j] = dy
         kk[j] = gh * dv + gh * gh * dy
+        ykey[j] = y
+        vkey[j] = ydot
+    vkey[n - 1] = gh
 
 
 @jit
@@ -187,7 +210,10 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     Do :func:`_eval_couplers` at the new state (COACH.X, V); return the couplers' work [J].
 
     The work over the step from the positions WORK.XOLD [m] is trapezoidal in the force:
-    sum_j (F_j(old) + F_j(new)) / 2 (y_j(new) - y_j(old)).
+    sum_j (F_j(old) + F_j(new)) / 2 (y_j(new) - y_j(old)). A coupler whose (y, ydot) and
+    g h are those its rows were evaluated at (WORK.YKEY, VKEY: e.g. between two vehicles
+    held at rest) keeps them: the law is a function of these alone (and of the model and
+    the constants, which change only with FLAG.WS_VALID = 0, then :func:`_eval_couplers`).
     """
     x = coach[COACH.X]
     v = coach[COACH.V]
@@ -204,17 +230,26 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     F0 = ws[WORK.F]
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
+    ykey = ws[WORK.YKEY]
+    vkey = ws[WORK.VKEY]
     wc = 0.0
     h = gh / GAMMA
-    for j in range(x.shape[0] - 1):
+    n = x.shape[0]
+    same_gh = vkey[n - 1] == gh
+    for j in range(n - 1):
         y = x[j] - x[j + 1]
         ydot = v[j] - v[j + 1]
-        f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j],
-                               sc[j], kb[j], model, u, h)
+        f = F0[j]
+        if not (same_gh and y == ykey[j] and ydot == vkey[j]):
+            f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j],
+                                   st[j], sc[j], kb[j], model, u, h)
+            dfdy[j] = dy
+            kk[j] = gh * dv + gh * gh * dy
+            ykey[j] = y
+            vkey[j] = ydot
         wc += 0.5 * (F0[j] + f) * (y - (x_old[j] - x_old[j + 1]))
         F0[j] = f
-        dfdy[j] = dy
-        kk[j] = gh * dv + gh * gh * dy
+    vkey[n - 1] = gh
     return wc
 
 
@@ -230,8 +265,9 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
     WORK.GR1 that :func:`_external_step` left, the same position), the speed-dependent
     resistance d (B |v| + C v^2) against the friction's direction d (Davis; A is with the
     brake), traction (``traction.traction_force``), and E = gradient + traction -
-    resistance. (Written out here, not in a called function: a per-vehicle call cost the
-    step more than the forces themselves.)
+    resistance. At stage 2 a vehicle that has not moved (a held one) keeps stage 1's gradient
+    force; the others search the profile from their segment WORK.GSEG. (Written out here,
+    not in a called function: a per-vehicle call cost the step more than the forces.)
     """
     gh = GAMMA * h
     grades = track and gx.shape[0] > 0
@@ -241,6 +277,8 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
     t_eff = ws[WORK.TEFF]
     davis_b = coach[COACH.DAVIS_B]
     davis_c = coach[COACH.DAVIS_C]
+    gr1 = ws[WORK.GR1]
+    gseg = ws[WORK.GSEG]
     out_gr = ws[row_gr]
     out_rd = ws[row_rd]
     out_tr = ws[row_tr]
@@ -258,9 +296,13 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
         rd = d * (davis_b[i] + davis_c[i] * sv) * sv
         gr = out_gr[i] if h == 0.0 else 0.0     # stage 1: from _external_step
         if grades and h != 0.0:
-            hi = coach[COACH.FRONT0, i] + xi
-            gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
-                hi - coach[COACH.LENGTH, i], hi, gx, gv, gc)
+            if xi == x[i]:      # not moved: the same point as stage 1
+                gr = gr1[i]
+            else:
+                hi = coach[COACH.FRONT0, i] + xi
+                mean, _ = profile_mean_near(hi - coach[COACH.LENGTH, i], hi, gx, gv, gc,
+                                            int(gseg[i]))
+                gr = -coach[COACH.WEIGHT, i] * 1e-3 * mean
         tr = 0.0
         teff = t_eff[i]
         if teff != 0.0:
@@ -749,6 +791,7 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
         brakes.delay_split(coach[COACH.DELAY], ws[WORK.K0], ws[WORK.FRAC])
         _eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh,
                        ws)
+        invalidate_caches(ws)
         iv[FLAG.WS_VALID] = 1
     for step in range(n_steps):
         _brake_system_step(coach, sc, iv, ring, tables, ws)
@@ -847,6 +890,10 @@ def _static_resistance(coach, iv, gprof, cprof, ws):
     averaged over the vehicle's length) joins it in WORK.FB: like the brake it holds a vehicle
     at rest and never pushes it. WORK.GR1 = the gradient force at the step's start [N]
     (stage 1's, computed here once per step on the same span, not once per active-set pass).
+    Both depend on the vehicle's position alone (its constants and the track are fixed per
+    simulator): they are kept while COACH.X is the WORK.XKEY they were computed at (a
+    vehicle at rest), else computed with the profile searches started from the vehicle's
+    last segments (WORK.GSEG, CSEG).
     """
     cx = cprof[0]
     cv = cprof[1]
@@ -861,19 +908,29 @@ def _static_resistance(coach, iv, gprof, cprof, ws):
     rstat = ws[WORK.RSTAT]
     fb = ws[WORK.FB]
     fbrake = ws[WORK.FBRAKE]
+    xkey = ws[WORK.XKEY]
+    gseg = ws[WORK.GSEG]
+    cseg = ws[WORK.CSEG]
     for i in range(fb.shape[0]):
-        r = davis_a[i]
-        hi = coach[COACH.FRONT0, i] + coach[COACH.X, i]
-        lo = hi - coach[COACH.LENGTH, i]
-        if curves:
-            r += coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(lo, hi, cx, cv, cc)
-        gr = 0.0
-        if grades:
-            gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(lo, hi, gx, gv, gpc)
-        gr1[i] = gr
-        rstat[i] = r
+        xi = coach[COACH.X, i]
+        if xi != xkey[i]:
+            r = davis_a[i]
+            hi = coach[COACH.FRONT0, i] + xi
+            lo = hi - coach[COACH.LENGTH, i]
+            if curves:
+                mean, k = profile_mean_near(lo, hi, cx, cv, cc, int(cseg[i]))
+                cseg[i] = k
+                r += coach[COACH.WEIGHT, i] * 1e-3 * mean
+            gr = 0.0
+            if grades:
+                mean, k = profile_mean_near(lo, hi, gx, gv, gpc, int(gseg[i]))
+                gseg[i] = k
+                gr = -coach[COACH.WEIGHT, i] * 1e-3 * mean
+            gr1[i] = gr
+            rstat[i] = r
+            xkey[i] = xi
         fbrake[i] = fb[i]
-        fb[i] += r
+        fb[i] += rstat[i]
 
 
 @jit(inline=True)

@@ -156,5 +156,11 @@ WorkRows = namedtuple('WorkRows', [
     'TR2',          # traction force at stage 2 [N]
     'GR1',          # gradient force at stage 1 [N]
     'GR2',          # gradient force at stage 2 [N]
+    # caches of the fixed-step path (bench: per-vehicle-step cost of real trains)
+    'YKEY',         # y [m] of coupler j at which the rows F, DFDY, KK were evaluated
+    'VKEY',         # its ydot [m/s]; column N-1: the g h [s] the weights KK were made for
+    'XKEY',         # COACH.X [m] at which RSTAT and GR1 were computed (NaN: none yet)
+    'GSEG',         # segment of the gradient profile at the vehicle's front (a search hint)
+    'CSEG',         # segment of the curve profile at the vehicle's front (a search hint)
 ])
 WORK = _indices(WorkRows)
