@@ -65,18 +65,24 @@ def measure(case: str) -> dict:
         from train_dynamics.physics.runner import traction_schedule
         events = sorted(traction_schedule(cfg), key=lambda e: e.step)
     per = int(round(SAMPLE / sim.h))
-    cpu = 0.0
+    cpu = [0.0, 0.0]        # moving, stopped (every vehicle at rest at the period's start)
+    steps = [0, 0]
     for k in range(int(round(T_END / SAMPLE))):
         t = k * SAMPLE
         for e in events:
             if abs(e.t_ns * 1e-9 - t) < 1e-9:
                 sim.set_traction_command(e.command, e.index)
         sim.set_head_pipe_pressure(0.0 if t >= T_EMERGENCY - 1e-9 else 500000.0)
+        phase = int(not sim.v.any())
         t0 = time.process_time()
         sim.advance(per)
-        cpu += time.process_time() - t0
+        cpu[phase] += time.process_time() - t0
+        steps[phase] += per
     import train_dynamics
-    return {'case': case, 'ns': cpu * 1e9 / (sim.steps * sim.n), 'n': sim.n,
+    scale = 1e9 / sim.n
+    return {'case': case, 'ns': sum(cpu) * scale / sum(steps),
+            'ns_moving': cpu[0] * scale / max(steps[0], 1),
+            'ns_stopped': cpu[1] * scale / max(steps[1], 1), 'n': sim.n,
             'x0': float(sim.x[0]), 'fault': sim.fault,
             'module': os.path.dirname(train_dynamics.__file__)}
 
@@ -119,11 +125,14 @@ def main(argv=None) -> None:
     times = {c[0] + ' ' + c[3]: [] for c in combos}
     for _ in range(args.repeats):
         for label, py, path, case in combos:
-            times[label + ' ' + case].append(_run_case(py, path, case)['ns'])
-    for key, ts in times.items():
-        ts.sort()
-        print(f'{key:40s} best {ts[0]:6.1f}  median {ts[len(ts) // 2]:6.1f}  '
-              f'max {ts[-1]:6.1f} ns/vehicle-step  ({len(ts)} runs)')
+            r = _run_case(py, path, case)
+            times[label + ' ' + case].append((r['ns'], r['ns_moving'], r['ns_stopped']))
+    print(f'{"":28s} ns per vehicle-step: best / median / max of {args.repeats} '
+          '(best moving, best stopped)')
+    for key, runs in times.items():
+        ts = sorted(r[0] for r in runs)
+        print(f'{key:28s} {ts[0]:6.1f} / {ts[len(ts) // 2]:6.1f} / {ts[-1]:6.1f}   '
+              f'({min(r[1] for r in runs):6.1f}, {min(r[2] for r in runs):6.1f})')
 
 
 if __name__ == '__main__':

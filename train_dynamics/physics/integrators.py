@@ -59,7 +59,7 @@ import numpy as np
 from train_dynamics.physics import brakes, couplers, traction
 from train_dynamics.physics._jit import jit
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
-from train_dynamics.physics.track import profile_mean_near
+from train_dynamics.physics.track import profile_mean
 
 GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 
@@ -266,8 +266,8 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
     resistance d (B |v| + C v^2) against the friction's direction d (Davis; A is with the
     brake), traction (``traction.traction_force``), and E = gradient + traction -
     resistance. At stage 2 a vehicle that has not moved (a held one) keeps stage 1's gradient
-    force; the others search the profile from their segment WORK.GSEG. (Written out here,
-    not in a called function: a per-vehicle call cost the step more than the forces.)
+    force. (Written out here, not in a called function: a per-vehicle call cost the step
+    more than the forces themselves.)
     """
     gh = GAMMA * h
     grades = track and gx.shape[0] > 0
@@ -278,7 +278,6 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
     davis_b = coach[COACH.DAVIS_B]
     davis_c = coach[COACH.DAVIS_C]
     gr1 = ws[WORK.GR1]
-    gseg = ws[WORK.GSEG]
     out_gr = ws[row_gr]
     out_rd = ws[row_rd]
     out_tr = ws[row_tr]
@@ -300,9 +299,8 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
                 gr = gr1[i]
             else:
                 hi = coach[COACH.FRONT0, i] + xi
-                mean, _ = profile_mean_near(hi - coach[COACH.LENGTH, i], hi, gx, gv, gc,
-                                            int(gseg[i]))
-                gr = -coach[COACH.WEIGHT, i] * 1e-3 * mean
+                gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
+                    hi - coach[COACH.LENGTH, i], hi, gx, gv, gc)
         tr = 0.0
         teff = t_eff[i]
         if teff != 0.0:
@@ -892,8 +890,7 @@ def _static_resistance(coach, iv, gprof, cprof, ws):
     (stage 1's, computed here once per step on the same span, not once per active-set pass).
     Both depend on the vehicle's position alone (its constants and the track are fixed per
     simulator): they are kept while COACH.X is the WORK.XKEY they were computed at (a
-    vehicle at rest), else computed with the profile searches started from the vehicle's
-    last segments (WORK.GSEG, CSEG).
+    vehicle at rest).
     """
     cx = cprof[0]
     cv = cprof[1]
@@ -909,8 +906,6 @@ def _static_resistance(coach, iv, gprof, cprof, ws):
     fb = ws[WORK.FB]
     fbrake = ws[WORK.FBRAKE]
     xkey = ws[WORK.XKEY]
-    gseg = ws[WORK.GSEG]
-    cseg = ws[WORK.CSEG]
     for i in range(fb.shape[0]):
         xi = coach[COACH.X, i]
         if xi != xkey[i]:
@@ -918,14 +913,10 @@ def _static_resistance(coach, iv, gprof, cprof, ws):
             hi = coach[COACH.FRONT0, i] + xi
             lo = hi - coach[COACH.LENGTH, i]
             if curves:
-                mean, k = profile_mean_near(lo, hi, cx, cv, cc, int(cseg[i]))
-                cseg[i] = k
-                r += coach[COACH.WEIGHT, i] * 1e-3 * mean
+                r += coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(lo, hi, cx, cv, cc)
             gr = 0.0
             if grades:
-                mean, k = profile_mean_near(lo, hi, gx, gv, gpc, int(gseg[i]))
-                gseg[i] = k
-                gr = -coach[COACH.WEIGHT, i] * 1e-3 * mean
+                gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(lo, hi, gx, gv, gpc)
             gr1[i] = gr
             rstat[i] = r
             xkey[i] = xi

@@ -160,7 +160,5 @@ WorkRows = namedtuple('WorkRows', [
     'YKEY',         # y [m] of coupler j at which the rows F, DFDY, KK were evaluated
     'VKEY',         # its ydot [m/s]; column N-1: the g h [s] the weights KK were made for
     'XKEY',         # COACH.X [m] at which RSTAT and GR1 were computed (NaN: none yet)
-    'GSEG',         # segment of the gradient profile at the vehicle's front (a search hint)
-    'CSEG',         # segment of the curve profile at the vehicle's front (a search hint)
 ])
 WORK = _indices(WorkRows)

@@ -18,9 +18,7 @@ Positions s [m] are along the track in the direction of travel. Vehicle i occupi
 
 A profile is stored as breakpoints ``xs``, the value on [xs[k], xs[k+1]) ``vals`` (the last
 one to infinity) and the integral from xs[0] to xs[k] ``cum``: the mean over any interval is
-two look-ups (:func:`profile_mean`), compiled with numba for the kernel; the kernel's
-look-ups start from the segment each vehicle was in at its last step
-(:func:`profile_mean_near`).
+two look-ups (:func:`profile_mean`), compiled with numba for the kernel.
 """
 from __future__ import annotations
 
@@ -59,40 +57,6 @@ def profile_mean(lo: float, hi: float, xs: np.ndarray, vals: np.ndarray,
                  cum: np.ndarray) -> float:
     """Return the mean of the profile over [lo, hi] (hi > lo) [the profile's unit]."""
     return (profile_integral(hi, xs, vals, cum) - profile_integral(lo, xs, vals, cum)) / (hi - lo)
-
-
-@jit(inline=True)
-def profile_integral_near(s: float, xs: np.ndarray, vals: np.ndarray, cum: np.ndarray,
-                          k: int):
-    """
-    Return (:func:`profile_integral` at s, its segment), searching from segment ``k``.
-
-    The segment is the last breakpoint at or before s (searchsorted 'right' minus 1): a
-    walk from a remembered segment is O(1) for a vehicle that moved less than a segment
-    since, and gives the very same value as the binary search. ``k`` may be any integer.
-    """
-    n = xs.shape[0]
-    if n == 0 or s <= xs[0]:
-        return 0.0, k
-    k = min(max(k, 0), n - 1)
-    while k + 1 < n and xs[k + 1] <= s:
-        k += 1
-    while xs[k] > s:
-        k -= 1
-    return cum[k] + vals[k] * (s - xs[k]), k
-
-
-@jit(inline=True)
-def profile_mean_near(lo: float, hi: float, xs: np.ndarray, vals: np.ndarray,
-                      cum: np.ndarray, k: int):
-    """
-    Return (:func:`profile_mean` over [lo, hi], the segment of hi), searching from ``k``.
-
-    The segment of lo is searched from hi's (a vehicle is short against most segments).
-    """
-    ihi, khi = profile_integral_near(hi, xs, vals, cum, k)
-    ilo, _ = profile_integral_near(lo, xs, vals, cum, khi)
-    return (ihi - ilo) / (hi - lo), khi
 
 
 @jit
