@@ -658,6 +658,65 @@ def _external_step(coach, sc, iv, gprof, cprof, ws):
 
 
 @jit(inline=True)
+def _repeats_standstill(coach, iv, ws):
+    """
+    Tell whether this step would repeat the last one exactly: a standstill, same inputs.
+
+    The last step started and ended with every vehicle held (FLAG.STEADY): held rows have
+    zero stages, so it left x' = x, v' = 0 exactly. The active-set step is a function of
+    the state (COACH.X, V, HELD and the couplers' rows at (x, v) in ws), the friction over
+    the step (WORK.FB: brake and static resistance), the traction command (WORK.TEFF) and
+    constants. When these equal the last step's (WORK.XOLD, FBPREV, TEPREV) it would write
+    to ws the very rows it left there (holding forces, stage forces, the new state): the
+    caller skips it and books the step from them (bit for bit).
+    """
+    if iv[FLAG.STEADY] == 0:
+        return False
+    x = coach[COACH.X]
+    v = coach[COACH.V]
+    is_held = coach[COACH.HELD]
+    x_old = ws[WORK.XOLD]
+    fb = ws[WORK.FB]
+    fb_prev = ws[WORK.FBPREV]
+    te = ws[WORK.TEFF]
+    te_prev = ws[WORK.TEPREV]
+    for i in range(x.shape[0]):
+        if (fb[i] != fb_prev[i] or te[i] != te_prev[i] or v[i] != 0.0 or x[i] != x_old[i]
+                or is_held[i] < 0.5):
+            return False
+    return True
+
+
+@jit(inline=True)
+def _all_held(coach):
+    """Tell whether every vehicle is held at rest (COACH.HELD)."""
+    is_held = coach[COACH.HELD]
+    for i in range(is_held.shape[0]):
+        if is_held[i] < 0.5:
+            return False
+    return True
+
+
+@jit(inline=True)
+def _note_standstill(started_held, coach, iv, ws):
+    """
+    Set FLAG.STEADY when the step started and ended with every vehicle held.
+
+    Keeps the step's WORK.FB and TEFF (in FBPREV, TEPREV) for :func:`_repeats_standstill`.
+    """
+    steady = started_held and _all_held(coach)
+    iv[FLAG.STEADY] = 1 if steady else 0
+    if steady:
+        fb = ws[WORK.FB]
+        fb_prev = ws[WORK.FBPREV]
+        te = ws[WORK.TEFF]
+        te_prev = ws[WORK.TEPREV]
+        for i in range(fb.shape[0]):
+            fb_prev[i] = fb[i]
+            te_prev[i] = te[i]
+
+
+@jit(inline=True)
 def _fault_check(ws, y_limit):
     """
     Return the status of the new state WORK.XNEW, VNEW: OK, NON_FINITE or OUT_OF_RANGE.
@@ -777,7 +836,9 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
     (breakpoints, values, integrals; ``track``), used when FLAG.TRACK is set. The layouts are
     in :mod:`train_dynamics.physics.layout`. Each step: the brake system to the step's end,
     the braking force over the step (trapezoid), one ROS2 step with the active set of held
-    coaches, the fault check, then the new state is accepted and the work booked.
+    coaches, the fault check, then the new state is accepted and the work booked. At a
+    standstill with unchanged inputs the active-set step repeats the last one exactly and is
+    skipped (:func:`_repeats_standstill`).
     """
     gh = GAMMA * sc[SCALAR.H]
     held = np.empty(coach.shape[1], dtype=np.bool_)
@@ -790,13 +851,19 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
         _eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh,
                        ws)
         invalidate_caches(ws)
+        iv[FLAG.STEADY] = 0
         iv[FLAG.WS_VALID] = 1
     for step in range(n_steps):
         _brake_system_step(coach, sc, iv, ring, tables, ws)
         _braking_force_trapezoid(coach, sc, ws)
         if iv[FLAG.EXT]:
             _external_step(coach, sc, iv, gprof, cprof, ws)
-        extra_work = _active_set_step(sc[SCALAR.H], coach, cpl, sc, iv, held, ws, gprof)
+        started_held = _all_held(coach)
+        if started_held and _repeats_standstill(coach, iv, ws):
+            held[:] = True
+            extra_work = 0.0
+        else:
+            extra_work = _active_set_step(sc[SCALAR.H], coach, cpl, sc, iv, held, ws, gprof)
         status = _fault_check(ws, sc[SCALAR.YLIM])
         if status != OK:
             return step, status
@@ -805,6 +872,7 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
         sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws, iv[FLAG.EXT])
         # the couplers at the new state: their work over the step, and the next step's start
         sc[SCALAR.WC] += _eval_couplers_work(coach, cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh, ws)
+        _note_standstill(started_held, coach, iv, ws)
     return n_steps, OK
 
 

@@ -117,6 +117,8 @@ FlagSlots = namedtuple('FlagSlots', [
     'CHAIN_TICK',   # the tick the coach chain has reached (it lands on LAND multiples)
     'LAND',         # the chain's landing period in ticks (one output period)
     'BUDGET',       # largest number of error-controlled steps per landing period
+    # fixed-step standstill (integrators._repeats_standstill)
+    'STEADY',       # 1: the last step started and ended with every vehicle held
 ])
 FLAG = _indices(FlagSlots)
 
@@ -160,5 +162,7 @@ WorkRows = namedtuple('WorkRows', [
     'YKEY',         # y [m] of coupler j at which the rows F, DFDY, KK were evaluated
     'VKEY',         # its ydot [m/s]; column N-1: the g h [s] the weights KK were made for
     'XKEY',         # COACH.X [m] at which RSTAT and GR1 were computed (NaN: none yet)
+    'FBPREV',       # WORK.FB of the last step, when it held every vehicle (FLAG.STEADY)
+    'TEPREV',       # WORK.TEFF of that step
 ])
 WORK = _indices(WorkRows)
