@@ -118,7 +118,7 @@ def check_idealisation(cfg) -> None:
     if (v['buffer_stroke'] <= reach or v['draw_gear_stroke'] <= reach
             or v['buffer_slack'] or v['draw_gear_slack'] or cfg.external_forces
             or v['rotating_mass_factor']):
-        raise ValueError('core bench: the configuration leaves the paper\'s idealisation '
+        raise ValueError("core bench: the configuration leaves the paper's idealisation "
                          '(strokes within reach, slack, rotating masses or external forces), '
                          'which the reference does not model')
 

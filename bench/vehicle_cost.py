@@ -17,7 +17,7 @@ Cases (120 s each, the freight scenario's inputs: emergency at t = 5 s):
 ``PY`` and ``PYTHONPATH=DIR`` (e.g. a worktree of an older commit); the uniform and paper
 cases use only the simulator's oldest interface, so they run on kernels before issue 11.
 
-    .venv/bin/python bench/vehicle_cost.py --cases freight,uniform47 --repeats 5 \
+    .venv/bin/python bench/vehicle_cost.py --cases freight,paper47 --repeats 5 \
         --python .venv/bin/python --path /path/to/other/worktree
 """
 from __future__ import annotations
@@ -96,11 +96,38 @@ def _run_case(python: str, path: str | None, case: str) -> dict:
     return json.loads(out.strip().splitlines()[-1])
 
 
+def interleave(versions, cases, repeats: int = 5, log=print) -> dict:
+    """
+    Run every (version, case) ``repeats`` times, interleaved, each in a fresh process.
+
+    ``versions``: [(label, python, PYTHONPATH or None)]. Returns {'label case': summary}
+    with the sorted totals 'ns' [ns per vehicle-step] and the best 'moving' and 'stopped'
+    figures; a case a version cannot run (freight before issue 11) is left out.
+    """
+    combos = [(label, py, path, case) for label, py, path in versions for case in cases]
+    for combo in list(combos):       # warm-up: load or compile the kernels
+        label, py, path, case = combo
+        try:
+            r = _run_case(py, path, case)
+        except subprocess.CalledProcessError:      # e.g. freight on a kernel before it
+            log(f'# {label} {case}: cannot run, left out')
+            combos.remove(combo)
+            continue
+        log(f'# {label} {case}: kernel from {r["module"]}')
+    runs = {c[0] + ' ' + c[3]: [] for c in combos}
+    for _ in range(repeats):
+        for label, py, path, case in combos:
+            runs[label + ' ' + case].append(_run_case(py, path, case))
+    return {key: {'ns': sorted(r['ns'] for r in rs), 'n': rs[0]['n'],
+                  'moving': min(r['ns_moving'] for r in rs),
+                  'stopped': min(r['ns_stopped'] for r in rs)} for key, rs in runs.items()}
+
+
 def main(argv=None) -> None:
     """Interleave the cases over the kernel versions; print best, median and spread."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--case', help='run one case in this process and print it (JSON)')
-    ap.add_argument('--cases', default='freight,uniform47')
+    ap.add_argument('--cases', default='freight,paper47,uniform47')
     ap.add_argument('--repeats', type=int, default=5)
     ap.add_argument('--python', action='append', default=[])
     ap.add_argument('--path', action='append', default=[])
@@ -111,28 +138,14 @@ def main(argv=None) -> None:
         return
     versions = list(zip(args.python, args.path)) or [(sys.executable, None)]
     labels = args.label or [p or 'this' for _, p in versions]
-    combos = [(label, py, path, case) for label, (py, path) in zip(labels, versions)
-              for case in args.cases.split(',')]
-    for combo in list(combos):       # warm-up: load or compile the kernels
-        label, py, path, case = combo
-        try:
-            r = _run_case(py, path, case)
-        except subprocess.CalledProcessError:      # e.g. freight on a kernel before it
-            print(f'# {label} {case}: cannot run, left out', flush=True)
-            combos.remove(combo)
-            continue
-        print(f'# {label} {case}: kernel from {r["module"]}', flush=True)
-    times = {c[0] + ' ' + c[3]: [] for c in combos}
-    for _ in range(args.repeats):
-        for label, py, path, case in combos:
-            r = _run_case(py, path, case)
-            times[label + ' ' + case].append((r['ns'], r['ns_moving'], r['ns_stopped']))
+    res = interleave([(label, py, path) for label, (py, path) in zip(labels, versions)],
+                     args.cases.split(','), args.repeats, log=lambda s: print(s, flush=True))
     print(f'{"":28s} ns per vehicle-step: best / median / max of {args.repeats} '
           '(best moving, best stopped)')
-    for key, runs in times.items():
-        ts = sorted(r[0] for r in runs)
+    for key, r in res.items():
+        ts = r['ns']
         print(f'{key:28s} {ts[0]:6.1f} / {ts[len(ts) // 2]:6.1f} / {ts[-1]:6.1f}   '
-              f'({min(r[1] for r in runs):6.1f}, {min(r[2] for r in runs):6.1f})')
+              f'({r["moving"]:6.1f}, {r["stopped"]:6.1f})')
 
 
 if __name__ == '__main__':
