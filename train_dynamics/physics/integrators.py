@@ -36,9 +36,18 @@ One step of :func:`advance_chain`, in named parts:
    depend on the motion);
 2. :func:`_braking_force_trapezoid`: the braking force over the step, eq. (13);
 3. :func:`_active_set_step`: :func:`_ros2_step` with the active set of held coaches
-   (:func:`_signed_brake`, :func:`_release_slipping`, :func:`_hold_stopping`);
+   (:func:`_signed_brake`, :func:`_release_slipping`, :func:`_hold_stopping`); skipped at a
+   standstill whose inputs did not change (:func:`_repeats_standstill`: it would repeat
+   the last step exactly);
 4. :func:`_fault_check`, then :func:`_accept_step` and the couplers at the new state
-   (:func:`_eval_couplers_work`).
+   (:func:`_eval_couplers_work`, which keeps a coupler's law where its (y, ydot) did not
+   change).
+
+Caches (results bit for bit): the couplers' rows carry their (y, ydot) (WORK.YKEY, VKEY),
+the static resistance and gradient force their position (WORK.XKEY,
+:func:`_static_resistance`), the standstill the last step's inputs (FLAG.STEADY,
+WORK.FBPREV, TEPREV). In a 120 s freight run (47 vehicles) the train stands still from
+53 s on: the skipped steps cost ~30 ns per vehicle instead of ~100.
 
 The packed arrays the kernel works on are laid out in :mod:`train_dynamics.physics.layout`.
 Speed: the steps take the packed arrays and are inlined into :func:`advance_chain` by numba
