@@ -3,7 +3,12 @@ Benchmark of the physics core: speed, accuracy and memory of the fixed-step mode
 
 Scenario: the paper's emergency braking generalised to N coaches (config defaults: 45 t
 coaches at 44.444 m/s, ``pipe_head``). The head brake-pipe pressure is set to 0 gauge at
-t_e = 0 s (before the first step); 60 s of simulated time.
+t_e = 0 s (before the first step); 60 s of simulated time. The couplers are the paper's
+idealisation, as the reference models them: the strokes are set out of reach
+(:data:`PAPER_IDEALISATION`, 10 m, beyond ``max_coupler_displacement``: a coupler cannot
+block without the run stopping with a fault), no slack, no resistance or track. With the
+default strokes (105 mm buffers, 60 mm draw gear) trains of 100 coaches and more block, which
+neither the reference nor the scipy baseline models.
 
 Every case runs in a fresh Python process (``python bench/core.py --case JSON``), so that
 warm-up, memory and timing of one case do not leak into the next:
@@ -38,7 +43,9 @@ a plain vectorised numpy right-hand side, no Jacobian), same brake forces, 60 s.
 Reference solutions (over 0-60 s, the envelope up to the first stop) are cached in
 ``bench/reference_cache.json``, keyed by everything they depend on, including a numerical
 fingerprint of the force law and the reference solver's defaults, so they are recomputed
-only when the physics changes (delete the file to force it). ``python bench/core.py --refs``
+only when the physics changes (delete the file to force it). The reference never depends on
+the strokes (it has none); :func:`check_idealisation` makes sure the simulated train is the
+one the reference solves. ``python bench/core.py --refs``
 fills the cache; ``make bench`` computes missing ones up to ``--ref-max-n`` coaches.
 
 numpy, scipy and the package are imported inside the functions on purpose: each case runs
@@ -99,10 +106,31 @@ def _rss_kib(field: str = 'VmRSS') -> int:
     return -1
 
 
-def make_config(n: int, model: str, u: float, h: float = DEFAULT_H):
+#: the paper's couplers (no blocking), as the reference and the baseline model them: strokes
+#: beyond max_coupler_displacement (5 m by default), which stops the run with a fault first
+PAPER_IDEALISATION = {'buffer_stroke': 10.0, 'draw_gear_stroke': 10.0}
+
+
+def check_idealisation(cfg) -> None:
+    """Raise ValueError unless ``cfg`` is a train the reference solves (the paper's law)."""
+    v = cfg.values
+    reach = v['max_coupler_displacement']
+    if (v['buffer_stroke'] <= reach or v['draw_gear_stroke'] <= reach
+            or v['buffer_slack'] or v['draw_gear_slack'] or cfg.external_forces
+            or v['rotating_mass_factor']):
+        raise ValueError("core bench: the configuration leaves the paper's idealisation "
+                         '(strokes within reach, slack, rotating masses or external forces), '
+                         'which the reference does not model')
+
+
+def make_config(n: int, model: str, u: float, h: float = DEFAULT_H, **extra):
+    """Return the bench's SimConfig: N paper coaches, the paper's idealisation (checked)."""
     from train_dynamics.physics.parameters import SimConfig
-    return SimConfig.from_dict({'num_coaches': int(n), 'model_type': model,
-                                'scale_factor': float(u), 'integration_step': float(h)})
+    cfg = SimConfig.from_dict({'num_coaches': int(n), 'model_type': model,
+                               'scale_factor': float(u), 'integration_step': float(h),
+                               **PAPER_IDEALISATION, **extra})
+    check_idealisation(cfg)
+    return cfg
 
 
 def brake_formula(cfg):
@@ -574,11 +602,9 @@ def adaptive_case(n: int, tol: float, budget: int = 100, repeats: int = 2) -> di
     from the first coach at rest to every coach held (standstill, issue 14).
     """
     import numpy as np
-    from train_dynamics.physics.parameters import SimConfig
     from train_dynamics.physics.train import TrainSimulator
-    cfg = SimConfig.from_dict({'num_coaches': n, 'integration_tolerance': tol,
-                               'integration_max_steps': budget, 'buffer_stroke': 10.0,
-                               'draw_gear_stroke': 10.0})
+    cfg = make_config(n, 'tanh', 1000.0, integration_tolerance=tol,
+                      integration_max_steps=budget)
     TrainSimulator(cfg).advance(10)            # numba warm-up
     chunks = int(round(T_END / OUTPUT_DT))
     best = float('inf')

@@ -6,9 +6,12 @@ curve, dynamic brake then emergency braking: every new force of the model acts (
 resistance with standstill holding, gradient and curve forces over the vehicles' lengths,
 traction curves, rotating masses). Measured:
 
-- speed at the default step: simulated seconds per wall second, and the cost per
-  vehicle-step [ns], against the same number of the paper's coaches on flat track without
-  the new forces (the cost of the real-train model);
+- speed at the default step: the cost per vehicle-step [ns] (process CPU time, fresh
+  processes interleaved with the comparison trains, best and spread of 5:
+  ``vehicle_cost.py``), against the same number of the paper's coaches on flat track
+  without the new forces, with the strokes out of reach (the paper's idealisation: the
+  kernel before issue 11) and with the default strokes (long uniform trains block); the
+  whole 120 s run and its moving part (the train stands still from ~53 s on);
 - accuracy: the largest coupler tension and compression, the stopping distance and time
   against a reference run of the same model at a 20x smaller step (0.1 ms; the fixed-step
   ROS2 solution converged: halving it again changes the peaks by < 0.05 %). The scipy
@@ -18,6 +21,7 @@ traction curves, rotating masses). Measured:
 from __future__ import annotations
 
 import os
+import sys
 import time
 
 import numpy as np
@@ -25,6 +29,7 @@ import numpy as np
 from train_dynamics.physics.parameters import load_param_file, SimConfig
 from train_dynamics.physics.runner import traction_schedule
 from train_dynamics.physics.train import TrainSimulator
+import vehicle_cost
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PARAMS = os.path.join(os.path.dirname(HERE), 'config', 'freight_750m.yaml')
@@ -63,23 +68,23 @@ def _run(cfg: SimConfig) -> dict:
 def run(log=print) -> dict:
     """Measure speed and accuracy of the freight scenario; return the figures."""
     cfg = load_param_file(PARAMS)
-    _run(cfg.replace(consist_file=cfg.consist_file))                  # compile / warm up
     log('freight: 750 m, 47 vehicles, default step')
-    best = min((_run(cfg) for _ in range(3)), key=lambda r: r['wall_s'])
+    best = _run(cfg)
     n = best['n']
-    plain = SimConfig.from_dict({'num_coaches': n})
-    base = min((_run(plain) for _ in range(3)), key=lambda r: r['wall_s'])
+    cases = ['freight', f'paper{n}', f'uniform{n}']
+    cost = vehicle_cost.interleave([('', sys.executable, None)], cases, log=log)
+    cost = {key.strip(): value for key, value in cost.items()}
     log(f'freight: reference at h = {REFERENCE_H:g} s')
     ref = _run(cfg.replace(integration_step=REFERENCE_H))
-    ns = 1e9 / (best['steps'] * n)
+    ns = cost['freight']['ns'][0]
 
     def err(key):
         return abs(best[key] - ref[key]) / abs(ref[key])
 
     return {
         'n': n, 'h': float(cfg.integration_step), 't_end': T_END,
-        'speed': T_END / best['wall_s'], 'ns_per_vehicle_step': best['wall_s'] * ns,
-        'plain_ns_per_vehicle_step': base['wall_s'] * 1e9 / (base['steps'] * n),
+        'speed': float(cfg.integration_step) / (ns * 1e-9 * n), 'ns_per_vehicle_step': ns,
+        'plain_ns_per_vehicle_step': cost[f'paper{n}']['ns'][0], 'cost': cost,
         'run': best, 'reference': ref,
         'err_tension': err('max_tension'), 'err_compression': err('max_compression'),
         'err_stop_distance': err('stop_distance'),
@@ -104,11 +109,29 @@ def render(res: dict) -> str:
         f"| stopping time [s] | {r['stop_time']:.2f} | {ref['stop_time']:.2f} | "
         f"{res['err_stop_time']:.2f} s |",
         '',
-        f"Speed: {res['speed']:.0f}x real time; {res['ns_per_vehicle_step']:.0f} ns per "
-        f"vehicle-step with every new force, {res['plain_ns_per_vehicle_step']:.0f} ns for "
-        f"{res['n']} paper coaches on flat track "
-        f"({res['ns_per_vehicle_step'] / res['plain_ns_per_vehicle_step'] - 1:+.0%}).",
+        f"Speed: {res['speed']:.0f}x real time. Cost per vehicle-step (process CPU time, "
+        'fresh processes interleaved, best / median / max of '
+        f"{len(res['cost']['freight']['ns'])}; `bench/vehicle_cost.py`), 120 s with the "
+        "freight's inputs, and of its moving part (best):",
+        '',
+        '| train | ns per vehicle-step | moving |',
+        '| --- | --- | --- |',
+        *[f"| {label} | {' / '.join(f'{t:.0f}' for t in _spread(res['cost'][key]['ns']))} "
+          f"| {res['cost'][key]['moving']:.0f} |"
+          for key, label in (('freight', 'freight, every new force'),
+                             (f"paper{res['n']}", f"{res['n']} paper coaches, flat, strokes "
+                              'out of reach'),
+                             (f"uniform{res['n']}", f"{res['n']} paper coaches, default "
+                              'strokes'))],
+        '',
+        f"Freight against the paper's coaches: "
+        f"{res['ns_per_vehicle_step'] / res['plain_ns_per_vehicle_step'] - 1:+.0%}.",
     ])
+
+
+def _spread(ts):
+    """Return best, median and max of sorted timings."""
+    return ts[0], ts[len(ts) // 2], ts[-1]
 
 
 if __name__ == '__main__':

@@ -272,7 +272,9 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
     if core_res:
         parts += [
             '## Physics core (fixed-step ROS2 integrator, numba kernel)', '',
-            f'Scenario: paper defaults (45 t coaches, 44.444 m/s, `pipe_head`, P brake), head '
+            f'Scenario: paper defaults (45 t coaches, 44.444 m/s, `pipe_head`, P brake; the '
+            "paper's couplers: strokes set out of reach, as the reference models them, "
+            'where the default 105/60 mm strokes would block from about 100 coaches on), head '
             f'brake pipe vented to 0 gauge at t = {core.T_EMERGENCY:g} s, {core.T_END:g} s '
             'simulated. Timed: `sim.advance_to` in 10 ms chunks and `sim.coupler_force` after '
             "each (the node's 100 Hz read-out); numba warm-up excluded (see start-up). "

@@ -120,6 +120,8 @@ FlagSlots = namedtuple('FlagSlots', [
     'CHAIN_TICK',   # the tick the coach chain has reached (it lands on LAND multiples)
     'LAND',         # the chain's landing period in ticks (one output period)
     'BUDGET',       # largest number of error-controlled steps per landing period
+    # fixed-step standstill (integrators._repeats_standstill)
+    'STEADY',       # 1: the last step started and ended with every vehicle held
 ])
 FLAG = _indices(FlagSlots)
 
@@ -165,5 +167,11 @@ WorkRows = namedtuple('WorkRows', [
     'LC',           # Thomas algorithm: upper factor
     'LW',           # Thomas algorithm: inverse pivots [1/kg]
     'LS',           # the set before the pivoting (2 held, else WORK.RELDIR)
+    # caches of the fixed-step path (bench: per-vehicle-step cost of real trains)
+    'YKEY',         # y [m] of coupler j at which the rows F, DFDY, KK were evaluated
+    'VKEY',         # its ydot [m/s]; column N-1: the g h [s] the weights KK were made for
+    'XKEY',         # COACH.X [m] at which RSTAT and GR1 were computed (NaN: none yet)
+    'FBPREV',       # WORK.FB of the last step, when it held every vehicle (FLAG.STEADY)
+    'TEPREV',       # WORK.TEFF of that step
 ])
 WORK = _indices(WorkRows)
