@@ -6,6 +6,7 @@ import pytest
 
 from train_dynamics.physics.parameters import (ConfigError, load_param_file, markdown_table,
                                                PARAMETERS, SimConfig, validate_value)
+from train_dynamics.physics.train import TrainSimulator
 
 REPO = Path(__file__).resolve().parents[1]
 
@@ -78,3 +79,17 @@ def test_readme_parameter_table_is_current():
     """Check the README's table: python -m train_dynamics.physics.parameters generates it."""
     readme = (REPO / 'README.md').read_text(encoding='utf-8')
     assert markdown_table() in readme, 'regenerate: python -m train_dynamics.physics.parameters'
+
+
+SCENARIOS = sorted(p.name for p in (REPO / 'config').glob('*.yaml')
+                   if not p.name.startswith('consist_') and p.name != 'vehicles.yaml')
+
+
+@pytest.mark.parametrize('name', SCENARIOS)
+def test_every_shipped_scenario_loads_and_runs(name):
+    """Each parameter file in config/ passes the validator and runs its first 0.1 s."""
+    cfg = load_param_file(str(REPO / 'config' / name))
+    sim = TrainSimulator(cfg)
+    sim.advance_to(0.1)
+    assert sim.fault is None and sim.t == pytest.approx(0.1)
+    assert all(math.isfinite(v) for v in sim.v)
