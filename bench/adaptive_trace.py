@@ -1,7 +1,7 @@
 """
 Where the error-controlled steps go (issue 14): a traced copy of the adaptive chain driver.
 
-:func:`trace_adaptive` is :func:`train_dynamics.physics.integrators.advance_adaptive` with
+:func:`trace_adaptive` is :func:`train_dynamics.physics.adaptive.advance_adaptive` with
 its ``_chain_to`` written out here, logging every attempted step (chain time, step, error
 norm, accepted, the limiting coupler, whether its relative velocity is inside the 1/u band,
 the position and velocity parts of its error) and taking the controller's constants and the
@@ -31,6 +31,7 @@ if REPO not in sys.path:
 
 import numpy as np  # noqa: E402
 
+from train_dynamics.physics import adaptive as ad  # noqa: E402
 from train_dynamics.physics import brakes, couplers, integrators as it  # noqa: E402
 from train_dynamics.physics._jit import jit  # noqa: E402
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK  # noqa: E402
@@ -138,7 +139,7 @@ def _log(log, cnt, t, hs, err, acc, info, fallback):
 
 @jit
 def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, log, cnt):
-    """:func:`integrators._chain_to` with ``ctl`` constants and the step log."""
+    """:func:`adaptive._chain_to` with ``ctl`` constants and the step log."""
     h_tick = sc[SCALAR.H]
     ka = iv[FLAG.CHAIN_TICK]
     kb = iv[FLAG.TICK]
@@ -165,22 +166,22 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
             sc[SCALAR.NFALLBACK] += 1.0
         if fallback:
             h = h_tick
-        hs = it._landing_step(h, rem)
+        hs = ad._landing_step(h, rem)
         if hs != sc[SCALAR.HEVAL]:
             it._eval_couplers(coach[COACH.X], coach[COACH.V], cpl, model, u, it.GAMMA * hs, ws)
             sc[SCALAR.HEVAL] = hs
-        it._tick_means(fbt, tet, ka, s / h_tick, (s + hs) / h_tick, ws)
+        ad._tick_means(fbt, tet, ka, s / h_tick, (s + hs) / h_tick, ws)
         if ext:
             it._static_resistance(coach, iv, gprof, cprof, ws)
         pext = sc[SCALAR.PEXT]
         extra_work = it._active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
         err = _err(hs, coach, cpl, model, u, held, ws, tol, sc[SCALAR.FFLOOR], mode, scr, info)
-        if err > 1.0 and not fallback and hs > it.H_MIN:
+        if err > 1.0 and not fallback and hs > ad.H_MIN:
             _log(log, cnt, t0 + s, hs, err, 0.0, info, fallback)
             sc[SCALAR.PEXT] = pext
             sc[SCALAR.NREJ] += 1.0
             sc[SCALAR.HEVAL] = -1.0
-            h = max(hs * max(ctl[FAC_MIN], ctl[SAFETY] * err ** -0.5), it.H_MIN)
+            h = max(hs * max(ctl[FAC_MIN], ctl[SAFETY] * err ** -0.5), ad.H_MIN)
             continue
         _log(log, cnt, t0 + s, hs, err, 1.0, info, fallback)
         status = it._fault_check(ws, sc[SCALAR.YLIM])
@@ -203,9 +204,9 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
                 h = hs * fac
             else:
                 h = max(h, hs * fac)
-            h = max(min(h, h_max), it.H_MIN)
+            h = max(min(h, h_max), ad.H_MIN)
             sc[SCALAR.HPROP] = h
-        hn = it._landing_step(h, total - s) if s < total else h
+        hn = ad._landing_step(h, total - s) if s < total else h
         sc[SCALAR.WC] += it._eval_couplers_work(coach, cpl, model, u, it.GAMMA * hn, ws)
         sc[SCALAR.HEVAL] = hn
     iv[FLAG.CHAIN_TICK] = kb
@@ -219,7 +220,7 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
 @jit
 def trace_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof,
                    fbt, tet, ctl, scr, log, cnt):
-    """:func:`integrators.advance_adaptive` through the traced :func:`_chain_to`."""
+    """:func:`adaptive.advance_adaptive` through the traced :func:`_chain_to`."""
     held = np.empty(coach.shape[1], dtype=np.bool_)
     tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
                                    rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
@@ -236,7 +237,7 @@ def trace_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gprof
         iv[FLAG.WS_VALID] = 1
     land = iv[FLAG.LAND]
     for k in range(n_ticks):
-        it._brake_tick(coach, sc, iv, ring, tables, ws, fbt, tet)
+        ad._brake_tick(coach, sc, iv, ring, tables, ws, fbt, tet)
         if iv[FLAG.TICK] % land == 0:
             status = _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr,
                                log, cnt)
@@ -267,8 +268,8 @@ def traced(sim, ctl, max_log: int = 4_000_000):
 def default_ctl(mode: int = 0) -> np.ndarray:
     """Return the kernel's controller constants with norm variant ``mode``."""
     ctl = np.zeros(7)
-    ctl[[MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP]] = [mode, it.SAFETY, it.FAC_MIN, it.FAC_MAX,
-                                                     it.PI_KI, it.PI_KP]
+    ctl[[MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP]] = [mode, ad.SAFETY, ad.FAC_MIN, ad.FAC_MAX,
+                                                     ad.PI_KI, ad.PI_KP]
     return ctl
 
 

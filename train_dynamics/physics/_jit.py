@@ -55,8 +55,9 @@ _CACHE_API = HAVE_NUMBA and all(hasattr(_caching, name) for name in (
 _FASTMATH = {'afn', 'contract', 'arcp', 'nsz'}
 
 #: the modules (of this folder) whose compiled code depends on each other
-KERNEL_SOURCES = ('_jit.py', 'brakes.py', 'couplers.py', 'integrators.py', 'layout.py',
-                  'pneumatic.py', 'resistance.py', 'standstill.py', 'track.py', 'traction.py')
+KERNEL_SOURCES = ('_jit.py', 'adaptive.py', 'brakes.py', 'couplers.py', 'integrators.py',
+                  'layout.py', 'pneumatic.py', 'resistance.py', 'standstill.py', 'track.py',
+                  'traction.py')
 
 #: the folder (next to this file) of the kernels compiled at build time
 PREBUILT = '_prebuilt'

@@ -89,7 +89,7 @@ ScalarSlots = namedtuple('ScalarSlots', [
     'WT',           # work of traction and dynamic braking since t = 0 [J]
     'WG',           # work of gravity on gradients since t = 0 [J]
     'PEXT',         # impulse of all external forces since t = 0 [N s]
-    # error-controlled stepping (issue 14; integrators.advance_adaptive)
+    # error-controlled stepping (issue 14; adaptive.advance_adaptive)
     'TOL',          # integration_tolerance: local coupler-force error / force level [-]
     'FFLOOR',       # force level below which the tolerance is absolute [N]
     'HPROP',        # the controller's proposed next step [s]

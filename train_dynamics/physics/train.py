@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from train_dynamics.physics import (brakes, consist, couplers, integrators, parameters,
+from train_dynamics.physics import (adaptive, brakes, consist, couplers, integrators, parameters,
                                     pneumatic)
 from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
@@ -308,10 +308,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     def _kernel(self, n_steps: int, sync: bool = False) -> tuple[int, int]:
         """Run the fixed-step or the error-controlled kernel; return (steps, status)."""
         if self.adaptive:
-            return integrators.advance_adaptive(n_steps, sync, self.coach, self.cpl, self.sc,
-                                                self.iv, self.fill, self.rel, self.ring,
-                                                self.ws, self.gprof, self.cprof,
-                                                self.tick_fb, self.tick_te)
+            return adaptive.advance_adaptive(n_steps, sync, self.coach, self.cpl, self.sc,
+                                             self.iv, self.fill, self.rel, self.ring,
+                                             self.ws, self.gprof, self.cprof,
+                                             self.tick_fb, self.tick_te)
         return integrators.advance_chain(n_steps, self.coach, self.cpl, self.sc, self.iv,
                                          self.fill, self.rel, self.ring, self.ws, self.gprof,
                                          self.cprof)
