@@ -176,6 +176,25 @@ def diag_rtf(diag: dict) -> str:
     return 'n/a'
 
 
+#: the integration counters of /diagnostics the table shows (ros/diagnostics.py): the
+#: standstill's, and with ``-p integration_tolerance:=...`` the error control's work budget
+INTEGRATION_KEYS = ('hold_solves', 'hold_capped', 'chain_steps', 'step_rejections',
+                    'steps_max_output_period', 'fallback_periods')
+
+
+def _param(text: str) -> tuple[str, object]:
+    """Parse NAME:=VALUE (as ros2 run's -p) into (name, int/float/str value)."""
+    name, sep, value = text.partition(':=')
+    if not sep or not name:
+        raise argparse.ArgumentTypeError(f'expected NAME:=VALUE, got {text!r}')
+    for kind in (int, float):
+        try:
+            return name, kind(value)
+        except ValueError:
+            continue
+    return name, value
+
+
 def table(res: dict) -> str:
     def ok(b):
         return 'PASS' if b else 'FAIL'
@@ -201,6 +220,12 @@ def table(res: dict) -> str:
         f"{_s(res.get('node_started_s'))} | |",
         f"| node RSS at the end (max) | {res['rss_mib']:.0f} MiB ({res['rss_max_mib']:.0f}) | |",
     ]
+    integ = {k.split('/')[-1]: v for k, v in res['diagnostics'].items()
+             if k.split('/')[-1] in INTEGRATION_KEYS}
+    if integ:
+        rows.append('| integration (/diagnostics, end of the run): '
+                    + ', '.join(f'{k} {integ[k]}' for k in INTEGRATION_KEYS if k in integ)
+                    + ' | | |')
     st = res.get('startup_trials')
     if st:
         firsts = [x['first_output_s'] for x in st if x['first_output_s'] is not None]
@@ -226,8 +251,11 @@ def main(argv=None) -> int:
     ap.add_argument('--startup-trials', type=int, default=4,
                     help='extra starts to measure the start-up spread (0: none)')
     ap.add_argument('--json', help='write the raw results here')
+    ap.add_argument('-p', '--param', type=_param, action='append', default=[],
+                    metavar='NAME:=VALUE', help='another sim_node parameter, e.g. '
+                    '-p integration_tolerance:=0.01 (the work budget: fallback_periods)')
     args = ap.parse_args(argv)
-    res = run(args.coaches, args.rate, args.duration)
+    res = run(args.coaches, args.rate, args.duration, extra_params=dict(args.param))
     if args.startup_trials:
         res['startup_trials'] = startup_trials(args.coaches, args.startup_trials)
         apply_startup_target(res)
