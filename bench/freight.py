@@ -33,9 +33,8 @@ import vehicle_cost
 
 HERE = os.path.dirname(os.path.abspath(__file__))
 PARAMS = os.path.join(os.path.dirname(HERE), 'config', 'freight_750m.yaml')
-T_END = 120.0
-T_EMERGENCY = 5.0
-SAMPLE = 0.01       # [s] output period at which the peaks are taken
+T_END = vehicle_cost.T_END
+SAMPLE = vehicle_cost.SAMPLE       # [s] output period at which the peaks are taken
 REFERENCE_H = 1.0e-4
 
 
@@ -48,11 +47,7 @@ def _run(cfg: SimConfig) -> dict:
     t_stop = None
     wall = 0.0
     for k in range(int(round(T_END / SAMPLE))):
-        t = k * SAMPLE
-        for e in events:
-            if abs(e.t_ns * 1e-9 - t) < 1e-9:
-                sim.set_traction_command(e.command, e.index)
-        sim.set_head_pipe_pressure(0.0 if t >= T_EMERGENCY - 1e-9 else 500000.0)
+        vehicle_cost.drive(sim, events, k * SAMPLE)
         t0 = time.perf_counter()
         sim.advance(per)
         wall += time.perf_counter() - t0

@@ -37,6 +37,19 @@ T_EMERGENCY = 5.0
 SAMPLE = 0.01       # [s] advance() is called once per output period, as freight.py does
 
 
+def drive(sim, events, t: float) -> None:
+    """
+    Set the freight scenario's inputs at output instant ``t`` [s]; the caller advances.
+
+    ``events``: the traction schedule (``runner.traction_schedule``) or none; the head pipe
+    at 5 bar gauge until T_EMERGENCY, then vented (emergency).
+    """
+    for e in events:
+        if abs(e.t_ns * 1e-9 - t) < 1e-9:
+            sim.set_traction_command(e.command, e.index)
+    sim.set_head_pipe_pressure(0.0 if t >= T_EMERGENCY - 1e-9 else 500000.0)
+
+
 def _config(case: str):
     """Return the SimConfig of a case (see the module docstring)."""
     from train_dynamics.physics.parameters import load_param_file, SimConfig
@@ -69,11 +82,7 @@ def measure(case: str) -> dict:
     cpu = [0.0, 0.0]        # moving, stopped (every vehicle at rest at the period's start)
     steps = [0, 0]
     for k in range(int(round(T_END / SAMPLE))):
-        t = k * SAMPLE
-        for e in events:
-            if abs(e.t_ns * 1e-9 - t) < 1e-9:
-                sim.set_traction_command(e.command, e.index)
-        sim.set_head_pipe_pressure(0.0 if t >= T_EMERGENCY - 1e-9 else 500000.0)
+        drive(sim, events, k * SAMPLE)
         phase = int(not sim.v.any())
         t0 = time.process_time()
         sim.advance(per)
