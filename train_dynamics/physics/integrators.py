@@ -182,42 +182,37 @@ def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
 
 
 @jit(inline=True)
+def _store_coupler(j, y, ydot, cpl, model, u, gh, ws):
+    """
+    Write coupler j's F [N], dF/dy [N/m] and stage-matrix weight [kg] at (y, ydot) to ws.
+
+    Force law eqs. (2)-(4) / (14)-(16) with the constants of ``cpl`` [N/m]; the weight is
+    g h dF/dydot + (g h)^2 dF/dy (rows WORK.F, DFDY, KK). (y, ydot) go to WORK.YKEY, VKEY:
+    the key of :func:`_eval_couplers_work`'s cache.
+    """
+    f, dy, dv = _coupler_w(y, ydot, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j],
+                           cpl[COUPLER.KEC, j], cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j],
+                           cpl[COUPLER.GC, j], cpl[COUPLER.ST, j], cpl[COUPLER.SC, j],
+                           cpl[COUPLER.KB, j], model, u, gh / GAMMA)
+    ws[WORK.F, j] = f
+    ws[WORK.DFDY, j] = dy
+    ws[WORK.KK, j] = gh * dv + gh * gh * dy
+    ws[WORK.YKEY, j] = y
+    ws[WORK.VKEY, j] = ydot
+
+
+@jit(inline=True)
 def _eval_couplers(x, v, cpl, model, u, gh, ws):
     """
-    Write every coupler's F [N], dF/dy [N/m] and stage-matrix weight [kg] at (x, v) to ws.
+    Write every coupler's law at (x, v) to ws (:func:`_store_coupler`; y from eq. 9).
 
-    Coupler j: y = x_j - x_{j+1} (eq. 9), force law eqs. (2)-(4) / (14)-(16) with the
-    constants of ``cpl`` [N/m]; the weight is g h dF/dydot + (g h)^2 dF/dy (rows WORK.F,
-    DFDY, KK). Each coupler's (y, ydot) goes to WORK.YKEY, VKEY and g h [s] to column N-1 of
-    VKEY: the key of :func:`_eval_couplers_work`'s cache.
+    g h [s] goes to column N-1 of WORK.VKEY: with the couplers' (y, ydot), the key of
+    :func:`_eval_couplers_work`'s cache.
     """
-    ke = cpl[COUPLER.KE]
-    kf = cpl[COUPLER.KF]
-    kec = cpl[COUPLER.KEC]
-    kfc = cpl[COUPLER.KFC]
-    gt = cpl[COUPLER.GT]
-    gc = cpl[COUPLER.GC]
-    st = cpl[COUPLER.ST]
-    sc = cpl[COUPLER.SC]
-    kb = cpl[COUPLER.KB]
-    F0 = ws[WORK.F]
-    dfdy = ws[WORK.DFDY]
-    kk = ws[WORK.KK]
-    ykey = ws[WORK.YKEY]
-    vkey = ws[WORK.VKEY]
-    h = gh / GAMMA
     n = x.shape[0]
     for j in range(n - 1):
-        y = x[j] - x[j + 1]
-        ydot = v[j] - v[j + 1]
-        f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j],
-                               sc[j], kb[j], model, u, h)
-        F0[j] = f
-        dfdy[j] = dy
-        kk[j] = gh * dv + gh * gh * dy
-        ykey[j] = y
-        vkey[j] = ydot
-    vkey[n - 1] = gh
+        _store_coupler(j, x[j] - x[j + 1], v[j] - v[j + 1], cpl, model, u, gh, ws)
+    ws[WORK.VKEY, n - 1] = gh
 
 
 @jit
@@ -234,37 +229,19 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     x = coach[COACH.X]
     v = coach[COACH.V]
     x_old = ws[WORK.XOLD]
-    ke = cpl[COUPLER.KE]
-    kf = cpl[COUPLER.KF]
-    kec = cpl[COUPLER.KEC]
-    kfc = cpl[COUPLER.KFC]
-    gt = cpl[COUPLER.GT]
-    gc = cpl[COUPLER.GC]
-    st = cpl[COUPLER.ST]
-    sc = cpl[COUPLER.SC]
-    kb = cpl[COUPLER.KB]
     F0 = ws[WORK.F]
-    dfdy = ws[WORK.DFDY]
-    kk = ws[WORK.KK]
     ykey = ws[WORK.YKEY]
     vkey = ws[WORK.VKEY]
     wc = 0.0
-    h = gh / GAMMA
     n = x.shape[0]
     same_gh = vkey[n - 1] == gh
     for j in range(n - 1):
         y = x[j] - x[j + 1]
         ydot = v[j] - v[j + 1]
-        f = F0[j]
+        f_old = F0[j]
         if not (same_gh and y == ykey[j] and ydot == vkey[j]):
-            f, dy, dv = _coupler_w(y, ydot, ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j],
-                                   st[j], sc[j], kb[j], model, u, h)
-            dfdy[j] = dy
-            kk[j] = gh * dv + gh * gh * dy
-            ykey[j] = y
-            vkey[j] = ydot
-        wc += 0.5 * (F0[j] + f) * (y - (x_old[j] - x_old[j + 1]))
-        F0[j] = f
+            _store_coupler(j, y, ydot, cpl, model, u, gh, ws)
+        wc += 0.5 * (f_old + F0[j]) * (y - (x_old[j] - x_old[j + 1]))
     vkey[n - 1] = gh
     return wc
 
