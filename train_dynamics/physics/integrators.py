@@ -225,6 +225,9 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     g h are those its rows were evaluated at (WORK.YKEY, VKEY: e.g. between two vehicles
     held at rest) keeps them: the law is a function of these alone (and of the model and
     the constants, which change only with FLAG.WS_VALID = 0, then :func:`_eval_couplers`).
+    Every accepted step's forces also widen the in-train force envelope WORK.FHI, FLO (the
+    largest tension and compression of each coupler [N], at the integrator's resolution:
+    an impact's peak between two outputs included).
     """
     x = coach[COACH.X]
     v = coach[COACH.V]
@@ -232,6 +235,8 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
     F0 = ws[WORK.F]
     ykey = ws[WORK.YKEY]
     vkey = ws[WORK.VKEY]
+    f_hi = ws[WORK.FHI]
+    f_lo = ws[WORK.FLO]
     wc = 0.0
     n = x.shape[0]
     same_gh = vkey[n - 1] == gh
@@ -241,7 +246,12 @@ def _eval_couplers_work(coach, cpl, model, u, gh, ws):
         f_old = F0[j]
         if not (same_gh and y == ykey[j] and ydot == vkey[j]):
             _store_coupler(j, y, ydot, cpl, model, u, gh, ws)
-        wc += 0.5 * (f_old + F0[j]) * (y - (x_old[j] - x_old[j + 1]))
+        f = F0[j]
+        wc += 0.5 * (f_old + f) * (y - (x_old[j] - x_old[j + 1]))
+        if f > f_hi[j]:
+            f_hi[j] = f
+        elif f < f_lo[j]:
+            f_lo[j] = f
     vkey[n - 1] = gh
     return wc
 

@@ -173,5 +173,8 @@ WorkRows = namedtuple('WorkRows', [
     'XKEY',         # COACH.X [m] at which RSTAT and GR1 were computed (NaN: none yet)
     'FBPREV',       # WORK.FB of the last step, when it held every vehicle (FLAG.STEADY)
     'TEPREV',       # WORK.TEFF of that step
+    # the in-train force envelope (issue 14): extremes over every accepted step since reset
+    'FHI',          # largest tension of coupler j [N] (>= 0; N-1 used)
+    'FLO',          # largest compression of coupler j, as a force [N] (<= 0)
 ])
 WORK = _indices(WorkRows)

@@ -57,6 +57,19 @@ class TrainOutputs:
         return self.ws[WORK.F, :self.n - 1].copy()
 
     @property
+    def coupler_force_envelope(self) -> tuple[np.ndarray, np.ndarray]:
+        """
+        Return the in-train force envelope: (largest tension, largest compression) [N, >= 0].
+
+        Per coupler, over every integration step since t = 0 (not only the output samples:
+        a buffer-blocking impact lasts a few tens of ms, so 100 Hz samples can miss its peak
+        by 10 % and more).
+        """
+        self._sync()
+        m = self.n - 1
+        return self.ws[WORK.FHI, :m].copy(), 0.0 - self.ws[WORK.FLO, :m]
+
+    @property
     def brake_force(self) -> np.ndarray:
         self._sync()
         return self.coach[COACH.FB_APPLIED].copy()

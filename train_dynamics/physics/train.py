@@ -23,7 +23,7 @@ import numpy as np
 
 from train_dynamics.physics import (adaptive, brakes, consist, couplers, integrators, parameters,
                                     pneumatic)
-from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR
+from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.resistance import equivalent_mass
@@ -164,6 +164,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             cfg.full_service_pressure, cfg.distributor_sensitivity, p_nom,
             cfg.max_coupler_displacement]
         self.iv = np.zeros(len(FLAG), dtype=np.int64)     # FLAG.WS_VALID = 0
+        self.ws[[WORK.FHI, WORK.FLO]] = 0.0             # the force envelope starts again
         self.iv[FLAG.MODE] = self.mode
         self.iv[FLAG.EXT] = int(cfg.external_forces)
         self.iv[FLAG.TRACK] = int(not self.track.flat_and_straight)

@@ -129,6 +129,7 @@ class Outputs:
         if self.metrics is not None:
             self.metrics.add(sim.t, sim.y, sim.ydot, sim.coupler_force, sim.x, sim.v,
                              sim.brake_force)
+            self.metrics.set_envelope(*sim.coupler_force_envelope)
         clock = None
         if self.publish_clock:
             clock = Clock(clock=stamp(t_ns))
