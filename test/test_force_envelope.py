@@ -1,6 +1,8 @@
 """
-The in-train force envelope (issue 14): each coupler's largest tension and compression over
-every integration step, which the output samples can miss at a buffer-blocking impact.
+The in-train force envelope (issue 14).
+
+Each coupler's largest tension and compression over every integration step, which the
+output samples can miss at a buffer-blocking impact.
 """
 import numpy as np
 import pytest
@@ -49,7 +51,7 @@ def test_envelope_does_not_depend_on_the_output_rate_and_beats_the_samples(every
     envelope = slow.coupler_force_envelope[1]
     assert np.all(envelope >= sampled)
     # the 10 ms samples miss the blocking impacts' peaks by several per cent
-    assert np.max((envelope - sampled) / envelope.max()) > 0.02
+    assert np.max((envelope - sampled) / envelope.max()) > 0.05     # 12.6 % here
 
 
 def test_error_controlled_envelope_and_reset():

@@ -41,6 +41,10 @@ def test_node_reports_running_maxima_and_warns_past_the_force_limit(harness, tmp
     assert worst > 1.0e3                          # the couplers did compress
     assert float(d['max_compression']) == pytest.approx(worst, rel=1e-4)
     assert d['max_compression_coupler'] in ('1', '2')      # coupler number
+    # ... and the envelope over every integration step is the node simulator's
+    assert float(d['max_compression_every_step']) == pytest.approx(
+        node.simulator.coupler_force_envelope[1].max(), rel=1e-4)
+    assert float(d['max_compression_every_step']) >= float(d['max_compression'])
     # The same run with a limit set live below that force (while t = 0 waits for the input):
     # WARN naming the coupler, value and time.
     diags.clear()

@@ -459,7 +459,8 @@ class RunMetrics:
         f = self.flat()
         values = [(k, _fmt(f[k])) for k in (
             'max_tension', 'max_tension_coupler', 'max_tension_time', 'max_compression',
-            'max_compression_coupler', 'max_compression_time', 'max_deceleration',
+            'max_compression_coupler', 'max_compression_time', 'max_tension_every_step',
+            'max_compression_every_step', 'max_deceleration',
             'max_jerk', 'max_jerk_vehicle', 'blocking_count', 'impact_count',
             'limit_crossings')]
         cross = self.crossings()
