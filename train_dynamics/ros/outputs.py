@@ -33,6 +33,7 @@ from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.runner import output_step
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
+from train_dynamics.ros.live_metrics import LiveMetrics
 from train_dynamics.ros.recorder import BagWriter
 
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
@@ -71,7 +72,7 @@ class Outputs:
         self._h = 0.0
         self._index = 0                 # number of the next output, t = index / rate
         self._encoder: OutputEncoder | None = None
-        self.metrics: RunMetrics | None = None     # the run's metrics, fed every output
+        self.metrics = LiveMetrics()    # the run's metrics, fed every output
 
     def start(self, n: int, rate: float, h: float, publish_clock: bool,
               writer: BagWriter | None, reservoirs: bool = False,
@@ -84,7 +85,7 @@ class Outputs:
         ``metrics``: the run metrics, fed with every published sample (as the offline
         command does).
         """
-        self.metrics = metrics
+        self.metrics.start(metrics)
         self._encoder = OutputEncoder(n, reservoirs)
         self._forces = bool(forces)
         if self._forces and self._pub_forces is None:
@@ -126,10 +127,7 @@ class Outputs:
         forces = self._encoder.encode_forces(t_ns, sim) if self._forces else None
         if forces is not None:
             self._pub_forces.publish(forces)
-        if self.metrics is not None:
-            self.metrics.add(sim.t, sim.y, sim.ydot, sim.coupler_force, sim.x, sim.v,
-                             sim.brake_force)
-            self.metrics.set_envelope(*sim.coupler_force_envelope)
+        self.metrics.put(sim)
         clock = None
         if self.publish_clock:
             clock = Clock(clock=stamp(t_ns))

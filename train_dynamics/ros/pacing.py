@@ -115,6 +115,7 @@ class Pacer:
         self._need_anchor = True
         self._fault_reported = False
         self.fallback_periods = 0       # output periods over the integration_max_steps budget
+        self._output_slack = 0.0        # [s wall] to the next output at the last iteration
 
     # -- control (other threads, lock held) -------------------------------------------------
     def start(self, sim: TrainSimulator, real_time_factor: float) -> None:
@@ -194,6 +195,9 @@ class Pacer:
                 continue
             delay = wake - time.monotonic()
             if delay > 0:
+                self._outputs.metrics.fold_if_idle(self._output_slack)   # its own lock
+                delay = wake - time.monotonic()
+            if delay > 0:
                 self._wake.wait(delay)
                 self._wake.clear()
             elif self.lock.waiting:
@@ -203,6 +207,7 @@ class Pacer:
         """Do one pacing iteration; return the wall time to wake up at (None: at once)."""
         sim = self.sim
         now = time.monotonic()
+        self._output_slack = 0.0
         if self.finished or sim.fault is not None:
             self._inputs.discard_records()     # nothing acts any more: nothing to record
             return now + IDLE
@@ -223,7 +228,9 @@ class Pacer:
         # Next wake-up: the next output's wall time, or the next step's (>= MIN_SLEEP away).
         now = time.monotonic()
         nxt = max(self._wall_of_step(sim.steps + 1), now + MIN_SLEEP)
-        return min(nxt, self._wall_of_step(self._outputs.next_step))
+        out = self._wall_of_step(self._outputs.next_step)
+        self._output_slack = out - now      # idle time before the next output [s wall]
+        return min(nxt, out)
 
     def _target_step(self, now: float) -> int | None:
         """Return the step the wall clock asks for (None: no limit); apply the lag policy."""

@@ -154,8 +154,7 @@ class SimNode(Node):
                          'on_input_timeout', 'coupler_force_limit', 'jerk_limit'):
                 if name in changes:
                     cfg.values[name] = changes[name]
-            if self._outputs.metrics is not None:
-                self._outputs.metrics.set_limits(cfg.coupler_force_limit, cfg.jerk_limit)
+            self._outputs.metrics.set_limits(cfg.coupler_force_limit, cfg.jerk_limit)
             if 'real_time_factor' in changes:
                 self._pacer.set_real_time_factor(cfg.real_time_factor)
             self._outputs.publish_clock = cfg.publish_clock
@@ -252,8 +251,7 @@ class SimNode(Node):
             now = time.monotonic()
             sim_report = self._simulation_report(now, pending)
             in_report = self._input_report(now)
-            metrics = self._outputs.metrics
-            run_metrics = None if metrics is None else metrics.diagnostic()
+        run_metrics = self._outputs.metrics.diagnostic()     # its own lock: not the sim's
         msg = diagnostic_array(sim_report, in_report, self.get_fully_qualified_name(),
                                self.get_clock().now().to_msg(), run_metrics)
         try:
