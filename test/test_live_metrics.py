@@ -4,7 +4,6 @@ The node's run metrics off the simulation lock (ros/live_metrics.py).
 The simulation thread only queues samples; they are folded in its idle time or by the
 diagnostics callback, and the result is the offline accumulator's, sample for sample.
 """
-import numpy as np
 
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.parameters import SimConfig
