@@ -56,6 +56,8 @@ class Outputs:
     :meth:`start` (reset), :meth:`record` (diagnostics) and sets ``publish_clock`` under it.
     The ``writer`` of the run is owned here: replaced by :meth:`start`, taken back by
     :meth:`take_writer` (both under the lock); closing it is up to the caller.
+    ``metrics`` (:class:`LiveMetrics`, never replaced) has its own lock: the pacing folds
+    and /diagnostics reads it without the simulation lock.
     """
 
     def __init__(self, node: Node) -> None:
