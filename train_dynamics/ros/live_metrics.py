@@ -73,9 +73,11 @@ class LiveMetrics:
 
     def _fold(self) -> None:
         queue, metrics = self._queue, self._metrics
+        envelope = None
         while queue:
             *sample, envelope = queue.popleft()
             metrics.add(*sample)
+        if envelope is not None:        # running extremes: the latest holds the others
             metrics.set_envelope(*envelope)
 
     def set_limits(self, coupler_force_limit: float, jerk_limit: float) -> None:
