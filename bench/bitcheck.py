@@ -25,7 +25,6 @@ REPO = Path(__file__).resolve().parents[1]
 SCENARIOS = (
     ('paper', 'config/paper_3coach.yaml', 60.0),
     ('paper_adaptive', 'config/paper_3coach_adaptive.yaml', 20.0),
-    ('unequal4', 'config/unequal_4coach.yaml', 20.0),
     ('freight', 'config/freight_750m.yaml', 150.0),
     ('passenger', 'config/passenger_loco_12.yaml', 60.0),
     ('slack_runin', 'config/slack_runin.yaml', 40.0),
