@@ -24,7 +24,7 @@ NAMES_V = ['coach_1', 'coach_2', 'coach_3']
 
 
 def braking_bag(path, *, bad=None, samples=301):
-    """A 3-coach run braking at 1 m/s^2; ``bad`` = (topic, field, column, k, value)."""
+    """Write a 3-coach run braking at 1 m/s^2; ``bad`` = (topic, field, column, k, value)."""
     with BagRecorder(path) as rec:
         for k in range(samples):
             t = k * 0.01

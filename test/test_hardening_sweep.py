@@ -192,7 +192,7 @@ def test_sweep_duration_inf_names_the_sweep_file_field(tmp_path, capsys):
 
 
 def bomb(levels: int = 9) -> str:
-    """A YAML alias bomb, inline: 9^levels leaves in a few hundred bytes."""
+    """Return a YAML alias bomb, inline: 9^levels leaves in a few hundred bytes."""
     text = '&l0 [x, x, x, x, x, x, x, x, x]'
     for k in range(1, levels):
         text = f'&l{k} [{text}' + f', *l{k - 1}' * 8 + ']'
@@ -227,7 +227,7 @@ def test_sweep_dead_scheduler_fails_fast(tmp_path, capsys):
                  f'tcp://127.0.0.1:{port}') == 2
     assert time.monotonic() - t0 < 5.0                 # was 23.6 s
     line = one_line_error(capsys)
-    assert f'cannot reach the Dask scheduler at ' in line and 'refused' in line, line
+    assert 'cannot reach the Dask scheduler at ' in line and 'refused' in line, line
     t0 = time.monotonic()
     assert sweep('--sweep', path, '--output', tmp_path / 'out', '--scheduler',
                  'tcp://127.0.0.1:99999') == 2

@@ -7,8 +7,12 @@ kept), 130 Ctrl-C, 143 SIGTERM.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
+import contextlib
 import reprlib
+import signal
 import sys
+import threading
 
 PROG = 'train-dynamics'
 EXIT_OK = 0
@@ -29,6 +33,55 @@ class CliError(Exception):
 
 class Terminated(BaseException):
     """SIGTERM, raised like KeyboardInterrupt so that partial output is cleaned up."""
+
+
+class Interrupted(Exception):
+    """SIGINT or SIGTERM, taken at a safe point of a run (:func:`deferred_signals`)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+        self.code = EXIT_INTERRUPT if signum == signal.SIGINT else EXIT_TERMINATED
+
+
+class SignalFlag:
+    """The first SIGINT / SIGTERM of a :func:`deferred_signals` block (None: none yet)."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+
+    def check(self) -> None:
+        """Raise :class:`Interrupted` if a signal came: call it where stopping is safe."""
+        if self.signum is not None:
+            raise Interrupted(self.signum)
+
+
+@contextlib.contextmanager
+def deferred_signals() -> Iterator[SignalFlag]:
+    """
+    Take SIGINT and SIGTERM at safe points: in the block a signal only sets the flag.
+
+    The run calls :meth:`SignalFlag.check` between two samples, so that what it recorded
+    ends on a whole sample. A second signal raises at once (KeyboardInterrupt or
+    :class:`Terminated`), for a run that does not reach a safe point. Outside the main thread
+    (no signal handlers there) the flag stays None.
+    """
+    flag = SignalFlag()
+    if threading.current_thread() is not threading.main_thread():
+        yield flag
+        return
+
+    def handler(signum, frame):
+        if flag.signum is not None:
+            raise KeyboardInterrupt() if signum == signal.SIGINT else Terminated()
+        flag.signum = signum
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield flag
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
 
 
 def warn(text: str) -> None:

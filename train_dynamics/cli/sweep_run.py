@@ -31,6 +31,7 @@ import json
 import logging
 import os
 from pathlib import Path
+import signal
 import socket
 import sys
 from typing import Any
@@ -193,11 +194,26 @@ def cluster_client(args: argparse.Namespace) -> Iterator[Client]:
             client = Client(cluster)
         try:
             yield client
+        except BaseException:
+            # stopped (Ctrl-C, SIGTERM, an error): a busy worker would hold a graceful close
+            # for ~4 s; the finished cases are on disk, the running ones are lost anyway
+            if cluster is not None:
+                _kill_workers(cluster)
+            raise
         finally:
             client.close()
     finally:
         if cluster is not None:
             cluster.close()
+
+
+def _kill_workers(cluster: LocalCluster) -> None:
+    """SIGKILL the worker processes of our LocalCluster (its nannies' children)."""
+    for nanny in list(cluster.workers.values()):
+        pid = getattr(nanny, 'pid', None)
+        if pid:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
 
 
 def execute(client: Client, plan: Plan, cases: list, out: Path,
