@@ -38,7 +38,7 @@ with the current parameter values and says in its response (and the log) what ch
 recording continues in a new bag ``<record_bag>_reset<k>``.
 
 Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``duration``);
-1 other errors (e.g. the bag cannot be created).
+1 other errors (e.g. the bag cannot be created, or writing it failed: a full disk).
 """
 from __future__ import annotations
 
@@ -75,6 +75,8 @@ __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
 
 NODE_NAME = topics.NODE_NAME
 DIAGNOSTICS_PERIOD = 1.0  # [s wall]
+#: exit status after a recording that failed (a full disk): the bag holds less than the run
+EXIT_RECORD_FAILED = 1
 #: every parameter the node declares: the simulator's and its own
 SPECS = {**PARAMETERS, **SIM_NODE_PARAMETERS}
 
@@ -93,6 +95,7 @@ class SimNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         self._destroyed = False
+        self._record_failed = False      # a bag closed after a write failure (exit 1)
         self._resets = 0                 # executor thread only
         ros_parameters.declare_parameters(self, SPECS)
         cfg = SimConfig.from_dict(self._parameter_values())   # raises ConfigError (main: 2)
@@ -235,8 +238,7 @@ class SimNode(Node):
             old = self._outputs.take_writer()
             self._start(cfg, writer)
         if old is not None:
-            old.close()
-            log.info(f'bag closed: {old.path} ({old.written} messages)')
+            self._closed_bag(old, log)
         rec = f'; recording to {writer.path}' if writer else ''
         response.success = True
         response.message = ('restarted from t = 0 ' + (f'with the pending changes {pending}'
@@ -298,7 +300,11 @@ class SimNode(Node):
 
     @property
     def exit_code(self) -> int:
-        """Return the exit status ``main`` ends with (0, or 3 after a numerical fault)."""
+        """Return the exit status: 0, 3 after a numerical fault, 1 after a failed recording."""
+        writer = self._outputs.writer if hasattr(self, '_outputs') else None
+        if self._pacer.exit_code == 0 and (self._record_failed or (
+                writer is not None and writer.error is not None)):
+            return EXIT_RECORD_FAILED
         return self._pacer.exit_code
 
     @property
@@ -329,12 +335,20 @@ class SimNode(Node):
             self._pacer.stop_thread()
             writer = self._outputs.take_writer()
             if writer is not None:
-                writer.close()
                 # After SIGINT/SIGTERM the context is gone: log without /rosout.
                 log = self.get_logger() if self.context.ok() else rclpy.logging.get_logger(
                     f'{self.get_name()}.shutdown')
-                log.info(f'bag closed: {writer.path} ({writer.written} messages)')
+                self._closed_bag(writer, log)
         super().destroy_node()
+
+    def _closed_bag(self, writer: BagWriter, log: Any) -> None:
+        """Close a bag; report what it holds, or its failure (then the exit status is 1)."""
+        writer.close()
+        if writer.error is None:
+            log.info(writer.closed_message())
+        else:
+            self._record_failed = True
+            log.error(writer.closed_message())
 
 
 def main(args: list[str] | None = None) -> int:
@@ -342,7 +356,7 @@ def main(args: list[str] | None = None) -> int:
     Run ``ros2 run train_dynamics sim_node``; SIGINT/SIGTERM stop it with the bag closed.
 
     Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 1 other
-    errors.
+    errors (a recording that failed included).
     """
     sys.setswitchinterval(0.0005)     # the simulation thread gets the GIL back quickly
     return run_node('sim_node', SimNode, args, node_name=NODE_NAME, specs=SPECS, exits=(
