@@ -111,5 +111,9 @@ def quote(value: object) -> str:
     Never the full repr: a value read from a file may be a YAML alias bomb (a few hundred
     bytes that stand for gigabytes of nested lists); :mod:`reprlib` looks at a bounded part.
     """
-    text = _QUOTE.repr(value)
-    return text if len(text) <= QUOTE_CHARS else text[:QUOTE_CHARS - 3] + '...'
+    return clip(_QUOTE.repr(value), QUOTE_CHARS)
+
+
+def clip(text: str, limit: int = 300) -> str:
+    """Return ``text`` cut to ``limit`` characters (an error message of another module)."""
+    return text if len(text) <= limit else text[:limit - 3] + '...'

@@ -22,7 +22,7 @@ import shutil
 from typing import Any
 
 from train_dynamics import topics
-from train_dynamics.cli.errors import CliError, EXIT_ERROR, EXIT_OK
+from train_dynamics.cli.errors import CliError, clip, EXIT_ERROR, EXIT_OK
 from train_dynamics.cli.output import output_dir, remove_created
 from train_dynamics.cli.scenario import load_config
 from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
@@ -62,8 +62,8 @@ def run_config(args: argparse.Namespace, info: dict[str, str]
         try:
             return SimConfig.from_dict(json.loads(text), ignore_unknown=True), 'bag custom_data'
         except (ValueError, ConfigError) as exc:
-            raise CliError(f'{args.bag}: recorded parameters unusable ({exc}); give '
-                           '--params') from None
+            raise CliError(f'{args.bag}: recorded parameters unusable ({clip(str(exc))}); '
+                           'give --params') from None
     return None, 'none (limits off; give --params for limits and dissipated energy)'
 
 

@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 from scipy.stats import qmc
 
-from train_dynamics.cli.errors import CliError, quote
+from train_dynamics.cli.errors import CliError, clip, quote
 from train_dynamics.cli.scenario import brake_inputs, load_config
 from train_dynamics.physics import consist
 from train_dynamics.physics.parameters import (_RosParamLoader, ConfigError, DOUBLE, INTEGER,
@@ -134,7 +134,7 @@ def _value(path: str, name: str, value: Any) -> Any:
     try:
         return validate_value(name, value)
     except ConfigError as exc:
-        raise _fail(path, str(exc)) from None
+        raise _fail(path, clip(str(exc))) from None
 
 
 def read_sweep_file(path: str) -> dict[str, Any]:
@@ -286,7 +286,7 @@ def make_plan(base_path: str, sweep_path: str) -> Plan:
         try:
             cfg = SimConfig.from_dict({**base.values, **case.swept, **case.files})
         except ConfigError as exc:
-            case.error = f'invalid parameters: {exc}'
+            case.error = f'invalid parameters: {clip(str(exc))}'
         else:
             key = tuple(cfg.values[k] for k in (
                 'brake_input', 'integration_step', 'atmospheric_pressure',
@@ -331,7 +331,7 @@ def _swept_files(path: str, folder: Path, names: list[str], points: list[tuple]
                 try:
                     out[value] = str(consist.resolve_path(value, str(folder)))
                 except ConfigError as exc:
-                    raise _fail(path, f'grid: {exc}') from None
+                    raise _fail(path, f'grid: {clip(str(exc))}') from None
             out.setdefault(value, value)
     return out
 

@@ -45,7 +45,7 @@ import pandas as pd
 import psutil
 from tqdm import tqdm
 
-from train_dynamics.cli.errors import CliError, error, EXIT_ERROR, EXIT_OK, quote
+from train_dynamics.cli.errors import CliError, clip, error, EXIT_ERROR, EXIT_OK, quote
 from train_dynamics.cli.sweep_case import failed_row, run_case
 from train_dynamics.cli.sweep_plan import make_plan, Plan
 from train_dynamics.physics.metrics import FLAT_KEYS
@@ -125,7 +125,7 @@ def check_scheduler(address: str) -> None:
         host, port = get_address_host_port(address)
     except (ValueError, TypeError) as exc:
         raise CliError(f'--scheduler {quote(address)}: not a Dask scheduler address '
-                       f'({exc}); expected e.g. tcp://HOST:8786') from None
+                       f'({clip(str(exc), 120)}); expected e.g. tcp://HOST:8786') from None
     if not 0 < port < 65536:
         raise CliError(f'--scheduler {quote(address)}: bad address, port {port} is not in '
                        '1..65535')

@@ -22,9 +22,9 @@ and ignores both); the first three by the rule the offline replay applies too
 on an input topic (never received: DDS does not match them) are found by the graph scan and
 reported as ``wrong_type`` in ``/diagnostics``. The head topic and the per-coach topics of the
 active mode are subscribed from the start; topics of the other modes and of coaches that do not
-exist, and traction-command topics of vehicles that take none, are found by a graph scan every :data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to
-count and reject their messages: keeping 2N idle subscriptions would slow rclpy's executor for
-long trains).
+exist, and traction-command topics of vehicles that take none, are found by a graph scan every
+:data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to count and reject their messages:
+keeping 2N idle subscriptions would slow rclpy's executor for long trains).
 
 Stale inputs: ``input_timeout`` > 0 s (wall) without a brake input (any coach of a per-coach mode)
 is reported in ``/diagnostics``; ``on_input_timeout`` ``hold`` keeps the last values, ``emergency``
