@@ -23,8 +23,8 @@ from pathlib import Path
 import shutil
 
 from train_dynamics import topics
-from train_dynamics.cli.errors import (CliError, deferred_signals, error, EXIT_FAULT, EXIT_OK,
-                                       Interrupted, PROG)
+from train_dynamics.cli.errors import (CliError, deferred_signals, error, EXIT_FAULT,
+                                       EXIT_INTERRUPT, EXIT_OK, Interrupted, PROG)
 from train_dynamics.cli.output import remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
@@ -120,7 +120,8 @@ def _keep_interrupted(rec: BagRecorder, out: Path, created: list[Path], stop: In
         rec.abort()
         remove_created(created)
         raise
-    raise CliError(f'{stop}: stopped at t = {t:.3f} s; {out} holds the run up to there',
+    what = 'interrupted' if stop.code == EXIT_INTERRUPT else 'terminated'
+    raise CliError(f'{what} ({stop}) at t = {t:.3f} s; {out} holds the run up to there',
                    stop.code)
 
 
