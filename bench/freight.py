@@ -88,7 +88,7 @@ def run(log=print) -> dict:
 
 
 def render(res: dict) -> str:
-    """Return the README/RESULTS section of the freight benchmark (markdown)."""
+    """Return the RESULTS.md section of the freight benchmark (markdown)."""
     r, ref = res['run'], res['reference']
     return '\n'.join([
         f"### Real train: 750 m freight ({res['n']} vehicles), h = {res['h'] * 1e3:g} ms",
