@@ -1,5 +1,5 @@
 """
-Benchmark of the error-controlled stepping (issue 14): accuracy and speed per tolerance.
+Benchmark of the error-controlled stepping: accuracy and speed per tolerance.
 
 Cases (all tanh u = 1000, the package's default parameters unless said):
 

@@ -588,7 +588,7 @@ def run(ref_max_n: int = 100, sizes=SIZES, models=MODELS, steps=STEP_VARIANTS,
     return results
 
 
-#: error-controlled cases (issue 14): N, integration_tolerance; the paper's law (strokes
+#: error-controlled cases: N, integration_tolerance; the paper's law (strokes
 #: out of reach, as in the reference), tanh u = 1000, 100 Hz outputs
 ADAPTIVE_CASES = ((3, 1e-3), (100, 1e-2), (100, 1e-3), (1000, 1e-2), (1000, 1e-3))
 
@@ -599,7 +599,7 @@ def adaptive_case(n: int, tol: float, budget: int = 100, repeats: int = 2) -> di
 
     Returns wall [s], real-time factor, the integration counters, the peak and envelope
     errors over the comparison window (cached reference, None when missing) and the time
-    from the first coach at rest to every coach held (standstill, issue 14).
+    from the first coach at rest to every coach held (standstill).
     """
     import numpy as np
     from train_dynamics.physics.train import TrainSimulator

@@ -1,4 +1,4 @@
-"""Error-controlled ROS2 (issue 14): tolerance, impacts, landing, work budget, fixed step."""
+"""Error-controlled ROS2: tolerance, impacts, landing, work budget, fixed step."""
 import numpy as np
 from physics_helpers import paper_reference, paper_sim, record
 import pytest

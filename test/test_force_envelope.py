@@ -1,5 +1,5 @@
 """
-The in-train force envelope (issue 14).
+The in-train force envelope.
 
 Each coupler's largest tension and compression over every integration step, which the
 output samples can miss at a buffer-blocking impact.

@@ -1,5 +1,5 @@
 """
-Issue 15: a property-based fuzz (Hypothesis) over the parameter space of the validator.
+A property-based fuzz (Hypothesis) over the parameter space of the validator.
 
 Any parameter set the validator accepts runs 1 s offline (in-process, the runner of the offline
 command) without an exception and with finite outputs; any set it rejects gives one line

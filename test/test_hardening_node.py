@@ -1,5 +1,5 @@
 """
-Issue 15, the nodes: no traceback, no leftovers, bounded recorder, complete diagnostics.
+The nodes under hostile input: no traceback, no leftovers, bounded recorder, complete diagnostics.
 
 Items 2 (live set + reset), 3 (failed start), 6/7 (parameter files), 9 (valve schedule),
 10 (recorder bounded in bytes), 11 (wrong-type publisher), 12 (timers at shutdown).

@@ -1,5 +1,5 @@
 """
-Issue 15, parameters and the offline command: one validator, one-line errors, nothing left.
+Parameters and the offline command: one validator, one-line errors, nothing left.
 
 Items 2 (physical bounds, memory), 4 (disk estimate, progress), 5 (replay rejects as the
 node), 6 (parameter-file sections), 8 (exact output grid), 9 (schedule time, unwritable

@@ -1,4 +1,4 @@
-"""The one rule for traction commands, used by sim_node and the offline replay (issue 11)."""
+"""The one rule for traction commands, used by sim_node and the offline replay."""
 from __future__ import annotations
 
 import math

@@ -1,4 +1,4 @@
-"""Real trains in the model (issue 11): gradients, resistance, traction, free play, blocking."""
+"""Real trains in the model: gradients, resistance, traction, free play, blocking."""
 import numpy as np
 import pytest
 

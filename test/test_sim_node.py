@@ -1,5 +1,5 @@
 """
-sim_node with real rclpy, in-process, DDS on loopback (issue 3).
+sim_node with real rclpy, in-process, DDS on loopback.
 
 Parameters (contract names, defaults, descriptors, rejection of invalid values), the node's
 output against the physics core run offline on the same inputs, brake_valve -> sim_node over
@@ -357,7 +357,7 @@ def test_clock_monotonic_and_reset_restarts_with_pending_changes(harness):
     assert harness.wait(lambda: diag_values(diags, 'train_dynamics: simulation') is not None
                         and 'num_coaches: 3 -> 4' in diag_values(
                             diags, 'train_dynamics: simulation')['pending_changes'], 5.0)
-    # The standstill counters (issue 14) in both stepping modes; not error control's.
+    # The standstill counters in both stepping modes; not error control's.
     simulation = diag_values(diags, 'train_dynamics: simulation')
     assert simulation['hold_capped'] == '0' and int(simulation['hold_solves']) >= 0
     assert 'fallback_periods' not in simulation

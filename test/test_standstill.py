@@ -1,4 +1,4 @@
-"""Standstill (issue 14): brakes holding the vehicles at rest, a complementarity problem."""
+"""Standstill: brakes holding the vehicles at rest, a complementarity problem."""
 import itertools
 
 import numpy as np

@@ -1,5 +1,5 @@
 """
-Issue 15: ``plot`` and ``report`` read a bag block-wise; memory independent of its length.
+``plot`` and ``report`` read a bag block-wise; memory independent of its length.
 
 Peak memory is measured in a child process (``ru_maxrss``) for a bag and one 10x longer, with
 the figures' sample limit lowered so that both bags are past it (with the default 20000 the

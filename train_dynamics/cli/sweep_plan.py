@@ -118,7 +118,7 @@ def read_sweep_file(path: str) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise CliError(f'cannot read sweep file {path}: {exc}'.splitlines()[0]) from None
     if not isinstance(doc, dict):
-        raise _fail(path, 'not a mapping (see the README for the format)')
+        raise _fail(path, 'not a mapping (see docs/offline.md, "sweep", for the format)')
     unknown = [k for k in doc if k not in _TOP_KEYS]
     if unknown:
         raise _fail(path, f'unknown key {unknown[0]!r} (allowed: {", ".join(_TOP_KEYS)})')

@@ -166,7 +166,7 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
         # In the main thread SIGINT/SIGTERM only ask the loop below to stop (_stop_on_signals):
         # rclpy's own handlers shut the context down under running callbacks, and the
         # KeyboardInterrupt they chain to is raised inside a timer callback, where the
-        # executor reports it as a FATAL exception (issue 15, item 12).
+        # executor reports it as a FATAL exception.
         rclpy.init(args=args,
                    signal_handler_options=SignalHandlerOptions.NO if main_thread else None)
     except Exception as exc:  # noqa: BLE001 - RCLError: bad --ros-args
