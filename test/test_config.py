@@ -4,8 +4,8 @@ from pathlib import Path
 
 import pytest
 
-from train_dynamics.physics.parameters import (ConfigError, load_param_file, markdown_table,
-                                               PARAMETERS, SimConfig, validate_value)
+from train_dynamics.physics.config import (ConfigError, load_param_file, markdown_table,
+                                           PARAMETERS, SimConfig, validate_value)
 from train_dynamics.physics.train import TrainSimulator
 
 REPO = Path(__file__).resolve().parents[1]
@@ -76,9 +76,9 @@ def test_cylinder_tables_checked():
 
 
 def test_readme_parameter_table_is_current():
-    """Check the README's table: python -m train_dynamics.physics.parameters generates it."""
+    """Check the README's table: python -m train_dynamics.physics.config.docs generates it."""
     readme = (REPO / 'README.md').read_text(encoding='utf-8')
-    assert markdown_table() in readme, 'regenerate: python -m train_dynamics.physics.parameters'
+    assert markdown_table() in readme, 'regenerate: python -m train_dynamics.physics.config.docs'
 
 
 SCENARIOS = sorted(p.name for p in (REPO / 'config').glob('*.yaml')

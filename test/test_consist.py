@@ -2,8 +2,7 @@
 import numpy as np
 import pytest
 
-from train_dynamics.physics import consist
-from train_dynamics.physics.parameters import ConfigError, SimConfig
+from train_dynamics.physics.config import ConfigError, consist, files, SimConfig
 
 
 def write(tmp_path, text, name='train.yaml'):
@@ -93,11 +92,11 @@ def test_uniform_train_of_the_parameters():
 
 def test_relative_path_resolves_against_base_dir_then_config(tmp_path, monkeypatch):
     write(tmp_path, 'vehicles: [{type: paper_coach, count: 2}]\n', 'mine.yaml')
-    assert consist.resolve_path('mine.yaml', str(tmp_path)) == tmp_path / 'mine.yaml'
+    assert files.resolve_path('mine.yaml', str(tmp_path)) == tmp_path / 'mine.yaml'
     monkeypatch.chdir(tmp_path)             # without a base folder: the working directory
     assert consist.consist_of(values(consist_file='mine.yaml')).n == 2
     # the library itself is found in config/ from anywhere
-    assert consist.resolve_path('vehicles.yaml', str(tmp_path)).name == 'vehicles.yaml'
+    assert files.resolve_path('vehicles.yaml', str(tmp_path)).name == 'vehicles.yaml'
 
 
 @pytest.mark.parametrize('text, words', [

@@ -16,7 +16,7 @@ A sweep file (YAML)::
         brake_propagation_speed: [150.0, 300.0]
         scale_factor: {min: 100.0, max: 10000.0, log: true}
 
-Any simulator parameter (:data:`train_dynamics.physics.parameters.PARAMETERS`) may be swept;
+Any simulator parameter (:data:`train_dynamics.physics.config.PARAMETERS`) may be swept;
 the rest come from the base parameter file. With both ``grid`` and ``lhs`` every grid point
 is combined with every sample (cases = grid points x samples), the grid varying slowest.
 The hypercube is :class:`scipy.stats.qmc.LatinHypercube` with the given ``seed``: the same
@@ -46,8 +46,8 @@ from scipy.stats import qmc
 
 from train_dynamics.cli.errors import CliError
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
-from train_dynamics.physics.parameters import (ConfigError, DOUBLE, INTEGER, PARAMETERS,
-                                               read_param_file, SimConfig, validate_value)
+from train_dynamics.physics.config import (ConfigError, DOUBLE, INTEGER, PARAMETERS,
+                                           read_param_file, SimConfig, validate_value)
 from train_dynamics.physics.runner import BrakeInputs
 from train_dynamics.topics import VALVE_NODE_NAME
 import yaml
