@@ -159,7 +159,7 @@ class SimConfig:
                 raise ConfigError(f'unknown parameter {name!r}')
             new[name] = validate_value(name, value)
         same = all(new[n] == old[n] for n in CONSIST_PARAMETERS)
-        return SimConfig._checked(new, self._consist if same else None)
+        return SimConfig._checked(new, self.consist if same else None)
 
     def set_live(self, **changes: Any) -> None:
         """Change live (``dynamic``) values in place (``sim_node``); the others never change."""
