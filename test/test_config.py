@@ -5,8 +5,9 @@ from pathlib import Path
 
 import pytest
 
-from train_dynamics.physics.config import (ConfigError, load_param_file, markdown_table,
-                                           PARAMETERS, SimConfig, validate_value)
+from train_dynamics.physics.config import (ConfigError, load_param_file, PARAMETERS, SimConfig,
+                                           validate_value)
+from train_dynamics.physics.config.docs import markdown_table
 from train_dynamics.physics.train import TrainSimulator
 
 REPO = Path(__file__).resolve().parents[1]
