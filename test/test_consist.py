@@ -136,3 +136,16 @@ def test_missing_consist_file_is_a_clear_error(tmp_path):
 def test_connection_harmonic_mean_with_zero_friction():
     out = consist.connection_harmonic(np.array([0.0, 2.0]), np.array([1.0, 2.0]))
     assert list(out) == [0.0, 2.0]
+
+
+def test_the_per_vehicle_declarations_elsewhere_name_fields_of_the_table():
+    """The table holds each vehicle field once; the kernel's row maps only refer to it."""
+    from train_dynamics.physics.config import VEHICLE_PARAMETERS
+    from train_dynamics.physics.train import TrainSimulator
+
+    assert consist.VEHICLE_FIELDS == tuple(VEHICLE_PARAMETERS)
+    assert consist.PARAM_OF == {'mass': 'coach_mass', 'length': 'coach_length'}
+    connections = {f for f, s in VEHICLE_PARAMETERS.items() if s.connection}
+    assert set(consist.COUPLER_FIELDS) == connections == {*consist.HARMONIC, *consist.ARITHMETIC}
+    assert set(TrainSimulator._VEHICLE_ROWS) <= set(VEHICLE_PARAMETERS)
+    assert {*TrainSimulator._TRAVEL_ROWS, *TrainSimulator._COUPLER_ROWS} == connections
