@@ -422,6 +422,24 @@ def test_set_callback_validates_only_and_the_post_set_callback_applies(harness):
     assert (node.simulator.model_type, node.simulator.u) == ('sign', 50.0)
 
 
+def test_a_deleted_consist_file_leaves_the_running_node_alone(harness, tmp_path):
+    """Sets, pending changes and diagnostics use the consist read at start: no file access."""
+    from rclpy.parameter import Parameter
+
+    path = tmp_path / 'train.yaml'
+    path.write_text('vehicles: [{type: paper_coach, count: 4}]\n')
+    node = harness.start(consist_file=str(path), real_time_factor=2.0)
+    assert harness.wait(lambda: node.sim_time > 0.1, 10.0)
+    path.unlink()
+    for p in (Parameter('scale_factor', value=50.0), Parameter('initial_speed', value=10.0)):
+        assert node.set_parameters([p])[0].successful
+    assert node.pending_changes() == 'initial_speed: 44.444 -> 10'
+    t = node.sim_time
+    assert harness.wait(lambda: node.sim_time > t + 1.5, 10.0)      # diagnostics ticked
+    assert node.simulator.n == 4 and node.fault is None
+    assert not node.set_parameters([Parameter('davis_a', value=10.0)])[0].successful
+
+
 def test_duration_changes_after_the_end_resume_the_run(harness):
     from rclpy.parameter import Parameter
 

@@ -99,7 +99,7 @@ class SimNode(Node):
         #: the pending changes); sets derive it from the last one (a consist is read only
         #: when a value it is built from changes), the reset service builds it anew
         self._params_cfg = cfg
-        self._checked: tuple[dict[str, Any], SimConfig] | None = None
+        self._checked: tuple[SimConfig, dict[str, Any], SimConfig] | None = None
         self._flush_period = float(self.get_parameter('record_flush_period').value)
         if cfg.record_bag:
             check_bag_path(cfg.record_bag)
@@ -142,14 +142,16 @@ class SimNode(Node):
         bag = changes.get('record_bag')
         if bag and bag != self._cfg.record_bag:
             check_bag_path(bag)
-        self._checked = (sim_changes, cfg)     # what the post-set callback adopts
+        self._checked = (self._params_cfg, sim_changes, cfg)   # what post-set adopts
 
     def _apply_parameters(self, changes: dict[str, Any]) -> None:
         """Post-set callback: apply live changes at once; report structural ones pending."""
         sim_changes = {k: v for k, v in changes.items() if k in PARAMETERS}
         checked, self._checked = self._checked, None
-        self._params_cfg = (checked[1] if checked is not None and checked[0] == sim_changes
-                            else self._params_cfg.replace(**sim_changes))
+        if checked is not None and checked[0] is self._params_cfg and checked[1] == sim_changes:
+            self._params_cfg = checked[2]
+        else:
+            self._params_cfg = self._params_cfg.replace(**sim_changes)
         cfg = self._cfg
         with self._lock.held():
             if 'model_type' in changes or 'scale_factor' in changes:
