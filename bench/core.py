@@ -81,7 +81,7 @@ BASELINE_EXTRAPOLATE = (300, 1000)
 
 
 def _default_h() -> float:
-    from train_dynamics.physics.parameters import PARAMETERS
+    from train_dynamics.physics.config import PARAMETERS
     return float(PARAMETERS['integration_step'].default)
 
 
@@ -125,7 +125,7 @@ def check_idealisation(cfg) -> None:
 
 def make_config(n: int, model: str, u: float, h: float = DEFAULT_H, **extra):
     """Return the bench's SimConfig: N paper coaches, the paper's idealisation (checked)."""
-    from train_dynamics.physics.parameters import SimConfig
+    from train_dynamics.physics.config import SimConfig
     cfg = SimConfig.from_dict({'num_coaches': int(n), 'model_type': model,
                                'scale_factor': float(u), 'integration_step': float(h),
                                **PAPER_IDEALISATION, **extra})

@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from train_dynamics.physics.parameters import load_param_file, SimConfig
+from train_dynamics.physics.config import load_param_file, SimConfig
 from train_dynamics.physics.runner import traction_schedule
 from train_dynamics.physics.train import TrainSimulator
 import vehicle_cost

@@ -21,7 +21,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(1, os.path.dirname(HERE))
 
-from train_dynamics.physics.parameters import SimConfig  # noqa: E402
+from train_dynamics.physics.config import SimConfig  # noqa: E402
 from train_dynamics.physics.train import TrainSimulator  # noqa: E402
 
 RESULTS_MD = os.path.join(HERE, 'pneumatic_results.md')

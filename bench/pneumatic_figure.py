@@ -18,7 +18,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 
 from train_dynamics.physics.brake_valve import BrakeValveModel  # noqa: E402
-from train_dynamics.physics.parameters import SimConfig  # noqa: E402
+from train_dynamics.physics.config import SimConfig  # noqa: E402
 from train_dynamics.physics.train import TrainSimulator  # noqa: E402
 
 OUT = os.path.join(os.path.dirname(HERE), 'docs', 'figures', 'pneumatic_vs_empirical.png')

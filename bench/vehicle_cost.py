@@ -53,7 +53,7 @@ def drive(sim, events, t: float) -> None:
 
 def _config(case: str):
     """Return the SimConfig of a case (see the module docstring)."""
-    from train_dynamics.physics.parameters import load_param_file, SimConfig
+    from train_dynamics.physics.config import load_param_file, SimConfig
     if case == 'freight':
         return load_param_file(os.path.join(ROOT, 'config', 'freight_750m.yaml'))
     if case.startswith('uniform'):

@@ -16,7 +16,7 @@ import pytest
 from train_dynamics.cli import offline as cli
 from train_dynamics.physics import runner
 from train_dynamics.physics.brake_valve import BrakeValveModel
-from train_dynamics.physics.parameters import ConfigError, PARAMETERS, SimConfig
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig
 import yaml
 
 #: drawn as given (structural, costly or covered elsewhere)

@@ -16,7 +16,7 @@ import pytest
 
 from train_dynamics.physics import runner
 from train_dynamics.physics.brake_valve import BrakeValveModel
-from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.recording import summary as summary_mod
 from train_dynamics.recording.history import sign_changes_per_second
 from train_dynamics.recording.sinks import ArraySink

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from train_dynamics.physics.parameters import traction_rejection
+from train_dynamics.physics.config import traction_rejection
 
 
 @pytest.mark.parametrize('command, reason', [

@@ -11,8 +11,8 @@ import pytest
 
 from train_dynamics import topics
 from train_dynamics.cli.scenario import valve_from_param_file
+from train_dynamics.physics.config import load_param_file, SimConfig
 from train_dynamics.physics.metrics import FLAT_KEYS, RunMetrics
-from train_dynamics.physics.parameters import load_param_file, SimConfig
 from train_dynamics.physics.runner import BrakeInputs, run_simulation
 
 PAPER = 'config/paper_3coach.yaml'

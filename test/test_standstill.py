@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 
 from train_dynamics.physics import standstill
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.integrators import make_workspace
 from train_dynamics.physics.layout import WORK
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 
 G = 9.81

@@ -9,7 +9,7 @@ re-stamped with their simulation time); :class:`train_dynamics.recording.sinks.B
 writes them. Its ``metadata.yaml`` ``custom_data`` records the model, step and input. Same
 inputs -> byte-identical bag. Nothing is left under the output path unless the command wrote
 a complete bag (it writes a hidden sibling directory and renames it at the end). The bag's size
-is estimated before the run (:func:`train_dynamics.physics.parameters.output_disk`): more
+is estimated before the run (:func:`train_dynamics.physics.config.output_disk`): more
 than the free space is refused, more than :data:`LARGE_BAG` needs ``--allow-large``. Memory
 does not grow with the duration (the samples stream to the bag).
 """
@@ -24,7 +24,7 @@ from train_dynamics.cli.errors import CliError, error, EXIT_FAULT, EXIT_OK, PROG
 from train_dynamics.cli.output import remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
-from train_dynamics.physics.parameters import fmt_bytes, output_disk, SimConfig
+from train_dynamics.physics.config import fmt_bytes, output_disk, SimConfig
 from train_dynamics.physics.runner import BrakeInputs, run_simulation
 from train_dynamics.recording.bags import BagError, BagRecorder
 from train_dynamics.recording.outputs import run_metadata
