@@ -1,5 +1,5 @@
 """
-Benchmark of the error-controlled stepping (issue 14): accuracy and speed per tolerance.
+Benchmark of the error-controlled stepping: accuracy and speed per tolerance.
 
 Cases (all tanh u = 1000, the package's default parameters unless said):
 
@@ -125,7 +125,7 @@ def case_setup(case: str, tol: float, budget: int, extra: dict | None = None):
     """Return (config, BrakeInputs, duration [s]) of a case at tolerance ``tol``."""
     from train_dynamics import topics
     from train_dynamics.cli.scenario import load_config, valve_from_param_file
-    from train_dynamics.physics.parameters import SimConfig
+    from train_dynamics.physics.config import SimConfig
     from train_dynamics.physics.runner import BrakeInputs, InputEvent
     over = {'integration_tolerance': tol, 'integration_max_steps': budget, **(extra or {})}
     duration = CASES[case]

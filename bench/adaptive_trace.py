@@ -1,5 +1,5 @@
 """
-Where the error-controlled steps go (issue 14): a traced copy of the adaptive chain driver.
+Where the error-controlled steps go: a traced copy of the adaptive chain driver.
 
 :func:`trace_adaptive` is :func:`train_dynamics.physics.adaptive.advance_adaptive` with
 its ``_chain_to`` written out here, logging every attempted step (chain time, step, error

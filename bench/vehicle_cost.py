@@ -8,15 +8,16 @@ and reports best and spread of each, because this host's speed drifts within min
 Cases (120 s each, the freight scenario's inputs: emergency at t = 5 s; the cost is split
 into the moving part and the part with every vehicle at rest at an output period's start):
 
-- ``freight``: ``config/freight_750m.yaml`` (47 vehicles, every force of issue 11);
+- ``freight``: ``config/freight_750m.yaml`` (47 vehicles, every real-train force);
 - ``uniformN``: N of the paper's coaches, ``SimConfig.from_dict({'num_coaches': N})``,
   flat, default step (the strokes as the defaults set them: long trains block);
 - ``paperN``: the same with the strokes out of reach (the paper's idealisation, as the
-  kernel before issue 11 computed it).
+  kernel before real trains computed it).
 
 ``--python PY --path DIR`` (repeatable, pairwise) adds a kernel version: the case runs with
 ``PY`` and ``PYTHONPATH=DIR`` (e.g. a worktree of an older commit); the uniform and paper
-cases use only the simulator's oldest interface, so they run on kernels before issue 11.
+cases use only the simulator's oldest interface, so they run on kernels before real trains
+(no strokes).
 
     .venv/bin/python bench/vehicle_cost.py --cases freight,paper47 --repeats 5 \
         --python .venv/bin/python --path /path/to/other/worktree
@@ -52,7 +53,7 @@ def drive(sim, events, t: float) -> None:
 
 def _config(case: str):
     """Return the SimConfig of a case (see the module docstring)."""
-    from train_dynamics.physics.parameters import load_param_file, SimConfig
+    from train_dynamics.physics.config import load_param_file, SimConfig
     if case == 'freight':
         return load_param_file(os.path.join(ROOT, 'config', 'freight_750m.yaml'))
     if case.startswith('uniform'):
@@ -62,7 +63,7 @@ def _config(case: str):
         try:
             return SimConfig.from_dict({'num_coaches': n, 'buffer_stroke': 10.0,
                                         'draw_gear_stroke': 10.0})
-        except (KeyError, ValueError):      # a kernel before issue 11: no strokes
+        except (KeyError, ValueError):      # a kernel before real trains: no strokes
             return SimConfig.from_dict({'num_coaches': n})
     raise ValueError(f'unknown case {case!r}')
 
@@ -112,7 +113,7 @@ def interleave(versions, cases, repeats: int = 5, log=print) -> dict:
 
     ``versions``: [(label, python, PYTHONPATH or None)]. Returns {'label case': summary}
     with the sorted totals 'ns' [ns per vehicle-step] and the best 'moving' and 'stopped'
-    figures; a case a version cannot run (freight before issue 11) is left out.
+    figures; a case a version cannot run (freight, before real trains) is left out.
     """
     combos = [(label, py, path, case) for label, py, path in versions for case in cases]
     for combo in list(combos):       # warm-up: load or compile the kernels

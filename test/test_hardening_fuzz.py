@@ -1,5 +1,5 @@
 """
-Issue 15: a property-based fuzz (Hypothesis) over the parameter space of the validator.
+A property-based fuzz (Hypothesis) over the parameter space of the validator.
 
 Any parameter set the validator accepts runs 1 s offline (in-process, the runner of the offline
 command) without an exception and with finite outputs; any set it rejects gives one line
@@ -16,7 +16,7 @@ import pytest
 from train_dynamics.cli import offline as cli
 from train_dynamics.physics import runner
 from train_dynamics.physics.brake_valve import BrakeValveModel
-from train_dynamics.physics.parameters import ConfigError, PARAMETERS, SimConfig
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig
 import yaml
 
 #: drawn as given (structural, costly or covered elsewhere)

@@ -19,7 +19,7 @@ from train_dynamics.cli import offline as cli
 from train_dynamics.cli.errors import CliError
 from train_dynamics.cli.sweep_case import run_case
 from train_dynamics.cli.sweep_plan import make_plan, MAX_CASES
-from train_dynamics.physics.parameters import PARAMETERS
+from train_dynamics.physics.config import PARAMETERS
 import yaml
 
 PAPER = str(Path(__file__).resolve().parents[1] / 'config' / 'paper_3coach.yaml')

@@ -1,5 +1,5 @@
 """
-Issue 15, item 1: offline commands stream; compare keeps its table, zoom and figures correct.
+The offline commands stream; compare keeps its table, zoom and figures correct.
 
 Peak memory is measured in a child process (``resource.getrusage(RUSAGE_CHILDREN)`` after it
 ends: ru_maxrss [KiB]) for two durations; the summary of a run is checked against the full
@@ -16,7 +16,7 @@ import pytest
 
 from train_dynamics.physics import runner
 from train_dynamics.physics.brake_valve import BrakeValveModel
-from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.recording import summary as summary_mod
 from train_dynamics.recording.history import sign_changes_per_second
 from train_dynamics.recording.sinks import ArraySink
@@ -57,7 +57,7 @@ def test_simulate_memory_is_independent_of_duration(tmp_path):
 
 
 def _full_zoom(t, velocity, width, duration):
-    """Return the zoom window as compare chose it from the full history (before issue 15)."""
+    """Return the zoom window as compare chose it from the full history (as before streaming)."""
     best, where, coupler = -1, duration / 2, 0
     for j in range(velocity.shape[1]):
         s = np.sign(velocity[:, j])

@@ -1,5 +1,5 @@
 """
-Issue 15, parameters and the offline command: one validator, one-line errors, nothing left.
+Parameters and the offline command: one validator, one-line errors, nothing left.
 
 Items 2 (physical bounds, memory), 4 (disk estimate, progress), 5 (replay rejects as the
 node), 6 (parameter-file sections), 8 (exact output grid), 9 (schedule time, unwritable
@@ -16,10 +16,10 @@ from train_dynamics.cli import offline as cli
 from train_dynamics.cli import simulate as simulate_cmd
 from train_dynamics.physics import runner
 from train_dynamics.physics.brake_valve import BrakeValveModel, MAX_SCHEDULE_TIME
-from train_dynamics.physics.parameters import (ConfigError, input_rejection,
-                                               MAX_SIMULATOR_MEMORY, output_disk, PARAMETERS,
-                                               SimConfig, SIMULATOR_FIXED_BYTES,
-                                               simulator_memory, validate_value)
+from train_dynamics.physics.config import (ConfigError, input_rejection, MAX_SIMULATOR_MEMORY,
+                                           output_disk, PARAMETERS, SimConfig, simulator_memory,
+                                           validate_value)
+from train_dynamics.physics.config.budgets import SIMULATOR_FIXED_BYTES
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import BagRecorder, read_topics
 from train_dynamics.recording.cdr import encode_fluid_pressure

@@ -12,8 +12,8 @@ import numpy as np
 import pytest
 
 from train_dynamics.physics import integrators
+from train_dynamics.physics.config import load_param_file, SimConfig
 from train_dynamics.physics.layout import COACH, FLAG, WORK
-from train_dynamics.physics.parameters import load_param_file, SimConfig
 from train_dynamics.physics.runner import traction_schedule
 from train_dynamics.physics.train import TrainSimulator
 

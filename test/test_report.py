@@ -15,8 +15,8 @@ import pytest
 from train_dynamics import topics
 from train_dynamics.cli.offline import main
 from train_dynamics.cli.scenario import valve_from_param_file
+from train_dynamics.physics.config import load_param_file
 from train_dynamics.physics.metrics import RunMetrics
-from train_dynamics.physics.parameters import load_param_file
 from train_dynamics.physics.runner import BrakeInputs, run_simulation
 from train_dynamics.recording.plots import png_size
 import yaml

@@ -1,5 +1,5 @@
 """
-Issue 15: ``plot`` and ``report`` read a bag block-wise; memory independent of its length.
+``plot`` and ``report`` read a bag block-wise; memory independent of its length.
 
 Peak memory is measured in a child process (``ru_maxrss``) for a bag and one 10x longer, with
 the figures' sample limit lowered so that both bags are past it (with the default 20000 the
@@ -19,7 +19,7 @@ import pytest
 
 from train_dynamics.cli import offline
 from train_dynamics.cli.report import report_metrics
-from train_dynamics.physics.parameters import load_param_file
+from train_dynamics.physics.config import load_param_file
 from train_dynamics.recording import history as history_mod
 from train_dynamics.recording import report as report_mod
 from train_dynamics.recording.bags import BagRecorder

@@ -23,7 +23,7 @@ from train_dynamics.cli.errors import CliError, EXIT_OK, warn
 from train_dynamics.cli.output import output_dir, remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
-from train_dynamics.physics.parameters import ConfigError, PARAMETERS, SimConfig
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig
 from train_dynamics.physics.runner import BrakeInputs, iter_output_steps, run_simulation
 from train_dynamics.recording.plots import plot_comparison
 from train_dynamics.recording.summary import densest, RunSummary, Window, zoom_window

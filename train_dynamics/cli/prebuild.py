@@ -17,8 +17,8 @@ import sys
 import time
 
 from train_dynamics.physics import _jit
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.metrics import RunMetrics
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator, warmup
 
 

@@ -20,8 +20,8 @@ from typing import Any
 from train_dynamics import topics
 from train_dynamics.cli.errors import CliError, warn
 from train_dynamics.physics.brake_valve import BrakeValveModel, VALVE_PARAMETERS
-from train_dynamics.physics.parameters import (ConfigError, load_param_file, node_sections,
-                                               read_param_sections, SimConfig)
+from train_dynamics.physics.config import (ConfigError, load_param_file, node_sections,
+                                           read_param_sections, SimConfig)
 from train_dynamics.physics.runner import BrakeInputs, traction_schedule
 from train_dynamics.recording.inputs import InputBagError, read_input_bag, read_traction_bag
 

@@ -18,8 +18,8 @@ from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.cli import simulate
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.metrics import FLAT_KEYS, RunMetrics
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.runner import BrakeInputs, run_simulation
 from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.outputs import parameters_json

@@ -16,7 +16,7 @@ A sweep file (YAML)::
         brake_propagation_speed: [150.0, 300.0]
         scale_factor: {min: 100.0, max: 10000.0, log: true}
 
-Any simulator parameter (:data:`train_dynamics.physics.parameters.PARAMETERS`) may be swept;
+Any simulator parameter (:data:`train_dynamics.physics.config.PARAMETERS`) may be swept;
 the rest come from the base parameter file. With both ``grid`` and ``lhs`` every grid point
 is combined with every sample (cases = grid points x samples), the grid varying slowest.
 The hypercube is :class:`scipy.stats.qmc.LatinHypercube` with the given ``seed``: the same
@@ -33,8 +33,8 @@ Every mistake in the file (unknown key or parameter, a value out of its range, a
 a missing input bag or consist file, too many cases) raises
 :class:`train_dynamics.cli.errors.CliError` (exit 2, one line quoting at most a bounded
 prefix of a value) before any case runs. A case whose combination of values fails the
-cross-parameter checks (:meth:`SimConfig.check`, e.g. ``buffer_friction`` >=
-``buffer_stiffness``) is kept as a case with that error, not run.
+cross-parameter checks (:meth:`~train_dynamics.physics.config.SimConfig.check`, e.g.
+``buffer_friction`` >= ``buffer_stiffness``) is kept as a case with that error, not run.
 
 The plan's digest (resume, ``sweep.json``) identifies the files a case reads by their
 content: the consist files (base and swept) and the vehicle library by a SHA-256 of their
@@ -57,10 +57,10 @@ from scipy.stats import qmc
 
 from train_dynamics.cli.errors import CliError, clip, quote
 from train_dynamics.cli.scenario import brake_inputs, load_config
-from train_dynamics.physics import consist
-from train_dynamics.physics.parameters import (_RosParamLoader, ConfigError, DOUBLE, INTEGER,
-                                               PARAMETERS, read_param_file, SimConfig,
-                                               validate_value)
+from train_dynamics.physics.config import (ConfigError, DOUBLE, INTEGER, PARAMETERS,
+                                           read_param_file, resolve_path, validate_value)
+from train_dynamics.physics.config.consist import LIBRARY
+from train_dynamics.physics.config.files import config_dirs, RosParamLoader
 from train_dynamics.physics.runner import BrakeInputs
 from train_dynamics.topics import VALVE_NODE_NAME
 import yaml
@@ -73,7 +73,7 @@ _TOP_KEYS = ('duration', 'input', 'namespace', 'grid', 'lhs')
 #: and ~1 kB each; more is a different study (split it, or sample it with lhs)
 MAX_CASES = 100_000
 #: parameters that name a file (a swept name is resolved against the sweep file's folder)
-FILE_PARAMETERS = ('consist_file',)
+FILE_PARAMETERS = tuple(name for name, spec in PARAMETERS.items() if spec.file_input)
 _LHS_KEYS = ('samples', 'seed', 'ranges')
 
 
@@ -141,13 +141,13 @@ def read_sweep_file(path: str) -> dict[str, Any]:
     """Return the sweep file as a mapping; raise :class:`CliError` if it is not one."""
     try:
         with open(path, encoding='utf-8') as fh:
-            doc = yaml.load(fh, Loader=_RosParamLoader)       # 1.0e6: a float (YAML 1.2)
+            doc = yaml.load(fh, Loader=RosParamLoader)       # 1.0e6: a float (YAML 1.2)
     except FileNotFoundError:
         raise CliError(f'sweep file not found: {path}') from None
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise CliError(f'cannot read sweep file {path}: {exc}'.splitlines()[0]) from None
     if not isinstance(doc, dict):
-        raise _fail(path, 'not a mapping (see the README for the format)')
+        raise _fail(path, 'not a mapping (see docs/offline.md, "sweep", for the format)')
     unknown = [k for k in doc if k not in _TOP_KEYS]
     if unknown:
         raise _fail(path, f'unknown key {quote(unknown[0])} (allowed: {", ".join(_TOP_KEYS)})')
@@ -280,11 +280,12 @@ def make_plan(base_path: str, sweep_path: str) -> Plan:
     files = _swept_files(sweep_path, folder, swept, gpoints)
     args = argparse.Namespace(input=bag, namespace=namespace, params=base_path)
     cases, inputs_cache = [], {}
+    base_values = base.values                         # one dict, shared by every case
     for index, (g, s) in enumerate(itertools.product(gpoints, lpoints)):
-        case = Case(index, dict(zip(swept, g + s)), base=base.values)
+        case = Case(index, dict(zip(swept, g + s)), base=base_values)
         case.files = {k: files[v] for k, v in case.swept.items() if k in FILE_PARAMETERS}
         try:
-            cfg = SimConfig.from_dict({**base.values, **case.swept, **case.files})
+            cfg = base.replace(**{**case.swept, **case.files})   # the consist kept unless swept
         except ConfigError as exc:
             case.error = f'invalid parameters: {clip(str(exc))}'
         else:
@@ -297,7 +298,7 @@ def make_plan(base_path: str, sweep_path: str) -> Plan:
         cases.append(case)
     plan = Plan(swept, cases, duration, str(Path(base_path).resolve()), bag, namespace)
     digests: dict[str, str] = {}
-    identity = {'base': _by_content(base.values, {}, digests),
+    identity = {'base': _by_content(base_values, {}, digests),
                 'library': _file_digest(_library(), digests),
                 'valve': read_param_file(base_path, VALVE_NODE_NAME),
                 'input': bag, 'namespace': namespace, 'duration': duration,
@@ -329,7 +330,7 @@ def _swept_files(path: str, folder: Path, names: list[str], points: list[tuple]
         for value in {p[j] for p in points if j < len(p)}:
             if value and value not in out:
                 try:
-                    out[value] = str(consist.resolve_path(value, str(folder)))
+                    out[value] = str(resolve_path(value, str(folder), name))
                 except ConfigError as exc:
                     raise _fail(path, f'grid: {clip(str(exc))}') from None
             out.setdefault(value, value)
@@ -348,7 +349,7 @@ def _file_digest(path: Path | str, cache: dict[str, str]) -> str:
 
 
 def _library() -> Path:
-    return consist.config_dirs()[0] / consist.LIBRARY
+    return config_dirs()[0] / LIBRARY
 
 
 def _by_content(values: dict[str, Any], files: dict[str, str], cache: dict[str, str]
@@ -360,7 +361,7 @@ def _by_content(values: dict[str, Any], files: dict[str, str], cache: dict[str, 
         if where:
             if where not in cache:
                 try:
-                    cache[where] = _file_digest(consist.resolve_path(where), cache)
+                    cache[where] = _file_digest(resolve_path(where, what=name), cache)
                 except ConfigError:
                     cache[where] = f'missing:{where}'
             out[name] = cache[where]

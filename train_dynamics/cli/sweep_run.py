@@ -48,8 +48,8 @@ from tqdm import tqdm
 from train_dynamics.cli.errors import CliError, clip, error, EXIT_ERROR, EXIT_OK, quote
 from train_dynamics.cli.sweep_case import failed_row, run_case
 from train_dynamics.cli.sweep_plan import make_plan, Plan
+from train_dynamics.physics.config import fmt_bytes
 from train_dynamics.physics.metrics import FLAT_KEYS
-from train_dynamics.physics.parameters import fmt_bytes
 from train_dynamics.recording.report import sweep_figures
 
 RESULTS = 'results.parquet'

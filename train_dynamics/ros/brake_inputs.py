@@ -18,7 +18,7 @@ traction command outside [-1, 1], :mod:`train_dynamics.ros.traction_inputs`), ``
 deserialisable), ``not_locomotive`` (a traction command for a vehicle without traction or
 dynamic brake; one for a vehicle outside 1..N is ``unknown_coach``: the offline replay warns
 and ignores both); the first three by the rule the offline replay applies too
-(:func:`train_dynamics.physics.parameters.input_rejection`). Publishers of another message type
+(:func:`train_dynamics.physics.config.input_rejection`). Publishers of another message type
 on an input topic (never received: DDS does not match them) are found by the graph scan and
 reported as ``wrong_type`` in ``/diagnostics``. The head topic and the per-coach topics of the
 active mode are subscribed from the start; topics of the other modes and of coaches that do not
@@ -50,7 +50,7 @@ from sensor_msgs.msg import FluidPressure
 from std_msgs.msg import Float64
 
 from train_dynamics import topics
-from train_dynamics.physics.parameters import input_rejection, SimConfig
+from train_dynamics.physics.config import input_rejection, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
 from train_dynamics.ros.outputs import stamp
