@@ -344,7 +344,6 @@ def main(args: list[str] | None = None) -> int:
     Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 1 other
     errors.
     """
-    sys.setswitchinterval(0.0005)     # the simulation thread gets the GIL back quickly
     return run_node('sim_node', SimNode, args, node_name=NODE_NAME, specs=SPECS, exits=(
         ExitOn((ConfigError, ParameterException, FileExistsError, ValueError),
                'invalid parameters', 2),
