@@ -1,5 +1,5 @@
 """
-Where the error-controlled steps go (issue 14): a traced copy of the adaptive chain driver.
+Where the error-controlled steps go: a traced copy of the adaptive chain driver.
 
 :func:`trace_adaptive` is :func:`train_dynamics.physics.adaptive.advance_adaptive` with
 its ``_chain_to`` written out here, logging every attempted step (chain time, step, error
@@ -276,7 +276,8 @@ def default_ctl(mode: int = 0) -> np.ndarray:
 def run(case: str, tol: float, ctl: np.ndarray, budget: int, cache: str):
     """Run ``case`` traced; return (row with errors and step statistics, log)."""
     import adaptive
-    from train_dynamics.physics import runner, train
+    from train_dynamics.physics import train
+    from train_dynamics.simulation import runner
     cfg, inputs, duration = adaptive.case_setup(case, tol, budget)
     k_out = int(round(duration / adaptive.OUTPUT_DT)) + 1
     F = np.zeros((k_out, cfg.n_coaches - 1))

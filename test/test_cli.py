@@ -18,13 +18,14 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from train_dynamics.cli import offline as cli
 from train_dynamics.cli.errors import EXIT_FAULT, EXIT_INTERRUPT, EXIT_TERMINATED
 from train_dynamics.cli.progress import progress_bar
-from train_dynamics.physics import runner, train
+from train_dynamics.physics import train
 from train_dynamics.physics.parameters import load_param_file
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording import messages
 from train_dynamics.recording.bags import bag_info, BagRecorder, read_topics
 from train_dynamics.recording.plots import png_size, SIZE_PX
 from train_dynamics.recording.sinks import BagSink
+from train_dynamics.simulation import runner
 
 ATM = 101325.0
 REPO = Path(__file__).resolve().parents[1]
@@ -327,7 +328,7 @@ def test_python_dash_m_and_help(tmp_path):
 #: ~0.3 s, dask and pandas ~2 s), so neither its argument parsing nor its run may load it
 NOT_FOR_SIMULATE = ('matplotlib', 'dask', 'distributed', 'pandas', 'rclpy',
                     'train_dynamics.ros', 'train_dynamics.recording.plots',
-                    'train_dynamics.recording.report', 'train_dynamics.cli.compare',
+                    'train_dynamics.recording.metrics_report', 'train_dynamics.cli.compare',
                     'train_dynamics.cli.plot', 'train_dynamics.cli.report',
                     'train_dynamics.cli.sweep')
 

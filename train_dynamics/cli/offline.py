@@ -12,7 +12,7 @@
 This module is the entry point (``main``; also ``python -m train_dynamics.cli.offline``): the
 parser, the exit statuses and the signals. The commands are :mod:`.simulate` (runs
 :class:`train_dynamics.physics.train.TrainSimulator`, the class ``sim_node`` runs, as fast as
-the machine allows, through :func:`train_dynamics.physics.runner.run_simulation`),
+the machine allows, through :func:`train_dynamics.simulation.runner.run_simulation`),
 :mod:`.plot`, :mod:`.compare`, :mod:`.report` (run metrics of a bag) and :mod:`.sweep`
 (parameter studies on Dask); the parameter file and brake inputs of a run are read by
 :mod:`.scenario`. Brake input:
