@@ -325,12 +325,14 @@ def test_python_dash_m_and_help(tmp_path):
 
 
 #: what ``simulate`` does not use: importing any of it costs start-up time (matplotlib alone
-#: ~0.3 s, dask and pandas ~2 s), so neither its argument parsing nor its run may load it
+#: ~0.3 s, dask and pandas ~2 s), so neither its argument parsing nor its run may load it;
+#: a run without an input bag reads no bag (``rosbags.highlevel``), one without a terminal
+#: shows no progress bar (``tqdm``)
 NOT_FOR_SIMULATE = ('matplotlib', 'dask', 'distributed', 'pandas', 'rclpy',
                     'train_dynamics.ros', 'train_dynamics.recording.plots',
                     'train_dynamics.recording.metrics_report', 'train_dynamics.cli.compare',
                     'train_dynamics.cli.plot', 'train_dynamics.cli.report',
-                    'train_dynamics.cli.sweep')
+                    'train_dynamics.cli.sweep', 'rosbags.highlevel', 'tqdm')
 
 #: run in a fresh interpreter: parse a command line, then run it; print the modules loaded
 #: after each as JSON

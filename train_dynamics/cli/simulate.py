@@ -71,8 +71,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     _check_disk(cfg, duration, inputs, parent, args.allow_large)
     created, rec = _open_recorder(out, parent)
     try:
-        for key, value in _model_info(cfg, inputs, duration).items():
-            rec.set_custom_data(key, value)
+        rec.update_custom_data(_model_info(cfg, inputs, duration))
         sink = BagSink(rec, cfg)
         if inputs.valve is not None:
             rec.add_topic(topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE)
