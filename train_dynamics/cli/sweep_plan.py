@@ -47,8 +47,7 @@ from scipy.stats import qmc
 from train_dynamics.cli.errors import CliError
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
 from train_dynamics.physics.config import (ConfigError, DOUBLE, INTEGER, PARAMETERS,
-                                           read_param_file, validate_value)
-from train_dynamics.physics.runner import BrakeInputs
+                                           read_param_file, SimConfig, validate_value)
 from train_dynamics.topics import VALVE_NODE_NAME
 import yaml
 
@@ -66,7 +65,7 @@ class Case:
     index: int
     swept: dict[str, Any]
     params: dict[str, Any] = field(default_factory=dict)
-    inputs: BrakeInputs | None = None
+    inputs: InputSchedule | None = None
     error: str = ''
 
 
