@@ -47,7 +47,8 @@ from scipy.stats import qmc
 from train_dynamics.cli.errors import CliError
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
 from train_dynamics.physics.config import (ConfigError, DOUBLE, INTEGER, PARAMETERS,
-                                           read_param_file, SimConfig, validate_value)
+                                           read_param_file, validate_value)
+from train_dynamics.simulation.runner import InputSchedule
 from train_dynamics.topics import VALVE_NODE_NAME
 import yaml
 
