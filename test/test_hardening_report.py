@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from train_dynamics.cli import offline
-from train_dynamics.recording import report as report_mod
+from train_dynamics.recording import metrics_report as report_mod
 from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.messages import joint_state
 

@@ -14,8 +14,8 @@ import pytest
 from train_dynamics.physics import integrators
 from train_dynamics.physics.config import load_param_file, SimConfig
 from train_dynamics.physics.layout import COACH, FLAG, WORK
-from train_dynamics.physics.runner import traction_schedule
 from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.simulation.runner import traction_schedule
 
 CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config')
 

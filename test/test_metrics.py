@@ -13,7 +13,7 @@ from train_dynamics import topics
 from train_dynamics.cli.scenario import valve_from_param_file
 from train_dynamics.physics.config import load_param_file, SimConfig
 from train_dynamics.physics.metrics import FLAT_KEYS, RunMetrics
-from train_dynamics.physics.runner import BrakeInputs, run_simulation
+from train_dynamics.simulation.runner import InputSchedule, run_simulation
 
 PAPER = 'config/paper_3coach.yaml'
 
@@ -210,7 +210,7 @@ def test_run_energies_match_the_integrator_and_the_kinetic_energy():
     """
     cfg = load_param_file(PAPER)
     metrics = RunMetrics.for_run(cfg)
-    inputs = BrakeInputs(topics.PIPE_HEAD, [], valve_from_param_file(PAPER, cfg), 'valve')
+    inputs = InputSchedule(topics.PIPE_HEAD, [], valve_from_param_file(PAPER, cfg), 'valve')
     sim = run_simulation(cfg, 60.0, inputs, on_sample=metrics.sample)
     tr = metrics.result()['train']
     assert tr['brake_energy'] == pytest.approx(sim.work_brake, rel=5e-4)

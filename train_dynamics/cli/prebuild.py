@@ -23,7 +23,7 @@ from train_dynamics.physics.train import TrainSimulator, warmup
 
 
 def warm_metrics() -> None:
-    """Feed the run metrics of the default train as the node does (``ros/outputs.py``)."""
+    """Feed the run metrics of the default train as the node does (``ros/publishers.py``)."""
     cfg = SimConfig.from_dict({})
     sim = TrainSimulator(cfg)
     metrics = RunMetrics.for_run(cfg, sim)

@@ -61,7 +61,7 @@ from train_dynamics.physics.config import (ConfigError, DOUBLE, INTEGER, PARAMET
                                            read_param_file, resolve_path, validate_value)
 from train_dynamics.physics.config.consist import LIBRARY
 from train_dynamics.physics.config.files import config_dirs, RosParamLoader
-from train_dynamics.physics.runner import BrakeInputs
+from train_dynamics.simulation.runner import InputSchedule
 from train_dynamics.topics import VALVE_NODE_NAME
 import yaml
 
@@ -83,7 +83,7 @@ class Case:
 
     index: int
     swept: dict[str, Any]
-    inputs: BrakeInputs | None = None
+    inputs: InputSchedule | None = None
     error: str = ''
     base: dict[str, Any] = field(default_factory=dict, repr=False)   # shared by all cases
     files: dict[str, str] = field(default_factory=dict)    # swept file names, resolved

@@ -50,7 +50,7 @@ from train_dynamics.cli.sweep_case import failed_row, run_case
 from train_dynamics.cli.sweep_plan import make_plan, Plan
 from train_dynamics.physics.config import fmt_bytes
 from train_dynamics.physics.metrics import FLAT_KEYS
-from train_dynamics.recording.report import sweep_figures
+from train_dynamics.recording.metrics_report import sweep_figures
 
 RESULTS = 'results.parquet'
 #: the metrics drawn against each swept parameter

@@ -9,7 +9,7 @@ behaviour and owns its state:
   rejection counts, staleness and the fail-safe, the graph scan, ``wait_for_input``;
 - :mod:`train_dynamics.ros.pacing`: the simulation thread (pacing at ``real_time_factor``,
   the lag policy, chunking), ``duration``, numerical faults;
-- :mod:`train_dynamics.ros.outputs`: ``couplers``, ``coaches``, ``brake_cylinders`` and
+- :mod:`train_dynamics.ros.publishers`: ``couplers``, ``coaches``, ``brake_cylinders`` and
   ``/clock`` at ``publish_rate`` in simulation time;
 - :mod:`train_dynamics.ros.recorder`: ``record_bag`` (inputs and outputs, a rosbag2 MCAP
   written on its own thread);
@@ -64,8 +64,8 @@ from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INP
                                              MAX_ABSOLUTE_PRESSURE, REJECT_REASONS)
 from train_dynamics.ros.diagnostics import diagnostic_array, InputReport, SimulationReport
 from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
-from train_dynamics.ros.outputs import OUTPUT_QOS, Outputs
 from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
+from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
                                          open_bag, reset_bag_path)
 
@@ -369,7 +369,6 @@ def main(args: list[str] | None = None) -> int:
     Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 1 other
     errors (a recording that failed included).
     """
-    sys.setswitchinterval(0.0005)     # the simulation thread gets the GIL back quickly
     return run_node('sim_node', SimNode, args, node_name=NODE_NAME, specs=SPECS, exits=(
         ExitOn((ConfigError, ParameterException, FileExistsError, ValueError),
                'invalid parameters', 2),
