@@ -34,7 +34,7 @@ import numpy as np  # noqa: E402
 from train_dynamics.physics import adaptive as ad  # noqa: E402
 from train_dynamics.physics import brakes, couplers, integrators as it  # noqa: E402
 from train_dynamics.physics._jit import jit  # noqa: E402
-from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK  # noqa: E402
+from train_dynamics.physics.kernel.layout import COACH, COUPLER, FLAG, SCALAR, WORK  # noqa: E402
 
 MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP, FLOOR = range(7)
 #: log columns (BAND: u |ydot| of the limiting coupler, < 1 inside the tanh band)
@@ -168,13 +168,13 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
             h = h_tick
         hs = ad._landing_step(h, rem)
         if hs != sc[SCALAR.HEVAL]:
-            it._eval_couplers(coach[COACH.X], coach[COACH.V], cpl, model, u, it.GAMMA * hs, ws)
+            it.eval_couplers(coach[COACH.X], coach[COACH.V], cpl, model, u, it.GAMMA * hs, ws)
             sc[SCALAR.HEVAL] = hs
         ad._tick_means(fbt, tet, ka, s / h_tick, (s + hs) / h_tick, ws)
         if ext:
-            it._static_resistance(coach, iv, gprof, cprof, ws)
+            it.static_resistance(coach, iv, gprof, cprof, ws)
         pext = sc[SCALAR.PEXT]
-        extra_work = it._active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
+        extra_work = it.active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
         err = _err(hs, coach, cpl, model, u, held, ws, tol, sc[SCALAR.FFLOOR], mode, scr, info)
         if err > 1.0 and not fallback and hs > ad.H_MIN:
             _log(log, cnt, t0 + s, hs, err, 0.0, info, fallback)
@@ -184,12 +184,12 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
             h = max(hs * max(ctl[FAC_MIN], ctl[SAFETY] * err ** -0.5), ad.H_MIN)
             continue
         _log(log, cnt, t0 + s, hs, err, 1.0, info, fallback)
-        status = it._fault_check(ws, sc[SCALAR.YLIM])
+        status = it.fault_check(ws, sc[SCALAR.YLIM])
         if status != it.OK:
             return status
         if ext:
-            sc[SCALAR.WB] += it._accept_external(hs, coach, sc, held, ws)
-        sc[SCALAR.WB] += it._accept_step(coach, held, extra_work, ws, ext)
+            sc[SCALAR.WB] += it.accept_external(hs, coach, sc, held, ws)
+        sc[SCALAR.WB] += it.accept_step(coach, held, extra_work, ws, ext)
         steps += 1
         if hs < rem:
             int_hmin = min(int_hmin, hs)
@@ -207,7 +207,7 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
             h = max(min(h, h_max), ad.H_MIN)
             sc[SCALAR.HPROP] = h
         hn = ad._landing_step(h, total - s) if s < total else h
-        sc[SCALAR.WC] += it._eval_couplers_work(coach, cpl, model, u, it.GAMMA * hn, ws)
+        sc[SCALAR.WC] += it.eval_couplers_work(coach, cpl, model, u, it.GAMMA * hn, ws)
         sc[SCALAR.HEVAL] = hn
     iv[FLAG.CHAIN_TICK] = kb
     sc[SCALAR.NSTEPS] += steps
@@ -232,7 +232,7 @@ def trace_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gprof
             tet[r, i] = coach[COACH.T_EFF, i]
         sc[SCALAR.HEVAL] = -1.0
         if iv[FLAG.TICK] == 0:
-            it._eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U],
+            it.eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U],
                               it.GAMMA * sc[SCALAR.H], ws)
         iv[FLAG.WS_VALID] = 1
     land = iv[FLAG.LAND]

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from train_dynamics.physics import brakes
+from train_dynamics.physics.kernel import brakes
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 

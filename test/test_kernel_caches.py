@@ -3,7 +3,7 @@ The fixed-step kernel's shortcuts change no result: caches and the standstill sk
 
 The kernel keeps the couplers' law where (y, ydot) did not change, the static resistance and
 gradient force of a vehicle that has not moved, and skips the active-set step at a
-standstill whose inputs did not change (integrators._repeats_standstill). A twin simulator
+standstill whose inputs did not change (fixed_step._repeats_standstill). A twin simulator
 that forgets all of it before every step must give the same numbers, bit for bit.
 """
 import os
@@ -11,8 +11,8 @@ import os
 import numpy as np
 import pytest
 
-from train_dynamics.physics import integrators
-from train_dynamics.physics.layout import COACH, FLAG, WORK
+from train_dynamics.physics.kernel import step
+from train_dynamics.physics.kernel.layout import COACH, FLAG, WORK
 from train_dynamics.physics.parameters import load_param_file, SimConfig
 from train_dynamics.physics.runner import traction_schedule
 from train_dynamics.physics.train import TrainSimulator
@@ -23,7 +23,7 @@ CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))
 def _forget(sim):
     """Clear every cache and the standstill flag: the next step is computed in full."""
     sim.iv[FLAG.STEADY] = 0
-    integrators.invalidate_caches(sim.ws)
+    step.invalidate_caches(sim.ws)
     sim.ws[WORK.YKEY] = np.nan
 
 

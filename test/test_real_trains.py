@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 
 from train_dynamics.physics import couplers
-from train_dynamics.physics.layout import COUPLER
+from train_dynamics.physics.kernel.layout import COUPLER
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.resistance import coast_down_speed
 from train_dynamics.physics.train import TrainSimulator

@@ -3,7 +3,7 @@ import numpy as np
 from physics_helpers import paper_sim
 import pytest
 
-from train_dynamics.physics.layout import COACH
+from train_dynamics.physics.kernel.layout import COACH
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 

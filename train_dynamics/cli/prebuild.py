@@ -2,8 +2,8 @@
 Compile the numba kernels before the first start: ``python -m train_dynamics.cli.prebuild``.
 
 ``make venv`` runs it to fill the user cache; ``setup.py build`` (so ``colcon build`` and
-``pip install``) runs it with ``--into <build>/train_dynamics/physics/_prebuilt`` so the
-installed package carries the compiled kernels of its own code version (see ``_jit.py``).
+``pip install``) runs it with ``--into <build>/train_dynamics/physics/kernel/_prebuilt`` so the
+installed package carries the compiled kernels of its own code version (see ``physics/kernel/compiler.py``).
 It runs :func:`train_dynamics.physics.train.warmup` (the simulator's kernel variants) and
 the run metrics as ``sim_node`` and the offline command feed them (their compiled elastic
 energy), which loads from or compiles into the user cache, then copies this version's folder.
@@ -16,7 +16,7 @@ import shutil
 import sys
 import time
 
-from train_dynamics.physics import _jit
+from train_dynamics.physics.kernel import compiler
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator, warmup
@@ -36,7 +36,7 @@ def warm_metrics() -> None:
 
 def copy_version(dest_root: str) -> str:
     """Copy this code version's cache folder into ``dest_root``; drop other versions there."""
-    src = _jit.kernel_cache_dir()
+    src = compiler.kernel_cache_dir()
     if not src:
         raise OSError('no writable kernel cache: nothing compiled to copy')
     dest = os.path.join(dest_root, os.path.basename(src))
@@ -55,16 +55,16 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--into', metavar='DIR',
                         help='also copy the compiled kernels to DIR/numba-<code version>')
     args = parser.parse_args(argv)
-    if not _jit.HAVE_NUMBA:
+    if not compiler.HAVE_NUMBA:
         print('train_dynamics: numba is not installed: nothing to compile')
         return 0
     t0 = time.perf_counter()
     warmup()
     warm_metrics()
-    stats = _jit.cache_stats()
+    stats = compiler.cache_stats()
     print(f'train_dynamics: kernels ready in {time.perf_counter() - t0:.1f} s '
           f'({stats["compiled"]} compiled, {stats["loaded"]} loaded from the cache '
-          f'{_jit.kernel_cache_dir() or "(none: not writable)"})')
+          f'{compiler.kernel_cache_dir() or "(none: not writable)"})')
     if args.into:
         print(f'train_dynamics: compiled kernels copied to {copy_version(args.into)}')
     return 0

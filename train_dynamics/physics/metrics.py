@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 
 from train_dynamics import topics
-from train_dynamics.physics import couplers
+from train_dynamics.physics.kernel import couplers
 
 #: comfort window W [s] of the mean deceleration and of the jerk (EN 12299 practice)
 COMFORT_WINDOW = 1.0
@@ -300,7 +300,7 @@ class RunMetrics:
                       'pc': ydot[-1] * f[-1], 'pb': fb[-1] * v[-1]}
 
     def _couplers(self, t, y, ydot) -> None:
-        """Blocking and free-play impacts (issue 11's strokes and slacks)."""
+        """Blocking and free-play impacts (strokes and slacks)."""
         prev = self._flags
         over = np.maximum(y - self.block_t, -y - self.block_c)
         blocked = over > 0.0

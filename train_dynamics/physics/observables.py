@@ -14,7 +14,7 @@ from __future__ import annotations
 import numpy as np
 
 from train_dynamics.physics import couplers
-from train_dynamics.physics.layout import COACH, COUPLER, SCALAR, WORK
+from train_dynamics.physics.kernel.layout import COACH, COUPLER, SCALAR, WORK
 
 
 class TrainOutputs:

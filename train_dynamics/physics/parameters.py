@@ -23,7 +23,8 @@ from typing import Any, Callable, Mapping
 
 from train_dynamics import topics
 # consist uses this module's table at call time only (a circular import that is safe)
-from train_dynamics.physics import consist, layout, track
+from train_dynamics.physics import consist, track
+from train_dynamics.physics.kernel import layout
 import yaml
 
 # Kinds of value, named after the ROS 2 parameter types they map to.

@@ -1,12 +1,9 @@
 """
-Running resistance of a vehicle (Davis) and its equivalent mass.
+Running resistance of a vehicle (Davis) on the Python side: the equivalent mass for inertia
+and the analytic coast-down speed (a reference for the tests).
 
-Davis (1926): R = A + B |v| + C v^2 [N] for a vehicle at speed v [m/s], always against the
-motion: A (journal and rolling resistance, the static part) [N], B (flange friction,
-oscillations) [N s/m], C (air) [N s^2/m^2]. At standstill the resistance acts like a brake:
-it holds the vehicle up to its static value A (plus the curve resistance) and never pushes
-it (the integrator's active set does this, together with the brake).
-
+Davis (1926): R = A + B |v| + C v^2 [N], compiled in
+:mod:`train_dynamics.physics.kernel.resistance`.
 Inertia: a vehicle accelerates its rotating masses (wheelsets, gears, motors) too; the
 equivalent mass for inertia is m (1 + rotating_mass_factor). Gravity, the braking force (paper
 eq. 13) and the resistance use m. Typical factors (Wende, Fahrdynamik des Schienenverkehrs,
@@ -15,24 +12,6 @@ eq. 13) and the resistance use m. Typical factors (Wende, Fahrdynamik des Schien
 from __future__ import annotations
 
 import numpy as np
-
-from train_dynamics.physics._jit import jit
-
-
-@jit
-def davis(speed: float, a: float, b: float, c: float) -> float:
-    """Return the magnitude of the running resistance [N] at speed [m/s] (Davis)."""
-    s = abs(speed)
-    return a + (b + c * s) * s
-
-
-@jit
-def running_resistance(v: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
-                       out: np.ndarray) -> np.ndarray:
-    """Fill ``out`` with each vehicle's resistance magnitude [N] at its speed v [m/s]."""
-    for i in range(v.shape[0]):
-        out[i] = davis(v[i], a[i], b[i], c[i])
-    return out
 
 
 def equivalent_mass(mass, rotating_mass_factor) -> np.ndarray:
@@ -65,3 +44,4 @@ def coast_down_speed(t, v0: float, m_eq: float, a: float, b: float, c: float) ->
         v = v0 - a * t / m_eq
         t_stop = m_eq * v0 / a if a > 0.0 else np.inf
     return np.where(t < t_stop, v, 0.0)
+

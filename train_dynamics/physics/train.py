@@ -12,7 +12,7 @@ so the couplers' forces cancel in the sum and the centre of mass obeys eq. (8) e
 (y = D x), M a = -D^T F(D x, D v) - Fb.
 
 :class:`TrainSimulator` is the one model that ``sim_node`` and the offline command run: the
-brake system (``brakes``) and the fixed-step integrator (``integrators``) advancing the
+brake system (``kernel/brakes.py``) and the integrators (``kernel/``) advancing the
 coach chain under zero-order-hold brake inputs.
 """
 from __future__ import annotations
@@ -21,9 +21,9 @@ import time
 
 import numpy as np
 
-from train_dynamics.physics import (adaptive, brakes, consist, couplers, integrators, parameters,
-                                    pneumatic)
-from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
+from train_dynamics.physics import consist, parameters, pneumatic
+from train_dynamics.physics.kernel import adaptive, brakes, couplers, fixed_step, step
+from train_dynamics.physics.kernel.layout import COACH, COUPLER, FLAG, SCALAR, WORK
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.resistance import equivalent_mass
@@ -35,8 +35,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
 
     Inputs are gauge pressures [Pa] held constant until the next ``set_*`` call; a new value
     takes effect at the next integration step. Outputs are numpy arrays (copies). The state
-    lives in the packed arrays of :mod:`train_dynamics.physics.layout` (``coach``, ``cpl``,
-    ``sc``, ``iv``, ``ws``) that :func:`integrators.advance_chain` advances in place.
+    lives in the packed arrays of :mod:`train_dynamics.physics.kernel.layout` (``coach``, ``cpl``,
+    ``sc``, ``iv``, ``ws``) that :func:`fixed_step.advance_chain` advances in place.
     """
 
     #: per-coupler constants that ``coupler_constants`` may override (arrays of N-1) and
@@ -79,7 +79,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self.track = cfg.track
         self.gprof = np.array([self.track.gx, self.track.gv, self.track.gc], dtype=float)
         self.cprof = np.array([self.track.cx, self.track.cv, self.track.cc], dtype=float)
-        self.ws = integrators.make_workspace(n)
+        self.ws = step.make_workspace(n)
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
         #: error-controlled chain (integration_tolerance > 0): the brake system keeps the
@@ -177,7 +177,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self.set_model(self.model_type, self.u)
 
     def _reset_adaptive(self) -> None:
-        """Set the error-controlled stepping's constants and counters (issue 14)."""
+        """Set the error-controlled stepping's constants and counters."""
         sc, iv = self.sc, self.iv
         iv[FLAG.LAND] = self.land
         iv[FLAG.BUDGET] = int(self.cfg.integration_max_steps)
@@ -280,8 +280,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             return self._advance_pneumatic(int(n_steps))
         done, status = self._kernel(int(n_steps))
         self.steps += done
-        if status != integrators.OK:
-            self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
+        if status != step.OK:
+            self.fault = step.STATUS_TEXT[status].format(t=self.t)
         return done
 
     def _advance_pneumatic(self, n_steps: int) -> int:
@@ -292,18 +292,18 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self.pneu.advance(n_steps, trace)
         cyl_in = self.coach[COACH.CYL_IN]
         done = 0
-        status = integrators.OK
+        status = step.OK
         scaled = bool(np.any(self.pmax_ratio != 1.0))   # vehicles' own p_max -> the train's
         for k in range(n_steps):
             cyl_in[:] = trace[k] / self.pmax_ratio if scaled else trace[k]
             step, status = self._kernel(1)
             done += step
-            if status != integrators.OK:
+            if status != step.OK:
                 break
         self.coach[COACH.PPIPE] = self.pneu.pipe_pressure
         self.steps += done
-        if status != integrators.OK:
-            self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
+        if status != step.OK:
+            self.fault = step.STATUS_TEXT[status].format(t=self.t)
         return done
 
     def _kernel(self, n_steps: int, sync: bool = False) -> tuple[int, int]:
@@ -313,7 +313,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                                              self.iv, self.fill, self.rel, self.ring,
                                              self.ws, self.gprof, self.cprof,
                                              self.tick_fb, self.tick_te)
-        return integrators.advance_chain(n_steps, self.coach, self.cpl, self.sc, self.iv,
+        return fixed_step.advance_chain(n_steps, self.coach, self.cpl, self.sc, self.iv,
                                          self.fill, self.rel, self.ring, self.ws, self.gprof,
                                          self.cprof)
 
@@ -323,13 +323,13 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                 or self.iv[FLAG.CHAIN_TICK] >= self.iv[FLAG.TICK]):
             return
         _, status = self._kernel(0, True)
-        if status != integrators.OK:
-            self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
+        if status != step.OK:
+            self.fault = step.STATUS_TEXT[status].format(t=self.t)
 
     @property
     def integration_stats(self) -> dict:
         """
-        Return the integration counters (issue 14): error control (zeros at fixed step), holding.
+        Return the integration counters: error control (zeros at fixed step), holding.
 
         steps, rejected: chain steps since reset; h_min [s]: smallest step (not counting
         the steps shortened to land on an output); steps_last_period, h_min_last_period:

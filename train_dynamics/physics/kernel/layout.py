@@ -1,7 +1,7 @@
 """
 Layout of the packed state that the chain kernel advances in place.
 
-The compiled kernel (:func:`train_dynamics.physics.integrators.advance_chain`) takes a few
+The compiled kernel (:func:`train_dynamics.physics.kernel.fixed_step.advance_chain`) takes a few
 packed arrays instead of some forty arguments (numba's call overhead grows with the
 argument count). Each layout below names the rows (or slots) of one array, once: the
 index of a name is its position, the count is the length of the layout. Inside the kernel
@@ -120,7 +120,7 @@ FlagSlots = namedtuple('FlagSlots', [
     'CHAIN_TICK',   # the tick the coach chain has reached (it lands on LAND multiples)
     'LAND',         # the chain's landing period in ticks (one output period)
     'BUDGET',       # largest number of error-controlled steps per landing period
-    # fixed-step standstill (integrators._repeats_standstill)
+    # fixed-step standstill (fixed_step._repeats_standstill)
     'STEADY',       # 1: the last step started and ended with every vehicle held
 ])
 FLAG = _indices(FlagSlots)

@@ -1,7 +1,7 @@
 """
-Error-controlled integration of the coach chain (``integration_tolerance`` > 0; issue 14).
+Error-controlled integration of the coach chain (``integration_tolerance`` > 0).
 
-The chain takes the steps of :mod:`train_dynamics.physics.integrators` (ROS2, the active
+The chain takes the steps of :mod:`.step` (ROS2, the active
 set of held vehicles, the external forces, the fault check) with a step size chosen per
 step: the embedded first-order solution of ROS2 estimates the local error of every coupler
 force, kept below tolerance x the largest coupler force in the train [-]
@@ -18,14 +18,13 @@ import math
 
 import numpy as np
 
-from train_dynamics.physics import brakes, traction
-from train_dynamics.physics._jit import jit
-from train_dynamics.physics.integrators import (_accept_external, _accept_step,
-                                                _active_set_step, _brake_system_step,
-                                                _eval_couplers, _eval_couplers_work,
-                                                _fault_check, _static_resistance, GAMMA,
-                                                invalidate_caches, OK)
-from train_dynamics.physics.layout import COACH, FLAG, SCALAR, WORK
+from train_dynamics.physics.kernel import brakes, traction
+from train_dynamics.physics.kernel.compiler import jit
+from train_dynamics.physics.kernel.step import (accept_external, accept_step, active_set_step,
+                                                brake_system_step, eval_couplers,
+                                                eval_couplers_work, fault_check, GAMMA,
+                                                invalidate_caches, OK, static_resistance)
+from train_dynamics.physics.kernel.layout import COACH, FLAG, SCALAR, WORK
 
 #: [s] the error-controlled steps never go below this (a step this short is accepted)
 H_MIN = 1e-6
@@ -48,7 +47,7 @@ def _brake_tick(coach, sc, iv, ring, tables, ws, fbt, tet):
     the braking force (eq. 13) and the traction command as piecewise linear between ticks
     (rows ``fbt``, ``tet`` of the tick ring, index tick mod its length).
     """
-    _brake_system_step(coach, sc, iv, ring, tables, ws)
+    brake_system_step(coach, sc, iv, ring, tables, ws)
     fb_next = ws[WORK.FBNEXT]
     brakes.braking_force(coach[COACH.PCYL], sc[SCALAR.PMAX], sc[SCALAR.MU],
                          coach[COACH.BMASS], sc[SCALAR.G], fb_next)
@@ -178,13 +177,13 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
             h = h_tick
         hs = _landing_step(h, rem)
         if hs != sc[SCALAR.HEVAL]:
-            _eval_couplers(coach[COACH.X], coach[COACH.V], cpl, model, u, GAMMA * hs, ws)
+            eval_couplers(coach[COACH.X], coach[COACH.V], cpl, model, u, GAMMA * hs, ws)
             sc[SCALAR.HEVAL] = hs
         _tick_means(fbt, tet, ka, s / h_tick, (s + hs) / h_tick, ws)
         if ext:
-            _static_resistance(coach, iv, gprof, cprof, ws)
+            static_resistance(coach, iv, gprof, cprof, ws)
         pext = sc[SCALAR.PEXT]
-        extra_work = _active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
+        extra_work = active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
         err = _error_norm(hs, ws, tol, sc[SCALAR.FFLOOR])
         if err > 1.0 and not fallback and hs > H_MIN:
             sc[SCALAR.PEXT] = pext
@@ -192,12 +191,12 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
             sc[SCALAR.HEVAL] = -1.0     # the active set may have left other slopes in ws
             h = max(hs * max(FAC_MIN, SAFETY * err ** -0.5), H_MIN)
             continue
-        status = _fault_check(ws, sc[SCALAR.YLIM])
+        status = fault_check(ws, sc[SCALAR.YLIM])
         if status != OK:
             return status
         if ext:
-            sc[SCALAR.WB] += _accept_external(hs, coach, sc, held, ws)
-        sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws, ext)
+            sc[SCALAR.WB] += accept_external(hs, coach, sc, held, ws)
+        sc[SCALAR.WB] += accept_step(coach, held, extra_work, ws, ext)
         steps += 1
         if hs < rem:
             int_hmin = min(int_hmin, hs)
@@ -217,7 +216,7 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
             sc[SCALAR.HPROP] = h
         # the couplers at the new state, with the next step's stage weights
         hn = _landing_step(h, total - s) if s < total else h
-        sc[SCALAR.WC] += _eval_couplers_work(coach, cpl, model, u, GAMMA * hn, ws)
+        sc[SCALAR.WC] += eval_couplers_work(coach, cpl, model, u, GAMMA * hn, ws)
         sc[SCALAR.HEVAL] = hn
     iv[FLAG.CHAIN_TICK] = kb
     sc[SCALAR.NSTEPS] += steps
@@ -253,7 +252,7 @@ def advance_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gpr
         sc[SCALAR.HEVAL] = -1.0
         invalidate_caches(ws)
         if iv[FLAG.TICK] == 0:   # the couplers' forces at t = 0 (read before any step)
-            _eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U],
+            eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U],
                            GAMMA * sc[SCALAR.H], ws)
         iv[FLAG.WS_VALID] = 1
     land = iv[FLAG.LAND]

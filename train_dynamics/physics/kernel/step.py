@@ -1,5 +1,5 @@
 """
-Integrators of the coach chain: the fixed-step real-time method and a reference.
+The step of the coach chain, in named pieces shared by both drivers.
 
 Fixed step: **ROS2**, the two-stage, second-order, L-stable Rosenbrock method of Verwer,
 Spee, Blom and Hundsdorfer (SIAM J. Sci. Comput. 20, 1999), gamma = 1 + 1/sqrt(2).
@@ -28,39 +28,35 @@ resting coaches as held (their rows fixed at zero velocity) and finds the set of
 coaches by a short, capped active-set iteration: a moving coach whose velocity would change
 sign is stopped; then the coaches at rest whose required holding force exceeds the
 available braking force make the holding a box-constrained LCP on the stage matrix
-(:mod:`train_dynamics.physics.standstill`), whose set the step is solved with once more; a
+(:mod:`.standstill`), whose set the step is solved with once more; a
 coach released from rest that ends the step moving against its brake sticks. Momentum
 bookkeeping is exact: the held coaches' brake force is the one that the stage equations
 require.
 
-One step of :func:`advance_chain`, in named parts:
+One step, in named parts (the drivers: :mod:`.fixed_step` and :mod:`.adaptive`):
 
-1. :func:`_brake_system_step`: brake pipe, distributors and cylinders to t + h (they do not
+1. :func:`brake_system_step`: brake pipe, distributors and cylinders to t + h (they do not
    depend on the motion);
-2. :func:`_braking_force_trapezoid`: the braking force over the step, eq. (13);
-3. :func:`_active_set_step`: :func:`_ros2_step` with the active set of held coaches
-   (:func:`_signed_brake`, :func:`_hold_stopping`, :func:`_settle`); skipped at a
-   standstill whose inputs did not change (:func:`_repeats_standstill`: it would repeat
-   the last step exactly);
-4. :func:`_fault_check`, then :func:`_accept_step` and the couplers at the new state
-   (:func:`_eval_couplers_work`, which keeps a coupler's law where its (y, ydot) did not
+2. :func:`braking_force_trapezoid`: the braking force over the step, eq. (13);
+3. :func:`active_set_step`: :func:`ros2_step` with the active set of held coaches
+   (:func:`_signed_brake`, :func:`_hold_stopping`, :func:`_settle`); the fixed-step driver
+   skips it at a standstill whose inputs did not change (it would repeat the last step
+   exactly);
+4. :func:`fault_check`, then :func:`accept_step` and the couplers at the new state
+   (:func:`eval_couplers_work`, which keeps a coupler's law where its (y, ydot) did not
    change).
 
 Caches (results bit for bit): the couplers' rows carry their (y, ydot) (WORK.YKEY, VKEY),
 the static resistance and gradient force their position (WORK.XKEY,
-:func:`_static_resistance`), the standstill the last step's inputs (FLAG.STEADY,
-WORK.FBPREV, TEPREV). In a 120 s freight run (47 vehicles) the train stands still from
-53 s on: the skipped steps cost ~30 ns per vehicle instead of ~100.
+:func:`static_resistance`); the fixed-step driver's standstill cache is described in
+:mod:`.fixed_step`.
 
-The packed arrays the kernel works on are laid out in :mod:`train_dynamics.physics.layout`.
-Speed: the steps take the packed arrays and are inlined into :func:`advance_chain` by numba
+The packed arrays the kernel works on are laid out in :mod:`.layout`.
+Speed: the steps take the packed arrays and are inlined into the drivers by numba
 (``@jit(inline=True)``, as are the brake-system functions they call). A compiled function
 that takes arrays, or makes row views, pays their reference counting at every call, and
 a call left inside an inlined step stops LLVM from removing that counting: split into
 ordinary calls, a 3-coach step ran 1.5-2 times slower.
-
-Reference: :func:`reference_solution`, scipy ``solve_ivp`` (Radau by default) with the
-analytical sparse Jacobian and tight tolerances, for tests and benchmarks.
 """
 from __future__ import annotations
 
@@ -68,10 +64,10 @@ import math
 
 import numpy as np
 
-from train_dynamics.physics import brakes, couplers, standstill, traction
-from train_dynamics.physics._jit import jit
-from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
-from train_dynamics.physics.track import profile_mean
+from train_dynamics.physics.kernel import brakes, couplers, standstill, traction
+from train_dynamics.physics.kernel.compiler import jit
+from train_dynamics.physics.kernel.layout import COACH, COUPLER, FLAG, SCALAR, WORK
+from train_dynamics.physics.kernel.track import profile_mean
 
 GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 
@@ -103,11 +99,11 @@ def make_workspace(n: int) -> np.ndarray:
 @jit(inline=True)
 def invalidate_caches(ws):
     """
-    Forget the static resistance cached per vehicle (WORK.XKEY, see :func:`_static_resistance`).
+    Forget the static resistance cached per vehicle (WORK.XKEY, see :func:`static_resistance`).
 
     Call it when a vehicle's resistance constants or the track change without a new
     simulator (nothing does today: they are fixed per simulator, reset() rewrites the same
-    values). The couplers' cache (WORK.YKEY, VKEY) is renewed by every :func:`_eval_couplers`.
+    values). The couplers' cache (WORK.YKEY, VKEY) is renewed by every :func:`eval_couplers`.
     """
     xkey = ws[WORK.XKEY]
     for i in range(xkey.shape[0]):
@@ -188,7 +184,7 @@ def _store_coupler(j, y, ydot, cpl, model, u, gh, ws):
 
     Force law eqs. (2)-(4) / (14)-(16) with the constants of ``cpl`` [N/m]; the weight is
     g h dF/dydot + (g h)^2 dF/dy (rows WORK.F, DFDY, KK). (y, ydot) go to WORK.YKEY, VKEY:
-    the key of :func:`_eval_couplers_work`'s cache.
+    the key of :func:`eval_couplers_work`'s cache.
     """
     f, dy, dv = _coupler_w(y, ydot, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j],
                            cpl[COUPLER.KEC, j], cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j],
@@ -202,12 +198,12 @@ def _store_coupler(j, y, ydot, cpl, model, u, gh, ws):
 
 
 @jit(inline=True)
-def _eval_couplers(x, v, cpl, model, u, gh, ws):
+def eval_couplers(x, v, cpl, model, u, gh, ws):
     """
     Write every coupler's law at (x, v) to ws (:func:`_store_coupler`; y from eq. 9).
 
     g h [s] goes to column N-1 of WORK.VKEY: with the couplers' (y, ydot), the key of
-    :func:`_eval_couplers_work`'s cache.
+    :func:`eval_couplers_work`'s cache.
     """
     n = x.shape[0]
     for j in range(n - 1):
@@ -216,15 +212,15 @@ def _eval_couplers(x, v, cpl, model, u, gh, ws):
 
 
 @jit
-def _eval_couplers_work(coach, cpl, model, u, gh, ws):
+def eval_couplers_work(coach, cpl, model, u, gh, ws):
     """
-    Do :func:`_eval_couplers` at the new state (COACH.X, V); return the couplers' work [J].
+    Do :func:`eval_couplers` at the new state (COACH.X, V); return the couplers' work [J].
 
     The work over the step from the positions WORK.XOLD [m] is trapezoidal in the force:
     sum_j (F_j(old) + F_j(new)) / 2 (y_j(new) - y_j(old)). A coupler whose (y, ydot) and
     g h are those its rows were evaluated at (WORK.YKEY, VKEY: e.g. between two vehicles
     held at rest) keeps them: the law is a function of these alone (and of the model and
-    the constants, which change only with FLAG.WS_VALID = 0, then :func:`_eval_couplers`).
+    the constants, which change only with FLAG.WS_VALID = 0, then :func:`eval_couplers`).
     Every accepted step's forces also widen the in-train force envelope WORK.FHI, FLO (the
     largest tension and compression of each coupler [N], at the integrator's resolution:
     an impact's peak between two outputs included).
@@ -265,7 +261,7 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
     The point is (x + h (v + g h b1), v + h b1) with b1 = WORK.B1: stage 1 for h = 0,
     stage 2 for the step h [s]. Forces [N]:
     the gradient -m g (mean gradient over the vehicle) / 1000 (``track``; at stage 1 the
-    WORK.GR1 that :func:`_external_step` left, the same position), the speed-dependent
+    WORK.GR1 that :func:`external_step` left, the same position), the speed-dependent
     resistance d (B |v| + C v^2) against the friction's direction d (Davis; A is with the
     brake), traction (``traction.traction_force``), and E = gradient + traction -
     resistance. At stage 2 a vehicle that has not moved (a held one) keeps stage 1's gradient
@@ -296,7 +292,7 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
         d = 1.0 if vs > 0.0 else (-1.0 if vs < 0.0 else rel_dir[i])
         sv = abs(vi)
         rd = d * (davis_b[i] + davis_c[i] * sv) * sv
-        gr = out_gr[i] if h == 0.0 else 0.0     # stage 1: from _external_step
+        gr = out_gr[i] if h == 0.0 else 0.0     # stage 1: from external_step
         if grades and h != 0.0:
             if xi == x[i]:      # not moved: the same point as stage 1
                 gr = gr1[i]
@@ -319,13 +315,13 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
 
 # ----------------------------------------------------------------------------- ROS2
 @jit(inline=True)
-def _ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
+def ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     """
     Do one ROS2 step of eqs. (5)-(7) from (x, v) with the coaches in ``held`` at rest.
 
     x = COACH.X [m], v = WORK.VSTART [m/s]; brake = WORK.SIGNED [N], the signed braking
     force on the moving coaches (positive retarding). The couplers' forces and Jacobian at
-    (x, v) must be in ws (:func:`_eval_couplers`).
+    (x, v) must be in ws (:func:`eval_couplers`).
     Leaves the new state in WORK.XNEW, VNEW and in WORK.HOLD the holding force [N] the
     stage equations require of each held coach (signed, positive retarding; 0 on moving
     coaches). Stage equations, with A = M + g h C_c + (g h)^2 K_c [kg] (tridiagonal):
@@ -573,7 +569,7 @@ def _settle(h, held, ws):
 
 
 @jit(inline=True)
-def _active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
+def active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
     """
     Do one ROS2 step of the chain with the active set of held coaches; return work [J].
 
@@ -604,10 +600,10 @@ def _active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
     stale = False
     for it in range(HOLD_SOLVES):
         if stale:   # stopped coaches changed some starting velocities
-            _eval_couplers(x, v_start, cpl, model, u, GAMMA * h, ws)
+            eval_couplers(x, v_start, cpl, model, u, GAMMA * h, ws)
             stale = False
         _signed_brake(ws)
-        _ros2_step(h, coach, cpl, model, u, held, ws, iv[FLAG.EXT], iv[FLAG.TRACK], gprof)
+        ros2_step(h, coach, cpl, model, u, held, ws, iv[FLAG.EXT], iv[FLAG.TRACK], gprof)
         if it == HOLD_SOLVES - 1:
             if _stopping(held, ws) + standstill.inconsistent(held, ws, False) > 0:
                 sc[SCALAR.HOLD_CAPPED] += 1.0
@@ -621,7 +617,7 @@ def _active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
 
 # ----------------------------------------------------------------------------- one step
 @jit(inline=True)
-def _brake_system_step(coach, sc, iv, ring, tables, ws):
+def brake_system_step(coach, sc, iv, ring, tables, ws):
     """
     Move the brake system to the end of the step (it does not depend on the motion).
 
@@ -651,7 +647,7 @@ def _brake_system_step(coach, sc, iv, ring, tables, ws):
 
 
 @jit(inline=True)
-def _braking_force_trapezoid(coach, sc, ws):
+def braking_force_trapezoid(coach, sc, ws):
     """
     Write the braking force over the step [N] to WORK.FB: the trapezoid of eq. (13).
 
@@ -669,15 +665,15 @@ def _braking_force_trapezoid(coach, sc, ws):
 
 
 @jit(inline=True)
-def _external_step(coach, sc, iv, gprof, cprof, ws):
+def external_step(coach, sc, iv, gprof, cprof, ws):
     """
     Add the static resistance to the friction of the step; ramp the traction command.
 
-    :func:`_static_resistance` (Davis A + curves, held like the brake; WORK.GR1, stage 1's
+    :func:`static_resistance` (Davis A + curves, held like the brake; WORK.GR1, stage 1's
     gradient force). COACH.T_EFF moves toward the command COACH.T_CMD (build-up rate
     limit); WORK.TEFF is the mean over the step.
     """
-    _static_resistance(coach, iv, gprof, cprof, ws)
+    static_resistance(coach, iv, gprof, cprof, ws)
     h = sc[SCALAR.H]
     cmd = coach[COACH.T_CMD]
     eff = coach[COACH.T_EFF]
@@ -692,66 +688,7 @@ def _external_step(coach, sc, iv, gprof, cprof, ws):
 
 
 @jit(inline=True)
-def _repeats_standstill(coach, iv, ws):
-    """
-    Tell whether this step would repeat the last one exactly: a standstill, same inputs.
-
-    The last step started and ended with every vehicle held (FLAG.STEADY): held rows have
-    zero stages, so it left x' = x, v' = 0 exactly. The active-set step is a function of
-    the state (COACH.X, V, HELD and the couplers' rows at (x, v) in ws), the friction over
-    the step (WORK.FB: brake and static resistance), the traction command (WORK.TEFF) and
-    constants. When these equal the last step's (WORK.XOLD, FBPREV, TEPREV) it would write
-    to ws the very rows it left there (holding forces, stage forces, the new state): the
-    caller skips it and books the step from them (bit for bit).
-    """
-    if iv[FLAG.STEADY] == 0:
-        return False
-    x = coach[COACH.X]
-    v = coach[COACH.V]
-    is_held = coach[COACH.HELD]
-    x_old = ws[WORK.XOLD]
-    fb = ws[WORK.FB]
-    fb_prev = ws[WORK.FBPREV]
-    te = ws[WORK.TEFF]
-    te_prev = ws[WORK.TEPREV]
-    for i in range(x.shape[0]):
-        if (fb[i] != fb_prev[i] or te[i] != te_prev[i] or v[i] != 0.0 or x[i] != x_old[i]
-                or is_held[i] < 0.5):
-            return False
-    return True
-
-
-@jit(inline=True)
-def _all_held(coach):
-    """Tell whether every vehicle is held at rest (COACH.HELD)."""
-    is_held = coach[COACH.HELD]
-    for i in range(is_held.shape[0]):
-        if is_held[i] < 0.5:
-            return False
-    return True
-
-
-@jit(inline=True)
-def _note_standstill(started_held, coach, iv, ws):
-    """
-    Set FLAG.STEADY when the step started and ended with every vehicle held.
-
-    Keeps the step's WORK.FB and TEFF (in FBPREV, TEPREV) for :func:`_repeats_standstill`.
-    """
-    steady = started_held and _all_held(coach)
-    iv[FLAG.STEADY] = 1 if steady else 0
-    if steady:
-        fb = ws[WORK.FB]
-        fb_prev = ws[WORK.FBPREV]
-        te = ws[WORK.TEFF]
-        te_prev = ws[WORK.TEPREV]
-        for i in range(fb.shape[0]):
-            fb_prev[i] = fb[i]
-            te_prev[i] = te[i]
-
-
-@jit(inline=True)
-def _fault_check(ws, y_limit):
+def fault_check(ws, y_limit):
     """
     Return the status of the new state WORK.XNEW, VNEW: OK, NON_FINITE or OUT_OF_RANGE.
 
@@ -772,7 +709,7 @@ def _fault_check(ws, y_limit):
 
 
 @jit(inline=True)
-def _accept_step(coach, held, extra_work, ws, ext):
+def accept_step(coach, held, extra_work, ws, ext):
     """
     Move the coaches to the new state; return the brakes' work over the step [J].
 
@@ -791,7 +728,7 @@ def _accept_step(coach, held, extra_work, ws, ext):
     x_old = ws[WORK.XOLD]
     wb = extra_work
     for i in range(x.shape[0]):
-        if not ext:       # else booked by _accept_external
+        if not ext:       # else booked by accept_external
             b = hold[i] if held[i] else signed[i]
             wb += b * (x_new[i] - x[i])
             fb_applied[i] = abs(b)
@@ -803,7 +740,7 @@ def _accept_step(coach, held, extra_work, ws, ext):
 
 
 @jit(inline=True)
-def _accept_external(h, coach, sc, held, ws):
+def accept_external(h, coach, sc, held, ws):
     """
     Book the external forces of the accepted step; return the brakes' work [J].
 
@@ -858,60 +795,8 @@ def _accept_external(h, coach, sc, held, ws):
     return wb
 
 
-@jit
-def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof):
-    """
-    Advance brakes and chain ``n_steps`` fixed steps, in place; return (steps, status).
-
-    coach: (len(COACH), N); cpl: (len(COUPLER), N-1) k_e, k_f, k_ec, k_fc [N/m], slack,
-    strokes [m], K_b [N/m]; sc, iv: float and integer scalars (SCALAR, FLAG); fill, rel:
-    (2, L) cylinder tables (times [s], p/p_max); ring: head-pressure history [Pa]; ws:
-    :func:`make_workspace`; gprof, cprof: (3, K) gradient and curve-resistance profiles
-    (breakpoints, values, integrals; ``track``), used when FLAG.TRACK is set. The layouts are
-    in :mod:`train_dynamics.physics.layout`. Each step: the brake system to the step's end,
-    the braking force over the step (trapezoid), one ROS2 step with the active set of held
-    coaches, the fault check, then the new state is accepted and the work booked. At a
-    standstill with unchanged inputs the active-set step repeats the last one exactly and is
-    skipped (:func:`_repeats_standstill`).
-    """
-    gh = GAMMA * sc[SCALAR.H]
-    held = np.empty(coach.shape[1], dtype=np.bool_)
-    tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
-                                   rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
-    if iv[FLAG.WS_VALID] == 0:
-        # first call after reset()/set_model(): pipe delays and the couplers at (x, v); later
-        # calls find them in ws, left there by the last step of the previous call
-        brakes.delay_split(coach[COACH.DELAY], ws[WORK.K0], ws[WORK.FRAC])
-        _eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh,
-                       ws)
-        invalidate_caches(ws)
-        iv[FLAG.STEADY] = 0
-        iv[FLAG.WS_VALID] = 1
-    for step in range(n_steps):
-        _brake_system_step(coach, sc, iv, ring, tables, ws)
-        _braking_force_trapezoid(coach, sc, ws)
-        if iv[FLAG.EXT]:
-            _external_step(coach, sc, iv, gprof, cprof, ws)
-        started_held = _all_held(coach)
-        if started_held and _repeats_standstill(coach, iv, ws):
-            held[:] = True
-            extra_work = 0.0
-        else:
-            extra_work = _active_set_step(sc[SCALAR.H], coach, cpl, sc, iv, held, ws, gprof)
-        status = _fault_check(ws, sc[SCALAR.YLIM])
-        if status != OK:
-            return step, status
-        if iv[FLAG.EXT]:
-            sc[SCALAR.WB] += _accept_external(sc[SCALAR.H], coach, sc, held, ws)
-        sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws, iv[FLAG.EXT])
-        # the couplers at the new state: their work over the step, and the next step's start
-        sc[SCALAR.WC] += _eval_couplers_work(coach, cpl, iv[FLAG.MODEL], sc[SCALAR.U], gh, ws)
-        _note_standstill(started_held, coach, iv, ws)
-    return n_steps, OK
-
-
 @jit(inline=True)
-def _static_resistance(coach, iv, gprof, cprof, ws):
+def static_resistance(coach, iv, gprof, cprof, ws):
     """
     Add the static resistance at the step's start to the friction WORK.FB [N].
 
@@ -953,47 +838,3 @@ def _static_resistance(coach, iv, gprof, cprof, ws):
             xkey[i] = xi
         fbrake[i] = fb[i]
         fb[i] += rstat[i]
-
-
-# ----------------------------------------------------------------------------- reference
-def reference_solution(masses, ke, kf, kec, kfc, u, v0, brake_of_t, t_end, *,
-                       t_eval=None, rtol=1e-9, atol=1e-11, method='Radau', x0=None):
-    """
-    Solve eqs. (5)-(7) with the tanh law (eqs. 14-16) to tight tolerances.
-
-    ``brake_of_t(t) -> (N,)`` braking forces [N] (positive retarding), valid while every
-    coach moves forward (the reference does not model the brake holding a coach at rest).
-    Uses scipy ``solve_ivp`` with the analytical sparse Jacobian of the chain (state
-    [x, v]). Returns the ``OdeResult`` (``.t``, ``.y`` with x = y[:N], v = y[N:]).
-    """
-    # scipy is imported here, not at the top: only tests and benchmarks need the reference,
-    # and the node and the offline command should not pay scipy's import time.
-    import scipy.sparse as sp
-    from scipy.integrate import solve_ivp
-
-    masses = np.asarray(masses, float)
-    n = masses.shape[0]
-    args = [np.broadcast_to(np.asarray(k, float), (n - 1,)).copy() for k in (ke, kf, kec, kfc)]
-    model = couplers.TANH
-    inv_m = 1.0 / masses
-    D = sp.diags([np.ones(n - 1), -np.ones(n - 1)], [0, 1], shape=(n - 1, n), format='csr')
-    eye = sp.identity(n, format='csr')
-
-    def rhs(t, z):
-        x, v = z[:n], z[n:]
-        F = couplers.coupler_force(x[:-1] - x[1:], v[:-1] - v[1:], *args, model, float(u))
-        return np.concatenate([v, (couplers.net_forces(F) - brake_of_t(t)) * inv_m])
-
-    def jac(t, z):
-        x, v = z[:n], z[n:]
-        dfdy, dfdv = couplers.coupler_force_jacobian(x[:-1] - x[1:], v[:-1] - v[1:], *args,
-                                                     model, float(u))
-        minv = sp.diags(inv_m)
-        kx = -(minv @ D.T @ sp.diags(dfdy) @ D)
-        kv = -(minv @ D.T @ sp.diags(dfdv) @ D)
-        return sp.bmat([[None, eye], [kx, kv]], format='csc')
-
-    z0 = np.concatenate([np.zeros(n) if x0 is None else np.asarray(x0, float),
-                         np.broadcast_to(np.asarray(v0, float), (n,))])
-    return solve_ivp(rhs, (0.0, t_end), z0, method=method, jac=jac, t_eval=t_eval,
-                     rtol=rtol, atol=atol)
