@@ -4,6 +4,8 @@ Bit-for-bit check of the shipped scenarios across a refactor.
     python bench/bitcheck.py --write DIR     # before the change: record the reference bags
     python bench/bitcheck.py --check DIR     # after it: every message must be identical
 
+Run from the root of the checkout under test (its ``train_dynamics`` is the one imported).
+
 Each scenario runs through the offline command (``train-dynamics simulate``), exactly as a
 user runs it; the check compares every message of every topic (topic, bag time, CDR bytes),
 so a change of one bit in one sample is found and named. Prints one line per scenario and
@@ -14,18 +16,21 @@ from __future__ import annotations
 import argparse
 import hashlib
 from pathlib import Path
+import shutil
 import subprocess
 import sys
+import tempfile
 
 from rosbags.highlevel import AnyReader
 
-REPO = Path(__file__).resolve().parents[1]
+#: the checkout under test: the current directory (run it from the repository's root, e.g. a
+#: git worktree, so that its own ``train_dynamics`` is imported)
+REPO = Path.cwd()
 
 #: (name, parameter file, duration [s])
 SCENARIOS = (
     ('paper', 'config/paper_3coach.yaml', 60.0),
     ('paper_adaptive', 'config/paper_3coach_adaptive.yaml', 20.0),
-    ('unequal4', 'config/unequal_4coach.yaml', 20.0),
     ('freight', 'config/freight_750m.yaml', 150.0),
     ('passenger', 'config/passenger_loco_12.yaml', 60.0),
     ('slack_runin', 'config/slack_runin.yaml', 40.0),
@@ -68,11 +73,12 @@ def main(argv: list[str] | None = None) -> int:
     a = p.parse_args(argv)
     root = a.write or a.check
     root.mkdir(parents=True, exist_ok=True)
+    scratch = Path(tempfile.mkdtemp(prefix='bitcheck-'))
     bad = 0
     for name, params, duration in SCENARIOS:
         if a.only and name not in a.only:
             continue
-        bag = root / ('ref_' if a.write else 'new_') / name
+        bag = (root / 'ref_' if a.write else scratch) / name
         bag.parent.mkdir(exist_ok=True)
         run(bag, params, duration)
         n, total, per = digest(bag)
@@ -90,6 +96,7 @@ def main(argv: list[str] | None = None) -> int:
             bad += 1
             diff = [w.split()[0] for w, g2 in zip(want[1:], got[1:]) if w != g2]
             print(f'{name:15s} DIFFERS: {want[0]} vs {got[0]}; topics {diff}')
+    shutil.rmtree(scratch, ignore_errors=True)
     return 1 if bad else 0
 
 
