@@ -3,7 +3,8 @@ ament_python build of train_dynamics (colcon build) and pip editable install (ma
 
 ``build`` also compiles the numba kernels into the built package
 (``train_dynamics/physics/kernel/_prebuilt/numba-<code version>``, see
-``physics/kernel/compiler.py``) so the first ``ros2 run`` after ``colcon build`` loads machine code instead of compiling for 10-60 s.
+``physics/kernel/compiler.py``) so the first ``ros2 run`` after ``colcon build`` loads machine
+code instead of compiling for 10-60 s.
 ``develop`` (``colcon build --symlink-install``, which runs the sources) compiles them into
 the user cache instead, as ``make venv`` does (``python -m train_dynamics.cli.prebuild``).
 ``TRAIN_DYNAMICS_PREBUILD=0`` skips that; without numba, or when it fails, the build goes on

@@ -1,11 +1,11 @@
-"""Error-controlled ROS2 (issue 14): tolerance, impacts, landing, work budget, fixed step."""
+"""Error-controlled ROS2: tolerance, impacts, landing, work budget, fixed step."""
 import numpy as np
 from physics_helpers import paper_reference, paper_sim, record
 import pytest
 
 from train_dynamics.physics.kernel import couplers
-from train_dynamics.physics.reference import reference_solution
 from train_dynamics.physics.parameters import PARAMETERS, SimConfig
+from train_dynamics.physics.reference import reference_solution
 from train_dynamics.physics.train import TrainSimulator
 
 #: the tolerance the tests and config/paper_3coach_adaptive.yaml use

@@ -72,9 +72,11 @@ def test_tight_unblocked_coupling_is_the_papers_law_bit_for_bit(model):
     ydot = rng.normal(0.0, 0.01, y.size)
     code = kernel_couplers.MODEL_CODES[model]
     for a, b in zip(y, ydot):
-        ref = kernel_couplers.coupler_force_scalar(a, b, 2.8e6, 1.4e6, 5.46e6, 2.43e6, code, 1000.0)
+        ref = kernel_couplers.coupler_force_scalar(a, b, 2.8e6, 1.4e6, 5.46e6, 2.43e6, code,
+                                                   1000.0)
         new = kernel_couplers.coupler_force_travel_scalar(a, b, 2.8e6, 1.4e6, 5.46e6, 2.43e6,
-                                                   0.0, 0.0, 0.06, 0.105, 1.0e8, code, 1000.0)
+                                                          0.0, 0.0, 0.06, 0.105, 1.0e8, code,
+                                                          1000.0)
         assert ref[0] == new[0] and ref[1] == new[1] and ref[2] == new[2]
 
 

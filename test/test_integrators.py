@@ -4,7 +4,7 @@ from physics_helpers import paper_reference, paper_sim, record
 import pytest
 
 from train_dynamics.physics.kernel import couplers, step
-from train_dynamics.physics.kernel.layout import COACH, WORK
+from train_dynamics.physics.kernel.layout import COACH, VEHICLE, WORK
 
 T_END = 12.0   # the brake wave, the buffer shock and the oscillations after it
 
@@ -33,7 +33,7 @@ def test_stage_solve_matches_dense_solve_with_held_coaches():
     held = np.zeros(n, dtype=bool)
     held[[0, 4, 5]] = True
     coach = np.zeros((len(COACH), n))
-    coach[COACH.MASS] = masses
+    coach[VEHICLE.MASS] = masses
     # k_e, k_f, k_ec, k_fc, no slack, strokes never reached, K_b
     cpl = np.tile(np.array([[2.8e6], [1.4e6], [5.46e6], [2.43e6], [0.0], [0.0], [1.0], [1.0],
                             [1e8]]), (1, m))

@@ -1,6 +1,8 @@
 """
-The compiled-kernel cache (``physics/kernel/compiler.py``): keyed by content, never stale, never
-fatal; and the kernel is one folder: every compiled function lives in ``physics/kernel/``.
+The compiled-kernel cache: keyed by content, never stale, never fatal; the kernel is one folder.
+
+``physics/kernel/compiler.py`` files every kernel under a digest of the folder's sources, so
+every compiled function must live in ``physics/kernel/`` (checked here).
 
 Each case runs a fresh interpreter on a copy of the package (``train_dynamics`` only) with a
 small probe kernel added to ``physics/kernel/`` and an own ``TRAIN_DYNAMICS_CACHE_DIR``; the
@@ -27,12 +29,12 @@ REPO = Path(__file__).resolve().parents[1]
 KERNEL = REPO / 'train_dynamics' / 'physics' / 'kernel'
 PROBE_KERNEL = """
 from train_dynamics.physics.kernel.compiler import jit
-from train_dynamics.physics.kernel.layout import COACH
+from train_dynamics.physics.kernel.layout import COACH, STATE
 
 
 @jit
 def probe(x):
-    return 2.0 * x + COACH.V
+    return 2.0 * x + STATE.V
 """
 PROBE = """
 import ast
@@ -92,7 +94,7 @@ def test_a_change_in_any_kernel_source_compiles_again(tmp_path):
     """
     Check that an edit of a module the kernel takes a constant from is never served stale.
 
-    The probe's own file is unchanged; ``layout.py`` swaps two coach rows so ``COACH.V``
+    The probe's own file is unchanged; ``layout.py`` swaps two coach rows so ``STATE.V``
     (frozen into the machine code) changes: the old code would return the old value.
     """
     cache = tmp_path / 'cache'

@@ -15,8 +15,8 @@ import numpy as np
 import pytest
 
 from train_dynamics.physics import pneumatic as pn
-from train_dynamics.physics.kernel import pneumatic as pk
 from train_dynamics.physics.brake_valve import BrakeValveModel
+from train_dynamics.physics.kernel import pneumatic as pk
 
 H = 0.002
 BAR = 1.0e5

@@ -5,8 +5,8 @@ import numpy as np
 import pytest
 
 from train_dynamics.physics.kernel import standstill
-from train_dynamics.physics.kernel.step import make_workspace
 from train_dynamics.physics.kernel.layout import WORK
+from train_dynamics.physics.kernel.step import make_workspace
 from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 

@@ -2,8 +2,9 @@
 Compile the numba kernels before the first start: ``python -m train_dynamics.cli.prebuild``.
 
 ``make venv`` runs it to fill the user cache; ``setup.py build`` (so ``colcon build`` and
-``pip install``) runs it with ``--into <build>/train_dynamics/physics/kernel/_prebuilt`` so the
-installed package carries the compiled kernels of its own code version (see ``physics/kernel/compiler.py``).
+``pip install``) runs it with ``--into <build>/train_dynamics/physics/kernel/_prebuilt`` so
+the installed package carries the compiled kernels of its own code version (see
+``physics/kernel/compiler.py``).
 It runs :func:`train_dynamics.physics.train.warmup` (the simulator's kernel variants) and
 the run metrics as ``sim_node`` and the offline command feed them (their compiled elastic
 energy), which loads from or compiles into the user cache, then copies this version's folder.

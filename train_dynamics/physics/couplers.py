@@ -1,6 +1,8 @@
 """
-Coupler force laws on the Python side: the law of a single coupler for plots and tests, the
-energy stored with free play and blocking, the deflection a force allows.
+Coupler force laws on the Python side: one coupler's law, energies, deflection bounds.
+
+The law of a single coupler for plots and tests, the energy stored with free play and
+blocking, the deflection a force allows.
 
 The law itself (paper eqs. 1-4, 14-16, sign conventions and the free play and blocking of a
 real coupler) is compiled: :mod:`train_dynamics.physics.kernel.couplers`.
@@ -44,4 +46,3 @@ def deflection_bounds(force, gt, gc, st, sc, kb):
     """
     extra = np.abs(np.asarray(force, dtype=float)) / kb
     return -(gc + sc + extra), gt + st + extra
-

@@ -26,7 +26,7 @@ sqrt(R T), about 290 m/s: h <= 21 ms for 6 m cells; the step is sub-divided auto
 when h is larger); the implicit friction is unconditionally stable and damps. The closed
 end faces and a closed angle cock are faces with w = 0.
 
-**Valves and chokes** (``kernel.pneumatic.orifice_flow``): the isentropic nozzle law with the choked limit
+**Valves and chokes** (``orifice_flow``): the isentropic nozzle law with the choked limit
 (ISO 6358 style, the discharge coefficient folded into the effective area). Every exchange
 between two volumes is limited to the mass that equalises them (or reaches a regulated
 pressure) within the step, so no exchange can overshoot or chatter, whatever the step.
@@ -164,8 +164,9 @@ class PneumaticBrake:
         veh[pk.V_AREL] = np.where(goods, spec.rel_area_g, spec.rel_area_p)
         veh[pk.V_CELL] = self.start[:-1] + per // 2
         sc = self.sc = np.zeros(pk.N_SCALARS)
-        sc[[pk.S_H, pk.S_RT, pk.S_AREA, pk.S_DIAM, pk.S_MU, pk.S_PATM, pk.S_PMR, pk.S_ACHG, pk.S_AVENT, pk.S_AEM, pk.S_BAND,
-            pk.S_EMTH, pk.S_GCR, pk.S_APPTH, pk.S_RELTH, pk.S_SPAN, pk.S_AAUX, pk.S_AQS, pk.S_LAP, pk.S_DBAND]] = [
+        sc[[pk.S_H, pk.S_RT, pk.S_AREA, pk.S_DIAM, pk.S_MU, pk.S_PATM, pk.S_PMR, pk.S_ACHG,
+            pk.S_AVENT, pk.S_AEM, pk.S_BAND, pk.S_EMTH, pk.S_GCR, pk.S_APPTH, pk.S_RELTH,
+            pk.S_SPAN, pk.S_AAUX, pk.S_AQS, pk.S_LAP, pk.S_DBAND]] = [
             self.h, rt, area, spec.pipe_diameter, spec.viscosity, spec.atmospheric_pressure,
             spec.main_reservoir_pressure, spec.charge_area, spec.vent_area,
             spec.emergency_area, spec.relay_band, spec.emergency_threshold,
@@ -214,7 +215,7 @@ class PneumaticBrake:
     def advance(self, n_steps: int, trace: np.ndarray | None = None) -> None:
         """Advance ``n_steps`` steps; ``trace`` (n_steps, N) receives the cylinder pressures."""
         pk.advance(int(n_steps), self.cells, self.faces, self.veh, self.sc, self.iv,
-                self._empty if trace is None else trace)
+                   self._empty if trace is None else trace)
         self.steps += int(n_steps)
 
     @property
@@ -292,4 +293,3 @@ def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=
         np.full(n, float(cfg.coach_length)) if lengths is None else lengths,
         float(cfg.max_cylinder_pressure) if p_max is None else p_max,
         str(cfg.brake_regime) if regimes is None else regimes, h, spec, external_pipe)
-

@@ -1,6 +1,7 @@
 """
-Running resistance of a vehicle (Davis) on the Python side: the equivalent mass for inertia
-and the analytic coast-down speed (a reference for the tests).
+Running resistance on the Python side: the equivalent mass, the analytic coast-down speed.
+
+The coast-down speed is a reference for the tests.
 
 Davis (1926): R = A + B |v| + C v^2 [N], compiled in
 :mod:`train_dynamics.physics.kernel.resistance`.
@@ -44,4 +45,3 @@ def coast_down_speed(t, v0: float, m_eq: float, a: float, b: float, c: float) ->
         v = v0 - a * t / m_eq
         t_stop = m_eq * v0 / a if a > 0.0 else np.inf
     return np.where(t < t_stop, v, 0.0)
-

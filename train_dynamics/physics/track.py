@@ -140,4 +140,3 @@ class Track:
         track_forces(x, self.fronts(lengths), lengths, np.asarray(masses, float) * g,
                      self.gx, self.gv, self.gc, self.cx, self.cv, self.cc, grade, curve)
         return grade, curve
-

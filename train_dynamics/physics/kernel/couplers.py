@@ -249,4 +249,3 @@ def coupler_jacobian_travel(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf:
             y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j], sc[j], kb[j],
             model, u)
     return dfdy, dfdv
-

@@ -1,46 +1,85 @@
 """
-Layout of the packed state that the chain kernel advances in place.
+Layout of the packed state that the kernel advances in place, grouped by lifetime.
 
-The compiled kernel (:func:`train_dynamics.physics.kernel.fixed_step.advance_chain`) takes a few
-packed arrays instead of some forty arguments (numba's call overhead grows with the
-argument count). Each layout below names the rows (or slots) of one array, once: the
-index of a name is its position, the count is the length of the layout. Inside the kernel
-``coach[COACH.V]`` compiles to a constant row index (numba freezes global tuples).
+The compiled drivers (:func:`~train_dynamics.physics.kernel.fixed_step.advance_chain`,
+:func:`~train_dynamics.physics.kernel.adaptive.advance_adaptive`) take a few packed arrays
+instead of some forty arguments: numba unboxes every array argument at every call (about
+70 ns each here), and the pneumatic brake calls the chain once per step. So each array
+holds several groups of rows (or slots), and each group is one lifetime with its own name.
+A group below is a named tuple whose fields are the row indices in its array, counted on
+from the groups before it (``coach[STATE.V]``); inside the kernel they compile to constant
+indices (numba freezes global tuples).
 
-- :data:`COACH`: rows of ``coach``, shape (len(COACH), N), one column per coach.
-- :data:`COUPLER`: rows of ``cpl``, shape (len(COUPLER), N-1), one column per coupler.
-- :data:`SCALAR`: slots of ``sc``, the float scalars.
-- :data:`FLAG`: slots of ``iv``, the integer scalars.
-- :data:`WORK`: rows of ``ws``, the kernel's scratch memory, shape (len(WORK), N).
+``coach``: float, shape (len(COACH), N), one column per vehicle (front = column 0)
+
+==============  ============================================  ===================================
+rows            what                                          written by
+==============  ============================================  ===================================
+``VEHICLE``     per-vehicle constants: masses, lengths,        ``TrainSimulator.__init__`` only
+                resistance, traction, pipe delay
+``STATE``       integrated state: position, speed, brake       ``reset()``; the kernel each step
+                pipe, distributor and cylinder, holding
+``INPUT``       inputs held until the next ``set_*``: pipe,    ``reset()``; the ``set_*`` methods
+                cylinder, traction command
+``OUTPUT``      forces over / at the end of the last step      ``reset()``; the kernel each step
+==============  ============================================  ===================================
+
+``cpl``: float, shape (len(COUPLER), N-1), one column per coupler: ``COUPLER``, the per-coupler
+constants (written by ``TrainSimulator.__init__`` only).
+
+``sc``: float, shape (len(SCALAR),)
+
+==============  ============================================  ===================================
+``PARAM``       scalar constants: step, tanh scale, brake     ``__init__``; ``set_model`` (U)
+                and pipe pressures, tolerance
+``TOTAL``       integrals since t = 0: work of each force,    ``reset()``; the kernel each step
+                impulse of the external forces
+``SCALAR_INPUT`` the head-end pipe pressure (an input)         ``reset()``; ``set_head_pipe_...``
+``CONTROL``     the step-size controller and its step-size    ``reset()``; the error-controlled
+                statistics                                    driver
+==============  ============================================  ===================================
+
+``iv``: int64, shape (len(INTEGER),)
+
+==============  ============================================  ===================================
+``OPTION``      settings: coupler law, brake mode, external   ``__init__``; ``set_model`` (MODEL)
+                forces on, track, landing period, budget
+``CLOCK``       where the run stands: brake ticks, the        ``reset()``; the kernel
+                chain's tick, the head-pressure ring position
+``CACHE``       validity flags of caches kept in ``ws``       ``reset()``, ``set_model``; kernel
+``COUNT``       statistics counters: steps, rejections,       ``reset()``; the kernel
+                fall-backs, holding solves
+==============  ============================================  ===================================
+
+``ws``: float, shape (len(WORK), N): ``WORK``, the kernel's scratch memory (rows of N-1 used
+for couplers), the caches that skip repeated work (bit for bit) and the in-train force
+envelope; made by :func:`~train_dynamics.physics.kernel.step.make_workspace`, written by the
+kernel (``reset()`` clears the envelope, the caches are invalidated through ``CACHE``).
+
+Other arrays the drivers take: ``fill``, ``rel`` (2, L) cylinder tables (times [s],
+p/p_max; constants), ``ring`` the head-pressure history [Pa] (state), ``gprof``, ``cprof``
+(3, K) gradient and curve profiles (constants), ``tick_fb``, ``tick_te`` the brake ticks of
+one output period (error-controlled driver; state).
 """
 from __future__ import annotations
 
 from collections import namedtuple
 
 
-def _indices(rows):
-    """Return the named tuple class ``rows`` filled with its row indices 0, 1, ..."""
-    return rows(*range(len(rows._fields)))
+def _group(name: str, fields: list, after=()):
+    """Return the named tuple ``name`` of ``fields``, numbered on after the groups ``after``."""
+    start = sum(len(g) for g in after)
+    return namedtuple(name, fields)(*range(start, start + len(fields)))
 
 
-CoachRows = namedtuple('CoachRows', [
-    'X',            # position, distance travelled since t = 0 [m]
-    'V',            # speed [m/s]
-    'MASS',         # [kg]
-    'PCYL',         # brake-cylinder pressure, gauge [Pa]
-    'PPIPE',        # brake-pipe pressure at the coach, gauge [Pa]
-    'PIPE_IN',      # input: local pipe pressure (pipe_per_coach) [Pa]
-    'CYL_IN',       # input: cylinder pressure (cylinder_per_coach) [Pa]
-    'FB_AVAIL',     # braking force available at the end of the last step, eq. (13) [N]
-    'FB_APPLIED',   # |braking force| applied over the last step [N]
-    'DELAY',        # brake-pipe delay of the coach [steps]
-    'APPLIED',      # distributor state: 1.0 applied, 0.0 released
-    'HELD',         # 1.0 while the brake holds the coach at rest
-    # real trains (issue 11); MASS above is the mass for inertia, m (1 + rotating_mass_factor)
+# -- coach: one column per vehicle ---------------------------------------------------------
+VEHICLE = _group('VehicleRows', [
+    'MASS',         # mass for inertia, m (1 + rotating_mass_factor) [kg]
     'BMASS',        # m mu_i / mu_a [kg]: eq. (13) with the vehicle's own adhesion coefficient
     'WEIGHT',       # m g [N]: gravity, curve resistance, traction adhesion
     'LENGTH',       # vehicle length [m]
     'FRONT0',       # track position of the vehicle's front at t = 0 [m]
+    'DELAY',        # brake-pipe delay of the vehicle [steps]
     'DAVIS_A',      # running resistance A [N]
     'DAVIS_B',      # running resistance B [N s/m]
     'DAVIS_C',      # running resistance C [N s^2/m^2]
@@ -51,15 +90,33 @@ CoachRows = namedtuple('CoachRows', [
     'DB_FADE',      # locomotive: dynamic brake fade speed [m/s]
     'T_ADH',        # locomotive: traction adhesion at rest
     'T_BUILD',      # locomotive: force build-up time [s]
-    'T_CMD',        # input: traction command in [-1, 1]
-    'T_EFF',        # effective (rate-limited) command at the end of the last step
-    'F_TRAC',       # output: traction / dynamic-brake force at the step's end [N, fwd > 0]
-    'F_RES',        # output: running + curve resistance at the step's end [N, fwd > 0]
-    'F_GRADE',      # output: gradient force at the step's end [N, fwd > 0]
 ])
-COACH = _indices(CoachRows)
+STATE = _group('StateRows', [
+    'X',            # position, distance travelled since t = 0 [m]
+    'V',            # speed [m/s]
+    'PPIPE',        # brake-pipe pressure at the vehicle, gauge [Pa]
+    'APPLIED',      # distributor state: 1.0 applied, 0.0 released
+    'PCYL',         # brake-cylinder pressure, gauge [Pa]
+    'FB_AVAIL',     # braking force available at the end of the last step, eq. (13) [N]
+    'HELD',         # 1.0 while the brake holds the vehicle at rest
+    'T_EFF',        # effective (rate-limited) traction command at the end of the last step
+], after=(VEHICLE,))
+INPUT = _group('InputRows', [
+    'PIPE',         # local pipe pressure (pipe_per_coach), gauge [Pa]
+    'CYL',          # cylinder pressure (cylinder_per_coach, or the pneumatic brake's) [Pa]
+    'T_CMD',        # traction command in [-1, 1]
+], after=(VEHICLE, STATE))
+OUTPUT = _group('OutputRows', [
+    'FB_APPLIED',   # |braking force| applied over the last step [N]
+    'F_TRAC',       # traction / dynamic-brake force at the step's end [N, fwd > 0]
+    'F_RES',        # running + curve resistance at the step's end [N, fwd > 0]
+    'F_GRADE',      # gradient force at the step's end [N, fwd > 0]
+], after=(VEHICLE, STATE, INPUT))
+#: all rows of ``coach``; VEHICLE first, so ``coach[len(VEHICLE):]`` is what reset() rewrites
+COACH = range(len(VEHICLE) + len(STATE) + len(INPUT) + len(OUTPUT))
 
-CouplerRows = namedtuple('CouplerRows', [
+# -- cpl: one column per coupler ------------------------------------------------------------
+COUPLER = _group('CouplerRows', [
     'KE',           # buffer stiffness k_e [N/m]
     'KF',           # buffer friction k_f [N/m]
     'KEC',          # draw-gear stiffness k_ec [N/m]
@@ -70,10 +127,10 @@ CouplerRows = namedtuple('CouplerRows', [
     'SC',           # buffer stroke S_c [m]
     'KB',           # blocked stiffness K_b [N/m]
 ])
-COUPLER = _indices(CouplerRows)
 
-ScalarSlots = namedtuple('ScalarSlots', [
-    'H',            # integration step [s]
+# -- sc: float scalars ---------------------------------------------------------------------
+PARAM = _group('ParamSlots', [
+    'H',            # integration step (the brake system's tick) [s]
     'U',            # tanh scale factor u [s/m]
     'PMAX',         # maximum cylinder pressure, gauge [Pa]
     'MU',           # adhesion coefficient mu_a
@@ -81,51 +138,63 @@ ScalarSlots = namedtuple('ScalarSlots', [
     'PNOM',         # brake-pipe running pressure, gauge [Pa]
     'PFS',          # pipe pressure at full service, gauge [Pa]
     'SENS',         # distributor sensitivity [Pa]
-    'HEAD_IN',      # input: head-end pipe pressure (pipe_head) [Pa]
     'YLIM',         # largest physically possible |y| [m]
+    'TOL',          # integration_tolerance: local coupler-force error / force level [-]
+    'FFLOOR',       # force level below which the tolerance is absolute [N]
+])
+TOTAL = _group('TotalSlots', [
     'WB',           # work of the brakes since t = 0 [J]
     'WC',           # work on the couplers since t = 0 [J]
     'WR',           # work of the running and curve resistance since t = 0 [J]
     'WT',           # work of traction and dynamic braking since t = 0 [J]
     'WG',           # work of gravity on gradients since t = 0 [J]
     'PEXT',         # impulse of all external forces since t = 0 [N s]
-    # error-controlled stepping (issue 14; adaptive.advance_adaptive)
-    'TOL',          # integration_tolerance: local coupler-force error / force level [-]
-    'FFLOOR',       # force level below which the tolerance is absolute [N]
+], after=(PARAM,))
+SCALAR_INPUT = _group('ScalarInputSlots', [
+    'HEAD',         # head-end pipe pressure (pipe_head), gauge [Pa]
+], after=(PARAM, TOTAL))
+CONTROL = _group('ControlSlots', [
     'HPROP',        # the controller's proposed next step [s]
     'HEVAL',        # the step the couplers' stage weights in ws were made for [s] (-1: none)
     'ERRPREV',      # error norm of the last accepted step (PI controller)
-    'NSTEPS',       # accepted chain steps since reset
-    'NREJ',         # rejected chain steps since reset
     'HMIN',         # smallest accepted step since reset [s] (not the landing steps)
+    'INT_HMIN',     # smallest step of the last output period [s]
+], after=(PARAM, TOTAL, SCALAR_INPUT))
+#: all slots of ``sc``; PARAM first, so ``sc[len(PARAM):]`` is what reset() rewrites
+SCALAR = range(len(PARAM) + len(TOTAL) + len(SCALAR_INPUT) + len(CONTROL))
+
+# -- iv: integer scalars -------------------------------------------------------------------
+OPTION = _group('OptionSlots', [
+    'MODEL',        # coupler law: couplers.SIGN or couplers.TANH
+    'MODE',         # brake input: brakes.PIPE_HEAD, PIPE_PER_COACH or CYLINDER_PER_COACH
+    'EXT',          # 1: external forces (resistance, track, traction) act; 0: the paper's
+    'TRACK',        # 1: the line has gradients or curves
+    'LAND',         # the error-controlled chain's landing period in ticks (one output period)
+    'BUDGET',       # largest number of error-controlled steps per landing period
+])
+CLOCK = _group('ClockSlots', [
+    'TICK',         # brake-system ticks done (fixed step PARAM.H): the simulator's steps
+    'CHAIN_TICK',   # the tick the coach chain has reached (it lands on LAND multiples)
+    'RING_POS',     # write position of the head-pressure ring buffer
+], after=(OPTION,))
+CACHE = _group('CacheSlots', [
+    'WS_VALID',     # 1 when the WORK rows F, DFDY, KK, K0, FRAC hold the present state
+    'STEADY',       # 1: the last fixed step started and ended with every vehicle held
+], after=(OPTION, CLOCK))
+COUNT = _group('CountSlots', [
+    'NSTEPS',       # accepted error-controlled chain steps since reset
+    'NREJ',         # rejected chain steps since reset
     'NFALLBACK',    # output periods that ran out of step budget (finished at fixed steps)
     'INT_STEPS',    # chain steps of the last output period
     'INT_STEPS_MAX',    # largest INT_STEPS since reset
-    'INT_HMIN',     # smallest step of the last output period [s]
-    # standstill (issue 14; standstill.py): the holding LCP
     'HOLD_SOLVES',  # chain solves beyond the first of each step (active set changes)
     'HOLD_CAPPED',  # steps that ended at the iteration cap with the set still inconsistent
-])
-SCALAR = _indices(ScalarSlots)
+], after=(OPTION, CLOCK, CACHE))
+#: all slots of ``iv``; OPTION first, so ``iv[len(OPTION):]`` is what reset() rewrites
+INTEGER = range(len(OPTION) + len(CLOCK) + len(CACHE) + len(COUNT))
 
-FlagSlots = namedtuple('FlagSlots', [
-    'MODEL',        # coupler law: couplers.SIGN or couplers.TANH
-    'MODE',         # brake input: brakes.PIPE_HEAD, PIPE_PER_COACH or CYLINDER_PER_COACH
-    'RING_POS',     # write position of the head-pressure ring buffer
-    'WS_VALID',     # 1 when the WORK rows F, DFDY, KK, K0, FRAC hold the present state
-    'EXT',          # 1: external forces (resistance, track, traction) act; 0: the paper's
-    'TRACK',        # 1: the line has gradients or curves
-    # error-controlled stepping (issue 14)
-    'TICK',         # brake-system ticks done (fixed step SCALAR.H): the simulator's steps
-    'CHAIN_TICK',   # the tick the coach chain has reached (it lands on LAND multiples)
-    'LAND',         # the chain's landing period in ticks (one output period)
-    'BUDGET',       # largest number of error-controlled steps per landing period
-    # fixed-step standstill (fixed_step._repeats_standstill)
-    'STEADY',       # 1: the last step started and ended with every vehicle held
-])
-FLAG = _indices(FlagSlots)
-
-WorkRows = namedtuple('WorkRows', [
+# -- ws: scratch, caches, envelope ---------------------------------------------------------
+WORK = _group('WorkRows', [
     'F',            # coupler forces at the step's start [N] (N-1 used)
     'DFDY',         # dF/dy [N/m]
     'KK',           # stage-matrix weights g h dF/dydot + (g h)^2 dF/dy [kg]
@@ -161,7 +230,7 @@ WorkRows = namedtuple('WorkRows', [
     'TR2',          # traction force at stage 2 [N]
     'GR1',          # gradient force at stage 1 [N]
     'GR2',          # gradient force at stage 2 [N]
-    # standstill (issue 14; standstill.py): the holding LCP's scratch
+    # standstill (standstill.py): the holding LCP's scratch
     'LZ',           # velocity change over the step per 2 h [m/s^2]
     'LR',           # right-hand side r = A z + f of the step just solved [N]
     'LC',           # Thomas algorithm: upper factor
@@ -170,11 +239,11 @@ WorkRows = namedtuple('WorkRows', [
     # caches of the fixed-step path (bench: per-vehicle-step cost of real trains)
     'YKEY',         # y [m] of coupler j at which the rows F, DFDY, KK were evaluated
     'VKEY',         # its ydot [m/s]; column N-1: the g h [s] the weights KK were made for
-    'XKEY',         # COACH.X [m] at which RSTAT and GR1 were computed (NaN: none yet)
-    'FBPREV',       # WORK.FB of the last step, when it held every vehicle (FLAG.STEADY)
+    'XKEY',         # STATE.X [m] at which RSTAT and GR1 were computed (NaN: none yet)
+    'FBPREV',       # WORK.FB of the last step, when it held every vehicle (CACHE.STEADY)
     'TEPREV',       # WORK.TEFF of that step
-    # the in-train force envelope (issue 14): extremes over every accepted step since reset
+    # outputs kept here: the in-train force envelope, extremes over every accepted step since
+    # reset (written by eval_couplers_work, read by observables; reset() zeroes them)
     'FHI',          # largest tension of coupler j [N] (>= 0; N-1 used)
     'FLO',          # largest compression of coupler j, as a force [N] (<= 0)
 ])
-WORK = _indices(WorkRows)

@@ -11,8 +11,6 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
-
 from train_dynamics.physics.kernel.compiler import jit
 
 
@@ -251,4 +249,3 @@ def advance(n_steps, cells, faces, veh, sc, iv, trace):
         if record:
             for i in range(veh.shape[1]):
                 trace[k, i] = veh[V_MCYL, i] * rt / veh[V_VCYL, i] - patm
-

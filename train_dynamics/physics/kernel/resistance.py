@@ -29,4 +29,3 @@ def running_resistance(v: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarra
     for i in range(v.shape[0]):
         out[i] = davis(v[i], a[i], b[i], c[i])
     return out
-

@@ -66,7 +66,8 @@ import numpy as np
 
 from train_dynamics.physics.kernel import brakes, couplers, standstill, traction
 from train_dynamics.physics.kernel.compiler import jit
-from train_dynamics.physics.kernel.layout import COACH, COUPLER, FLAG, SCALAR, WORK
+from train_dynamics.physics.kernel.layout import (CLOCK, COUNT, COUPLER, INPUT, OPTION, OUTPUT,
+                                                  PARAM, SCALAR_INPUT, STATE, TOTAL, VEHICLE, WORK)
 from train_dynamics.physics.kernel.track import profile_mean
 
 GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
@@ -214,19 +215,19 @@ def eval_couplers(x, v, cpl, model, u, gh, ws):
 @jit
 def eval_couplers_work(coach, cpl, model, u, gh, ws):
     """
-    Do :func:`eval_couplers` at the new state (COACH.X, V); return the couplers' work [J].
+    Do :func:`eval_couplers` at the new state (STATE.X, V); return the couplers' work [J].
 
     The work over the step from the positions WORK.XOLD [m] is trapezoidal in the force:
     sum_j (F_j(old) + F_j(new)) / 2 (y_j(new) - y_j(old)). A coupler whose (y, ydot) and
     g h are those its rows were evaluated at (WORK.YKEY, VKEY: e.g. between two vehicles
     held at rest) keeps them: the law is a function of these alone (and of the model and
-    the constants, which change only with FLAG.WS_VALID = 0, then :func:`eval_couplers`).
+    the constants, which change only with CACHE.WS_VALID = 0, then :func:`eval_couplers`).
     Every accepted step's forces also widen the in-train force envelope WORK.FHI, FLO (the
     largest tension and compression of each coupler [N], at the integrator's resolution:
     an impact's peak between two outputs included).
     """
-    x = coach[COACH.X]
-    v = coach[COACH.V]
+    x = coach[STATE.X]
+    v = coach[STATE.V]
     x_old = ws[WORK.XOLD]
     F0 = ws[WORK.F]
     ykey = ws[WORK.YKEY]
@@ -274,8 +275,8 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
     v_start = ws[WORK.VSTART]
     rel_dir = ws[WORK.RELDIR]
     t_eff = ws[WORK.TEFF]
-    davis_b = coach[COACH.DAVIS_B]
-    davis_c = coach[COACH.DAVIS_C]
+    davis_b = coach[VEHICLE.DAVIS_B]
+    davis_c = coach[VEHICLE.DAVIS_C]
     gr1 = ws[WORK.GR1]
     out_gr = ws[row_gr]
     out_rd = ws[row_rd]
@@ -297,16 +298,16 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
             if xi == x[i]:      # not moved: the same point as stage 1
                 gr = gr1[i]
             else:
-                hi = coach[COACH.FRONT0, i] + xi
-                gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(
-                    hi - coach[COACH.LENGTH, i], hi, gx, gv, gc)
+                hi = coach[VEHICLE.FRONT0, i] + xi
+                gr = -coach[VEHICLE.WEIGHT, i] * 1e-3 * profile_mean(
+                    hi - coach[VEHICLE.LENGTH, i], hi, gx, gv, gc)
         tr = 0.0
         teff = t_eff[i]
         if teff != 0.0:
             tr = traction.traction_force(
-                teff, vi, coach[COACH.T_FORCE, i], coach[COACH.T_POWER, i],
-                coach[COACH.DB_FORCE, i], coach[COACH.DB_POWER, i], coach[COACH.DB_FADE, i],
-                coach[COACH.T_ADH, i], coach[COACH.WEIGHT, i])
+                teff, vi, coach[VEHICLE.T_FORCE, i], coach[VEHICLE.T_POWER, i],
+                coach[VEHICLE.DB_FORCE, i], coach[VEHICLE.DB_POWER, i], coach[VEHICLE.DB_FADE, i],
+                coach[VEHICLE.T_ADH, i], coach[VEHICLE.WEIGHT, i])
         out_gr[i] = gr
         out_rd[i] = rd
         out_tr[i] = tr
@@ -319,7 +320,7 @@ def ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     """
     Do one ROS2 step of eqs. (5)-(7) from (x, v) with the coaches in ``held`` at rest.
 
-    x = COACH.X [m], v = WORK.VSTART [m/s]; brake = WORK.SIGNED [N], the signed braking
+    x = STATE.X [m], v = WORK.VSTART [m/s]; brake = WORK.SIGNED [N], the signed braking
     force on the moving coaches (positive retarding). The couplers' forces and Jacobian at
     (x, v) must be in ws (:func:`eval_couplers`).
     Leaves the new state in WORK.XNEW, VNEW and in WORK.HOLD the holding force [N] the
@@ -339,9 +340,9 @@ def ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     residual its free row would leave. Written as fused loops (one pass: assembly, LU
     factorisation and forward substitution) in the caller's scratch rows: no allocation.
     """
-    x = coach[COACH.X]
+    x = coach[STATE.X]
     v = ws[WORK.VSTART]
-    masses = coach[COACH.MASS]
+    masses = coach[VEHICLE.MASS]
     brake = ws[WORK.SIGNED]
     ke = cpl[COUPLER.KE]
     kf = cpl[COUPLER.KF]
@@ -508,7 +509,7 @@ def _hold_stopping(held, masses, ws, extra_work, sc):
 
     Their kinetic energy m v^2 / 2 [J] goes to the brakes' work: return (whether any
     stopped, ``extra_work`` plus that energy); their momentum m v [N s] is taken off the
-    external impulse (SCALAR.PEXT, ``sc``).
+    external impulse (TOTAL.PEXT, ``sc``).
     """
     v_start = ws[WORK.VSTART]
     v_new = ws[WORK.VNEW]
@@ -519,7 +520,7 @@ def _hold_stopping(held, masses, ws, extra_work, sc):
         if (not held[i]) and rel_dir[i] == 0.0 and _stops(v_start[i], v_new[i], fb[i]):
             held[i] = True
             extra_work += 0.5 * masses[i] * v_start[i] * v_start[i]
-            sc[SCALAR.PEXT] -= masses[i] * v_start[i]
+            sc[TOTAL.PEXT] -= masses[i] * v_start[i]
             v_start[i] = 0.0
             changed = True
     return changed, extra_work
@@ -573,23 +574,23 @@ def active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
     """
     Do one ROS2 step of the chain with the active set of held coaches; return work [J].
 
-    Starts from the coaches held at the end of the last step (COACH.HELD) and solves the
+    Starts from the coaches held at the end of the last step (STATE.HELD) and solves the
     step (at most HOLD_SOLVES times): first the moving coaches whose velocity would change
     sign stop at the step's start (:func:`_hold_stopping`, the couplers then re-evaluated),
     else the coaches at rest take the holding LCP's set (:func:`_settle`). A step that ends
     at the cap with coaches still to stop or over their brake's limit is counted
-    (SCALAR.HOLD_CAPPED), the extra solves in SCALAR.HOLD_SOLVES. Coaches released from
+    (COUNT.HOLD_CAPPED), the extra solves in COUNT.HOLD_SOLVES. Coaches released from
     rest that end the step moving against their friction stick (:func:`standstill.stick`).
     WORK.FB is the braking force over the step [N]. The returned work is the kinetic energy
     of the coaches stopped at the step's start or stuck at its end. The new state and the
     holding forces are left in WORK.XNEW, VNEW, HOLD.
     """
     n = held.shape[0]
-    u = sc[SCALAR.U]
-    model = iv[FLAG.MODEL]
-    x = coach[COACH.X]
-    v = coach[COACH.V]
-    was_held = coach[COACH.HELD]
+    u = sc[PARAM.U]
+    model = iv[OPTION.MODEL]
+    x = coach[STATE.X]
+    v = coach[STATE.V]
+    was_held = coach[STATE.HELD]
     v_start = ws[WORK.VSTART]
     rel_dir = ws[WORK.RELDIR]
     for i in range(n):
@@ -603,16 +604,16 @@ def active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
             eval_couplers(x, v_start, cpl, model, u, GAMMA * h, ws)
             stale = False
         _signed_brake(ws)
-        ros2_step(h, coach, cpl, model, u, held, ws, iv[FLAG.EXT], iv[FLAG.TRACK], gprof)
+        ros2_step(h, coach, cpl, model, u, held, ws, iv[OPTION.EXT], iv[OPTION.TRACK], gprof)
         if it == HOLD_SOLVES - 1:
             if _stopping(held, ws) + standstill.inconsistent(held, ws, False) > 0:
-                sc[SCALAR.HOLD_CAPPED] += 1.0
+                iv[COUNT.HOLD_CAPPED] += 1
             break
-        stale, extra_work = _hold_stopping(held, coach[COACH.MASS], ws, extra_work, sc)
+        stale, extra_work = _hold_stopping(held, coach[VEHICLE.MASS], ws, extra_work, sc)
         if not (stale or _settle(h, held, ws)):
             break
-        sc[SCALAR.HOLD_SOLVES] += 1.0
-    return extra_work + standstill.stick(held, coach[COACH.MASS], ws, sc)
+        iv[COUNT.HOLD_SOLVES] += 1
+    return extra_work + standstill.stick(held, coach[VEHICLE.MASS], ws, sc)
 
 
 # ----------------------------------------------------------------------------- one step
@@ -623,27 +624,27 @@ def brake_system_step(coach, sc, iv, ring, tables, ws):
 
     ``pipe_head``: the head pressure [Pa] enters the delay line and each coach reads its
     delayed pipe pressure (WORK.K0 + FRAC steps ago); ``pipe_per_coach``: the pipe
-    pressures are the inputs COACH.PIPE_IN. Then the distributors' targets and the
+    pressures are the inputs INPUT.PIPE. Then the distributors' targets and the
     cylinders along their filling/release tables [Pa]; or, ``cylinder_per_coach``, the
-    cylinder pressures are the inputs COACH.CYL_IN (see ``brakes``).
+    cylinder pressures are the inputs INPUT.CYL (see ``brakes``).
     """
-    mode = iv[FLAG.MODE]
-    p_pipe = coach[COACH.PPIPE]
-    p_cyl = coach[COACH.PCYL]
+    mode = iv[OPTION.MODE]
+    p_pipe = coach[STATE.PPIPE]
+    p_cyl = coach[STATE.PCYL]
     target = ws[WORK.TARGET]
-    p_max = sc[SCALAR.PMAX]
+    p_max = sc[PARAM.PMAX]
     if mode == brakes.PIPE_HEAD:
-        iv[FLAG.RING_POS] = brakes.delay_line_push(ring, iv[FLAG.RING_POS],
-                                                   sc[SCALAR.HEAD_IN])
-        brakes.delay_line_read(ring, iv[FLAG.RING_POS], ws[WORK.K0], ws[WORK.FRAC], p_pipe)
+        iv[CLOCK.RING_POS] = brakes.delay_line_push(ring, iv[CLOCK.RING_POS],
+                                                    sc[SCALAR_INPUT.HEAD])
+        brakes.delay_line_read(ring, iv[CLOCK.RING_POS], ws[WORK.K0], ws[WORK.FRAC], p_pipe)
     elif mode == brakes.PIPE_PER_COACH:
-        p_pipe[:] = coach[COACH.PIPE_IN]
+        p_pipe[:] = coach[INPUT.PIPE]
     if mode == brakes.CYLINDER_PER_COACH:
-        p_cyl[:] = coach[COACH.CYL_IN]
+        p_cyl[:] = coach[INPUT.CYL]
     else:
-        brakes.distributor_target(p_pipe, coach[COACH.APPLIED], sc[SCALAR.PNOM],
-                                  sc[SCALAR.PFS], sc[SCALAR.SENS], p_max, target)
-        brakes.cylinder_advance(p_cyl, target, sc[SCALAR.H], p_max, tables)
+        brakes.distributor_target(p_pipe, coach[STATE.APPLIED], sc[PARAM.PNOM],
+                                  sc[PARAM.PFS], sc[PARAM.SENS], p_max, target)
+        brakes.cylinder_advance(p_cyl, target, sc[PARAM.H], p_max, tables)
 
 
 @jit(inline=True)
@@ -652,13 +653,13 @@ def braking_force_trapezoid(coach, sc, ws):
     Write the braking force over the step [N] to WORK.FB: the trapezoid of eq. (13).
 
     The mean of the available force (eq. 13, limited by eq. 12) at both ends of the step,
-    second order; COACH.FB_AVAIL moves on to the step's end (WORK.FBNEXT).
+    second order; STATE.FB_AVAIL moves on to the step's end (WORK.FBNEXT).
     """
     fb = ws[WORK.FB]
     fb_next = ws[WORK.FBNEXT]
-    fb_avail = coach[COACH.FB_AVAIL]
-    brakes.braking_force(coach[COACH.PCYL], sc[SCALAR.PMAX], sc[SCALAR.MU],
-                         coach[COACH.BMASS], sc[SCALAR.G], fb_next)
+    fb_avail = coach[STATE.FB_AVAIL]
+    brakes.braking_force(coach[STATE.PCYL], sc[PARAM.PMAX], sc[PARAM.MU],
+                         coach[VEHICLE.BMASS], sc[PARAM.G], fb_next)
     for i in range(fb.shape[0]):
         fb[i] = 0.5 * (fb_avail[i] + fb_next[i])
         fb_avail[i] = fb_next[i]
@@ -670,19 +671,19 @@ def external_step(coach, sc, iv, gprof, cprof, ws):
     Add the static resistance to the friction of the step; ramp the traction command.
 
     :func:`static_resistance` (Davis A + curves, held like the brake; WORK.GR1, stage 1's
-    gradient force). COACH.T_EFF moves toward the command COACH.T_CMD (build-up rate
+    gradient force). STATE.T_EFF moves toward the command INPUT.T_CMD (build-up rate
     limit); WORK.TEFF is the mean over the step.
     """
     static_resistance(coach, iv, gprof, cprof, ws)
-    h = sc[SCALAR.H]
-    cmd = coach[COACH.T_CMD]
-    eff = coach[COACH.T_EFF]
+    h = sc[PARAM.H]
+    cmd = coach[INPUT.T_CMD]
+    eff = coach[STATE.T_EFF]
     t_eff = ws[WORK.TEFF]
     for i in range(t_eff.shape[0]):
         old = eff[i]
         new = old
         if cmd[i] != old:
-            new = traction.ramp(old, cmd[i], h, coach[COACH.T_BUILD, i])
+            new = traction.ramp(old, cmd[i], h, coach[VEHICLE.T_BUILD, i])
             eff[i] = new
         t_eff[i] = 0.5 * (old + new)
 
@@ -714,13 +715,13 @@ def accept_step(coach, held, extra_work, ws, ext):
     Move the coaches to the new state; return the brakes' work over the step [J].
 
     The work is sum_i Fb_i (x_i' - x_i) with the holding force WORK.HOLD on held coaches
-    and WORK.SIGNED on the others, plus ``extra_work``; COACH.FB_APPLIED gets |Fb_i| [N],
-    COACH.HELD the active set (1.0 = held), WORK.XOLD the positions at the step's start.
+    and WORK.SIGNED on the others, plus ``extra_work``; OUTPUT.FB_APPLIED gets |Fb_i| [N],
+    STATE.HELD the active set (1.0 = held), WORK.XOLD the positions at the step's start.
     """
-    x = coach[COACH.X]
-    v = coach[COACH.V]
-    fb_applied = coach[COACH.FB_APPLIED]
-    is_held = coach[COACH.HELD]
+    x = coach[STATE.X]
+    v = coach[STATE.V]
+    fb_applied = coach[OUTPUT.FB_APPLIED]
+    is_held = coach[STATE.HELD]
     hold = ws[WORK.HOLD]
     signed = ws[WORK.SIGNED]
     x_new = ws[WORK.XNEW]
@@ -746,16 +747,16 @@ def accept_external(h, coach, sc, held, ws):
 
     Splits the friction applied (WORK.HOLD on held vehicles, WORK.SIGNED on the others) into
     brake and static resistance, books the work of brake, resistance, traction and gravity
-    (SCALAR.WR, WT, WG: the stage mean of each force times the displacement, as the ROS2
-    update weights them) and the impulse of all external forces (SCALAR.PEXT), and leaves
-    the forces at the step's end in COACH.F_TRAC, F_RES, F_GRADE [N, forward > 0]; h [s].
+    (TOTAL.WR, WT, WG: the stage mean of each force times the displacement, as the ROS2
+    update weights them) and the impulse of all external forces (TOTAL.PEXT), and leaves
+    the forces at the step's end in OUTPUT.F_TRAC, F_RES, F_GRADE [N, forward > 0]; h [s].
     """
     wb = 0.0
     wr = 0.0
     wt = 0.0
     wg = 0.0
     pext = 0.0
-    x = coach[COACH.X]
+    x = coach[STATE.X]
     x_new = ws[WORK.XNEW]
     rstat = ws[WORK.RSTAT]
     hold = ws[WORK.HOLD]
@@ -766,8 +767,8 @@ def accept_external(h, coach, sc, held, ws):
     tr1, tr2 = ws[WORK.TR1], ws[WORK.TR2]
     gr1, gr2 = ws[WORK.GR1], ws[WORK.GR2]
     e1, e2 = ws[WORK.E1], ws[WORK.E2]
-    fb_applied = coach[COACH.FB_APPLIED]
-    f_trac, f_grade, f_res = coach[COACH.F_TRAC], coach[COACH.F_GRADE], coach[COACH.F_RES]
+    fb_applied = coach[OUTPUT.FB_APPLIED]
+    f_trac, f_grade, f_res = coach[OUTPUT.F_TRAC], coach[OUTPUT.F_GRADE], coach[OUTPUT.F_RES]
     for i in range(held.shape[0]):
         dx = x_new[i] - x[i]
         r = rstat[i]
@@ -788,10 +789,10 @@ def accept_external(h, coach, sc, held, ws):
         f_trac[i] = tr2[i]
         f_grade[i] = gr2[i]
         f_res[i] = -(res + rd2[i])
-    sc[SCALAR.WR] += wr
-    sc[SCALAR.WT] += wt
-    sc[SCALAR.WG] += wg
-    sc[SCALAR.PEXT] += h * pext
+    sc[TOTAL.WR] += wr
+    sc[TOTAL.WT] += wt
+    sc[TOTAL.WG] += wg
+    sc[TOTAL.PEXT] += h * pext
     return wb
 
 
@@ -805,34 +806,34 @@ def static_resistance(coach, iv, gprof, cprof, ws):
     at rest and never pushes it. WORK.GR1 = the gradient force at the step's start [N]
     (stage 1's, computed here once per step on the same span, not once per active-set pass).
     Both depend on the vehicle's position alone (its constants and the track are fixed per
-    simulator): they are kept while COACH.X is the WORK.XKEY they were computed at (a
+    simulator): they are kept while STATE.X is the WORK.XKEY they were computed at (a
     vehicle at rest).
     """
     cx = cprof[0]
     cv = cprof[1]
     cc = cprof[2]
-    curves = iv[FLAG.TRACK] and cx.shape[0] > 0
+    curves = iv[OPTION.TRACK] and cx.shape[0] > 0
     gx = gprof[0]
     gv = gprof[1]
     gpc = gprof[2]
-    grades = iv[FLAG.TRACK] and gx.shape[0] > 0
+    grades = iv[OPTION.TRACK] and gx.shape[0] > 0
     gr1 = ws[WORK.GR1]
-    davis_a = coach[COACH.DAVIS_A]
+    davis_a = coach[VEHICLE.DAVIS_A]
     rstat = ws[WORK.RSTAT]
     fb = ws[WORK.FB]
     fbrake = ws[WORK.FBRAKE]
     xkey = ws[WORK.XKEY]
     for i in range(fb.shape[0]):
-        xi = coach[COACH.X, i]
+        xi = coach[STATE.X, i]
         if xi != xkey[i]:
             r = davis_a[i]
-            hi = coach[COACH.FRONT0, i] + xi
-            lo = hi - coach[COACH.LENGTH, i]
+            hi = coach[VEHICLE.FRONT0, i] + xi
+            lo = hi - coach[VEHICLE.LENGTH, i]
             if curves:
-                r += coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(lo, hi, cx, cv, cc)
+                r += coach[VEHICLE.WEIGHT, i] * 1e-3 * profile_mean(lo, hi, cx, cv, cc)
             gr = 0.0
             if grades:
-                gr = -coach[COACH.WEIGHT, i] * 1e-3 * profile_mean(lo, hi, gx, gv, gpc)
+                gr = -coach[VEHICLE.WEIGHT, i] * 1e-3 * profile_mean(lo, hi, gx, gv, gpc)
             gr1[i] = gr
             rstat[i] = r
             xkey[i] = xi

@@ -1,6 +1,8 @@
 """
-The line's forces, compiled: the mean of a gradient or curve profile over a vehicle's length
-and the gradient force and curve resistance of each vehicle.
+The line's forces, compiled: profile means, gradient force and curve resistance per vehicle.
+
+The mean of a gradient or curve profile over a vehicle's length, and from it the gradient
+force and the curve resistance of each vehicle.
 
 The profiles, Roeckl's curve resistance and the sign conventions are described in
 :mod:`train_dynamics.physics.track` (the :class:`~train_dynamics.physics.track.Track` that
@@ -49,4 +51,3 @@ def track_forces(x: np.ndarray, front0: np.ndarray, lengths: np.ndarray, weight:
             grade[i] = -weight[i] * profile_mean(lo, hi, gx, gv, gc) * 1e-3
         if cx.shape[0] > 0:
             curve[i] = weight[i] * profile_mean(lo, hi, cx, cv, cc) * 1e-3
-
