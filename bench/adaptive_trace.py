@@ -36,7 +36,8 @@ if REPO not in sys.path:
 import numpy as np  # noqa: E402
 
 from train_dynamics.physics.kernel import adaptive as ad  # noqa: E402
-from train_dynamics.physics.kernel import brakes, couplers, step as it  # noqa: E402
+from train_dynamics.physics.kernel import active_set, brakes, couplers  # noqa: E402
+from train_dynamics.physics.kernel import coupler_rows as rows, ros2, step as it  # noqa: E402
 from train_dynamics.physics.kernel.compiler import jit  # noqa: E402
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, CONTROL,  # noqa: E402
                                                   COUNT, COUPLER, OPTION, PARAM, STATE, TOTAL,
@@ -56,7 +57,7 @@ def _err(h, coach, cpl, model, u, held, ws, tol, f_floor, mode, scr, info):
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
     F0 = ws[WORK.F]
-    gh = it.GAMMA * h
+    gh = ros2.GAMMA * h
     cx = h - gh
     n = b1.shape[0]
     m = n - 1
@@ -176,13 +177,13 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
             h = h_tick
         hs = ad._landing_step(h, rem)
         if hs != sc[CONTROL.HEVAL]:
-            it.eval_couplers(coach[STATE.X], coach[STATE.V], cpl, model, u, it.GAMMA * hs, ws)
+            rows.eval_couplers(coach[STATE.X], coach[STATE.V], cpl, model, u, ros2.GAMMA * hs, ws)
             sc[CONTROL.HEVAL] = hs
         ad._tick_means(fbt, tet, ka, s / h_tick, (s + hs) / h_tick, ws)
         if ext:
             it.static_resistance(coach, iv, gprof, cprof, ws)
         pext = sc[TOTAL.PEXT]
-        extra_work = it.active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
+        extra_work = active_set.active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
         err = _err(hs, coach, cpl, model, u, held, ws, tol, sc[PARAM.FFLOOR], mode, scr, info)
         if exact:       # the kernel's own expression (the same value, to the last bit)
             err = ad._error_norm(hs, ws, tol, sc[PARAM.FFLOOR])
@@ -224,7 +225,7 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
             h = max(min(h, h_max), ad.H_MIN)
             sc[CONTROL.HPROP] = h
         hn = ad._landing_step(h, total - s) if s < total else h
-        sc[TOTAL.WC] += it.eval_couplers_work(coach, cpl, model, u, it.GAMMA * hn, ws)
+        sc[TOTAL.WC] += rows.eval_couplers_work(coach, cpl, model, u, ros2.GAMMA * hn, ws)
         sc[CONTROL.HEVAL] = hn
     iv[CLOCK.CHAIN_TICK] = kb
     iv[COUNT.NSTEPS] += steps
@@ -249,8 +250,8 @@ def trace_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gprof
             tet[r, i] = coach[STATE.T_EFF, i]
         sc[CONTROL.HEVAL] = -1.0
         if iv[CLOCK.TICK] == 0:
-            it.eval_couplers(coach[STATE.X], coach[STATE.V], cpl, iv[OPTION.MODEL], sc[PARAM.U],
-                             it.GAMMA * sc[PARAM.H], ws)
+            rows.eval_couplers(coach[STATE.X], coach[STATE.V], cpl, iv[OPTION.MODEL],
+                               sc[PARAM.U], ros2.GAMMA * sc[PARAM.H], ws)
         iv[CACHE.WS_VALID] = 1
     land = iv[OPTION.LAND]
     for k in range(n_ticks):

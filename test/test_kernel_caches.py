@@ -11,7 +11,7 @@ import os
 import numpy as np
 import pytest
 
-from train_dynamics.physics.kernel import step
+from train_dynamics.physics.kernel import coupler_rows
 from train_dynamics.physics.kernel.layout import CACHE, COUNT, OUTPUT, STATE, WORK
 from train_dynamics.physics.parameters import load_param_file, SimConfig
 from train_dynamics.physics.runner import traction_schedule
@@ -23,7 +23,7 @@ CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))
 def _forget(sim):
     """Clear every cache and the standstill flag: the next step is computed in full."""
     sim.iv[CACHE.STEADY] = 0
-    step.invalidate_caches(sim.ws)
+    coupler_rows.invalidate_caches(sim.ws)
     sim.ws[WORK.YKEY] = np.nan
 
 

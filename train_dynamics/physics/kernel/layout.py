@@ -5,51 +5,54 @@ The compiled drivers (:func:`~train_dynamics.physics.kernel.fixed_step.advance_c
 :func:`~train_dynamics.physics.kernel.adaptive.advance_adaptive`) take a few packed arrays
 instead of some forty arguments: numba unboxes every array argument at every call (about
 70 ns each here), and the pneumatic brake calls the chain once per step. So each array
-holds several groups of rows (or slots), and each group is one lifetime with its own name.
+holds several groups of rows (or slots), and each group is one lifetime with its own name
+(the pneumatic brake's own arrays are laid out in :mod:`.pneumatic`).
 A group below is a named tuple whose fields are the row indices in its array, counted on
 from the groups before it (``coach[STATE.V]``); inside the kernel they compile to constant
 indices (numba freezes global tuples).
 
+Each group below says what it holds and who writes it.
+
 ``coach``: float, shape (len(COACH), N), one column per vehicle (front = column 0)
 
-==============  ============================================  ===================================
-rows            what                                          written by
-==============  ============================================  ===================================
-``VEHICLE``     per-vehicle constants: masses, lengths,        ``TrainSimulator.__init__`` only
-                resistance, traction, pipe delay
-``STATE``       integrated state: position, speed, brake       ``reset()``; the kernel each step
-                pipe, distributor and cylinder, holding
-``INPUT``       inputs held until the next ``set_*``: pipe,    ``reset()``; the ``set_*`` methods
-                cylinder, traction command
-``OUTPUT``      forces over / at the end of the last step      ``reset()``; the kernel each step
-==============  ============================================  ===================================
+- ``VEHICLE``: per-vehicle constants (masses, length, track position, pipe delay, resistance,
+  traction); written by ``TrainSimulator.__init__`` only. First, so ``coach[len(VEHICLE):]``
+  is everything ``reset()`` rewrites.
+- ``STATE``: integrated state (position, speed, pipe, distributor, cylinder, available
+  braking force, holding, traction ramp); ``reset()``, then the kernel each step.
+- ``INPUT``: inputs held until the next ``set_*`` call (local pipe, cylinder, traction
+  command); ``reset()`` and the ``set_*`` methods (the pneumatic brake writes CYL).
+- ``OUTPUT``: forces of the last step (braking force applied, traction, resistance,
+  gradient); ``reset()``, then the kernel each step.
 
-``cpl``: float, shape (len(COUPLER), N-1), one column per coupler: ``COUPLER``, the per-coupler
-constants (written by ``TrainSimulator.__init__`` only).
+``cpl``: float, shape (len(COUPLER), N-1), one column per coupler
+
+- ``COUPLER``: per-coupler constants (stiffness, friction, slack, stroke, blocked
+  stiffness); written by ``TrainSimulator.__init__`` only.
 
 ``sc``: float, shape (len(SCALAR),)
 
-==============  ============================================  ===================================
-``PARAM``       scalar constants: step, tanh scale, brake     ``__init__``; ``set_model`` (U)
-                and pipe pressures, tolerance
-``TOTAL``       integrals since t = 0: work of each force,    ``reset()``; the kernel each step
-                impulse of the external forces
-``SCALAR_INPUT`` the head-end pipe pressure (an input)         ``reset()``; ``set_head_pipe_...``
-``CONTROL``     the step-size controller and its step-size    ``reset()``; the error-controlled
-                statistics                                    driver
-==============  ============================================  ===================================
+- ``PARAM``: scalar constants (step, tanh scale, pressures, adhesion, gravity, displacement
+  limit, tolerance); ``__init__``, and ``set_model`` (U). First, so ``sc[len(PARAM):]`` is
+  everything ``reset()`` rewrites.
+- ``TOTAL``: integrals since t = 0 (work of each force, impulse of the external forces);
+  ``reset()``, then the kernel each step.
+- ``SCALAR_INPUT``: the head-end pipe pressure; ``reset()`` and ``set_head_pipe_pressure``.
+- ``CONTROL``: the step-size controller (proposed step, error of the last step, the step the
+  stage weights were made for) and its smallest steps; ``reset()``, then the
+  error-controlled driver.
 
 ``iv``: int64, shape (len(INTEGER),)
 
-==============  ============================================  ===================================
-``OPTION``      settings: coupler law, brake mode, external   ``__init__``; ``set_model`` (MODEL)
-                forces on, track, landing period, budget
-``CLOCK``       where the run stands: brake ticks, the        ``reset()``; the kernel
-                chain's tick, the head-pressure ring position
-``CACHE``       validity flags of caches kept in ``ws``       ``reset()``, ``set_model``; kernel
-``COUNT``       statistics counters: steps, rejections,       ``reset()``; the kernel
-                fall-backs, holding solves
-==============  ============================================  ===================================
+- ``OPTION``: settings (coupler law, brake mode, external forces on, track, landing period,
+  step budget); ``__init__``, and ``set_model`` (MODEL). First, so ``iv[len(OPTION):]`` is
+  everything ``reset()`` rewrites.
+- ``CLOCK``: where the run stands (brake ticks, the chain's tick, the head-pressure ring's
+  write position); ``reset()``, then the kernel.
+- ``CACHE``: validity flags of the caches kept in ``ws``; ``reset()`` and ``set_model``
+  clear them, the kernel sets them.
+- ``COUNT``: statistics counters (accepted and rejected steps, fall-back periods, holding
+  solves); ``reset()``, then the kernel; read by ``TrainSimulator.integration_stats``.
 
 ``ws``: float, shape (len(WORK), N): ``WORK``, the kernel's scratch memory (rows of N-1 used
 for couplers), the caches that skip repeated work (bit for bit) and the in-train force

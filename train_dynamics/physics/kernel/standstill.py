@@ -18,7 +18,7 @@ the set changes. Block principal pivoting (:func:`pivot`, Judice and Pires 1994)
 set where every vehicle at rest is consistent, in a few tridiagonal solves (no coupler
 evaluation), with Murty's single pivot when the block pivots stop reducing the number of
 inconsistent vehicles (that rule ends for positive definite A); a cap bounds the work.
-The full step is then solved once more with that set (step.active_set_step).
+The full step is then solved once more with that set (active_set.active_set_step).
 """
 from __future__ import annotations
 
@@ -62,7 +62,7 @@ def stick(held, masses, ws, sc):
     Stop the vehicles released from rest that end the step moving against their friction.
 
     Such a vehicle (VSTART = 0, RELDIR d, d WORK.VNEW < 0, or braked and slower than V_REST,
-    as a moving one stops in step._stops) slid and stuck within the step:
+    as a moving one stops in active_set._stops) slid and stuck within the step:
     it ends at rest (VNEW = 0) and held, its friction over the step stays the sliding one
     (WORK.HOLD = SIGNED, booked as before); the impulse -m v' [N s] goes to TOTAL.PEXT
     (``sc``). Return the kinetic energy m v'^2 / 2 [J] the brakes took.
