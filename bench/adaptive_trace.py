@@ -35,8 +35,8 @@ if REPO not in sys.path:
 
 import numpy as np  # noqa: E402
 
-from train_dynamics.physics.kernel import adaptive as ad  # noqa: E402
 from train_dynamics.physics.kernel import active_set, brakes, couplers  # noqa: E402
+from train_dynamics.physics.kernel import adaptive as ad  # noqa: E402
 from train_dynamics.physics.kernel import coupler_rows as rows, ros2, step as it  # noqa: E402
 from train_dynamics.physics.kernel.compiler import jit  # noqa: E402
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, CONTROL,  # noqa: E402

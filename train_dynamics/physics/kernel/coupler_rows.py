@@ -20,6 +20,7 @@ from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.layout import COUPLER, STATE, WORK
 from train_dynamics.physics.kernel.ros2 import GAMMA
 
+
 @jit(inline=True)
 def invalidate_caches(ws):
     """

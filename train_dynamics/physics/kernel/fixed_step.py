@@ -18,11 +18,11 @@ from __future__ import annotations
 import numpy as np
 
 from train_dynamics.physics.kernel import brakes
-from train_dynamics.physics.kernel.compiler import jit
-from train_dynamics.physics.kernel.layout import CACHE, OPTION, PARAM, STATE, TOTAL, VEHICLE, WORK
 from train_dynamics.physics.kernel.active_set import active_set_step
+from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_couplers_work,
                                                         invalidate_caches)
+from train_dynamics.physics.kernel.layout import CACHE, OPTION, PARAM, STATE, TOTAL, VEHICLE, WORK
 from train_dynamics.physics.kernel.ros2 import GAMMA
 from train_dynamics.physics.kernel.step import (accept_external, accept_step, brake_system_step,
                                                 braking_force_trapezoid, external_step,

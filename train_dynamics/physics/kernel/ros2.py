@@ -98,7 +98,6 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
         out_e[i] = gr + tr - rd
 
 
-
 @jit(inline=True)
 def ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     """
