@@ -1,5 +1,5 @@
 """
-Benchmark of the error-controlled stepping (issue 14): accuracy and speed per tolerance.
+Benchmark of the error-controlled stepping: accuracy and speed per tolerance.
 
 Cases (all tanh u = 1000, the package's default parameters unless said):
 
@@ -14,7 +14,7 @@ Cases (all tanh u = 1000, the package's default parameters unless said):
   out of reach (the paper's law without blocking, as bench/core.py's error-controlled
   section and its Radau reference).
 
-Every run goes through the offline run loop (:func:`train_dynamics.physics.runner.
+Every run goes through the offline run loop (:func:`train_dynamics.simulation.runner.
 run_simulation`) and reads ``coupler_force`` at every 10 ms output. The reference of a case
 is the same model, fed the same inputs, at a tight tolerance (``REF_TOL``, step budget out
 of reach): the brake system runs on the same 2 ms tick in both, so the difference is the
@@ -90,7 +90,7 @@ def unequal4_schedule(t: float):
 
 def _events_unequal4(h: float, duration: float):
     from train_dynamics import topics
-    from train_dynamics.physics.runner import InputEvent, step_of
+    from train_dynamics.simulation.runner import InputEvent, step_of
     events = []
     for k in range(int(round(duration / OUTPUT_DT)) + 1):
         t_ns = int(round(k * OUTPUT_DT * 1e9))
@@ -122,35 +122,35 @@ def write_unequal4_bag(path: str, duration: float = CASES['unequal4']) -> None:
 
 
 def case_setup(case: str, tol: float, budget: int, extra: dict | None = None):
-    """Return (config, BrakeInputs, duration [s]) of a case at tolerance ``tol``."""
+    """Return (config, InputSchedule, duration [s]) of a case at tolerance ``tol``."""
     from train_dynamics import topics
     from train_dynamics.cli.scenario import load_config, valve_from_param_file
-    from train_dynamics.physics.parameters import SimConfig
-    from train_dynamics.physics.runner import BrakeInputs, InputEvent
+    from train_dynamics.physics.config import SimConfig
+    from train_dynamics.simulation.runner import InputSchedule, InputEvent
     over = {'integration_tolerance': tol, 'integration_max_steps': budget, **(extra or {})}
     duration = CASES[case]
     if case == 'paper':
         path = os.path.join(REPO, 'config', 'paper_3coach.yaml')
         cfg = SimConfig.from_dict({**load_config(path).values, **over})
-        return cfg, BrakeInputs(topics.PIPE_HEAD, [], valve_from_param_file(path, cfg)), duration
+        return cfg, InputSchedule(topics.PIPE_HEAD, [], valve_from_param_file(path, cfg)), duration
     if case == 'unequal4':
         path = os.path.join(REPO, 'config', 'unequal_4coach.yaml')
         cfg = SimConfig.from_dict({**load_config(path).values, **over})
         events = _events_unequal4(float(cfg.integration_step), duration)
-        return cfg, BrakeInputs(topics.CYLINDER_PER_COACH, events), duration
+        return cfg, InputSchedule(topics.CYLINDER_PER_COACH, events), duration
     n = int(case[1:].rstrip('p'))
     if case.endswith('p'):      # the paper's law: strokes out of reach (bench/core.py)
         over.update(buffer_stroke=10.0, draw_gear_stroke=10.0)
     cfg = SimConfig.from_dict({'num_coaches': n, **over})
     vent = InputEvent(0, 0, None, 0.0, topics.PIPE_HEAD, None)
-    return cfg, BrakeInputs(topics.PIPE_HEAD, [vent]), duration
+    return cfg, InputSchedule(topics.PIPE_HEAD, [vent]), duration
 
 
 def run_case(case: str, tol: float, budget: int, repeats: int, save: str | None,
              extra: dict | None = None) -> dict:
     """In a fresh process: a warm-up run, ``repeats`` timed runs; the samples to ``save``."""
     import numpy as np
-    from train_dynamics.physics.runner import run_simulation
+    from train_dynamics.simulation.runner import run_simulation
     cfg, inputs, duration = case_setup(case, tol, budget, extra)
     k_out = int(round(duration / OUTPUT_DT)) + 1
     n = cfg.n_coaches

@@ -295,7 +295,8 @@ def default_ctl(mode: int = 0) -> np.ndarray:
 def run(case: str, tol: float, ctl: np.ndarray, budget: int, cache: str):
     """Run ``case`` traced; return (row with errors and step statistics, log)."""
     import adaptive
-    from train_dynamics.physics import runner, train
+    from train_dynamics.physics import train
+    from train_dynamics.simulation import runner
     cfg, inputs, duration = adaptive.case_setup(case, tol, budget)
     k_out = int(round(duration / adaptive.OUTPUT_DT)) + 1
     F = np.zeros((k_out, cfg.n_coaches - 1))

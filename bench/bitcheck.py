@@ -27,6 +27,9 @@ from rosbags.highlevel import AnyReader
 #: git worktree, so that its own ``train_dynamics`` is imported)
 REPO = Path.cwd()
 
+#: the offline command, as its console script runs it
+OFFLINE = 'import sys; from train_dynamics.cli.offline import main; sys.exit(main())'
+
 #: (name, parameter file, duration [s])
 SCENARIOS = (
     ('paper', 'config/paper_3coach.yaml', 60.0),
@@ -57,9 +60,8 @@ def digest(bag: Path) -> tuple[int, str, dict[str, str]]:
 def run(out: Path, params: str, duration: float) -> None:
     """One offline run into ``out`` (replaced)."""
     subprocess.run(['rm', '-rf', str(out)], check=True)
-    cmd = [sys.executable, '-c', 'import sys; from train_dynamics.cli.offline import main; sys.exit(main())',
-           'simulate', '--params',
-           str(REPO / params), '--duration', str(duration), '--output', str(out)]
+    cmd = [sys.executable, '-c', OFFLINE, 'simulate', '--params', str(REPO / params),
+           '--duration', str(duration), '--output', str(out)]
     subprocess.run(cmd, check=True, cwd=REPO, stdout=subprocess.DEVNULL)
 
 

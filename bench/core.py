@@ -81,7 +81,7 @@ BASELINE_EXTRAPOLATE = (300, 1000)
 
 
 def _default_h() -> float:
-    from train_dynamics.physics.parameters import PARAMETERS
+    from train_dynamics.physics.config import PARAMETERS
     return float(PARAMETERS['integration_step'].default)
 
 
@@ -125,7 +125,7 @@ def check_idealisation(cfg) -> None:
 
 def make_config(n: int, model: str, u: float, h: float = DEFAULT_H, **extra):
     """Return the bench's SimConfig: N paper coaches, the paper's idealisation (checked)."""
-    from train_dynamics.physics.parameters import SimConfig
+    from train_dynamics.physics.config import SimConfig
     cfg = SimConfig.from_dict({'num_coaches': int(n), 'model_type': model,
                                'scale_factor': float(u), 'integration_step': float(h),
                                **PAPER_IDEALISATION, **extra})
@@ -589,7 +589,7 @@ def run(ref_max_n: int = 100, sizes=SIZES, models=MODELS, steps=STEP_VARIANTS,
     return results
 
 
-#: error-controlled cases (issue 14): N, integration_tolerance; the paper's law (strokes
+#: error-controlled cases: N, integration_tolerance; the paper's law (strokes
 #: out of reach, as in the reference), tanh u = 1000, 100 Hz outputs
 ADAPTIVE_CASES = ((3, 1e-3), (100, 1e-2), (100, 1e-3), (1000, 1e-2), (1000, 1e-3))
 
@@ -600,7 +600,7 @@ def adaptive_case(n: int, tol: float, budget: int = 100, repeats: int = 2) -> di
 
     Returns wall [s], real-time factor, the integration counters, the peak and envelope
     errors over the comparison window (cached reference, None when missing) and the time
-    from the first coach at rest to every coach held (standstill, issue 14).
+    from the first coach at rest to every coach held (standstill).
     """
     import numpy as np
     from train_dynamics.physics.train import TrainSimulator

@@ -9,8 +9,8 @@ traction curves, rotating masses). Measured:
 - speed at the default step: the cost per vehicle-step [ns] (process CPU time, fresh
   processes interleaved with the comparison trains, best and spread of 5:
   ``vehicle_cost.py``), against the same number of the paper's coaches on flat track
-  without the new forces, with the strokes out of reach (the paper's idealisation: the
-  kernel before issue 11) and with the default strokes (long uniform trains block); the
+  without the new forces, with the strokes out of reach (the paper's idealisation: no
+  blocking) and with the default strokes (long uniform trains block); the
   whole 120 s run and its moving part (the train stands still from ~53 s on);
 - accuracy: the largest coupler tension and compression, the stopping distance and time
   against a reference run of the same model at a 20x smaller step (0.1 ms; the fixed-step
@@ -26,9 +26,9 @@ import time
 
 import numpy as np
 
-from train_dynamics.physics.parameters import load_param_file, SimConfig
-from train_dynamics.physics.runner import traction_schedule
+from train_dynamics.physics.config import load_param_file, SimConfig
 from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.simulation.runner import traction_schedule
 import vehicle_cost
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -88,7 +88,7 @@ def run(log=print) -> dict:
 
 
 def render(res: dict) -> str:
-    """Return the README/RESULTS section of the freight benchmark (markdown)."""
+    """Return the RESULTS.md section of the freight benchmark (markdown)."""
     r, ref = res['run'], res['reference']
     return '\n'.join([
         f"### Real train: 750 m freight ({res['n']} vehicles), h = {res['h'] * 1e3:g} ms",

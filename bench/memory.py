@@ -1,5 +1,5 @@
 """
-Peak memory of the offline commands (issue 15), 60 s and 600 s.
+Peak memory of the offline commands, 60 s and 600 s.
 
 ``compare``, ``simulate``, then ``plot`` and ``report`` of the bags ``simulate`` wrote.
 
@@ -76,10 +76,10 @@ def section(rows: list[dict]) -> str:
            '| command | duration [s] | peak RSS [MB] | wall [s] |', '| --- | ---: | ---: | ---: |']
     out += [f"| {r['command']} | {r['duration']:g} | {r['peak_mb']:.0f} | {r['wall_s']:.1f} |"
             for r in rows]
-    out += ['', 'Before issue 15, `compare` kept every sample: ~4 MB per simulated second '
-            '(1.3 GB at 300 s); `plot` and `report` loaded the whole bag (176 / 190 MB at 60 s, '
-            '420 MB at 600 s). The duration no longer changes their peaks past 200 s (20000 '
-            'samples: up to there the figures draw every sample).']
+    out += ['', 'Before the offline commands streamed, `compare` kept every sample: ~4 MB per '
+            'simulated second (1.3 GB at 300 s); `plot` and `report` loaded the whole bag '
+            '(176 / 190 MB at 60 s, 420 MB at 600 s). The duration no longer changes their '
+            'peaks past 200 s (20000 samples: up to there the figures draw every sample).']
     return '\n'.join(out)
 
 

@@ -1,5 +1,5 @@
 """
-Benchmark of sim_node (issue 5): 300 coaches, 100 Hz output, real_time_factor 1, 60 s.
+Benchmark of sim_node: 300 coaches, 100 Hz output, real_time_factor 1, 60 s.
 
 ``sim_node`` runs as a child process (``python -m train_dynamics.ros.sim_node --ros-args -p
 num_coaches:=300 -p publish_rate:=100.0 -p real_time_factor:=1.0``) with loopback-only DDS

@@ -1,5 +1,5 @@
 """
-Benchmark of the pneumatic brake (issue 12): offline speed, node jitter, CQU comparison.
+Benchmark of the pneumatic brake: offline speed, node jitter, CQU comparison.
 
 Offline: ``TrainSimulator`` with ``brake_model`` empirical and pneumatic, head of the pipe
 commanded to 0 (emergency) at t = 1 s, 60 s simulated in 10 ms chunks (the node's read-out),
@@ -21,11 +21,11 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 sys.path.insert(1, os.path.dirname(HERE))
 
-from train_dynamics.physics.parameters import SimConfig  # noqa: E402
+from train_dynamics.physics.config import SimConfig  # noqa: E402
 from train_dynamics.physics.train import TrainSimulator  # noqa: E402
 
 RESULTS_MD = os.path.join(HERE, 'pneumatic_results.md')
-#: CQU air-brake model (issue 12): 150 wagons, sequential: 6.7 times slower than real time
+#: CQU air-brake model: 150 wagons, sequential: 6.7 times slower than real time
 CQU_RTF = 1.0 / 6.7
 TRAINS = (
     ('paper, 3 coaches (P)', {'num_coaches': 3}),
@@ -82,7 +82,7 @@ def run_node(log=print) -> dict | None:
 
 def render(rows: list[dict], node_res: dict | None) -> str:
     """Markdown section of RESULTS.md."""
-    out = ['## Pneumatic brake (issue 12)', '',
+    out = ['## Pneumatic brake', '',
            'Offline, one core, 60 s simulated (emergency at t = 1 s), h = 2 ms, '
            'best of 3; real-time factor = simulated / wall time.', '',
            '| train | brake model | wall [s] | real-time factor | peak abs(F) [kN] '
@@ -94,7 +94,7 @@ def render(rows: list[dict], node_res: dict | None) -> str:
     big = next((r for r in rows if r['train'].startswith('150') and r['model'] == 'pneumatic'),
                None)
     if big is not None:
-        out += ['', f'Target (issue 12): pneumatic, 150 vehicles, >= 10x real time on one core: '
+        out += ['', f'Target: pneumatic, 150 vehicles, >= 10x real time on one core: '
                 f'**{big["rtf"]:.0f}x, {"PASS" if big["rtf"] >= 10 else "FAIL"}**. '
                 f'CQU air-brake model (150 wagons, sequential): 6.7 times slower than real '
                 f'time (0.15x), 8 cores to reach real time; ours is '

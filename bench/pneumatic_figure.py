@@ -1,7 +1,8 @@
 """
-README figure of the pneumatic brake: empirical vs pneumatic, paper train and 750 m freight.
+Figure of the pneumatic brake: empirical vs pneumatic, paper train and 750 m freight.
 
-Writes ``doc/pneumatic_vs_empirical.png`` and prints the numbers of the README table.
+Writes ``docs/figures/pneumatic_vs_empirical.png`` and prints the numbers of the table in
+``docs/brakes.md``.
 Emergency from the ``brake_valve`` (400 kPa/s to 0) at t = 1 s; 60 s.
 """
 from __future__ import annotations
@@ -17,10 +18,10 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, os.path.dirname(HERE))
 
 from train_dynamics.physics.brake_valve import BrakeValveModel  # noqa: E402
-from train_dynamics.physics.parameters import SimConfig  # noqa: E402
+from train_dynamics.physics.config import SimConfig  # noqa: E402
 from train_dynamics.physics.train import TrainSimulator  # noqa: E402
 
-OUT = os.path.join(os.path.dirname(HERE), 'doc', 'pneumatic_vs_empirical.png')
+OUT = os.path.join(os.path.dirname(HERE), 'docs', 'figures', 'pneumatic_vs_empirical.png')
 TRAINS = (('paper, 3 coaches (P)', {'num_coaches': 3}),
           ('freight 750 m, 30 wagons of 90 t (G)', {
               'num_coaches': 30, 'coach_mass': 90000.0, 'brake_regime': 'G',

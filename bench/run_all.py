@@ -165,7 +165,7 @@ def startup_table(st: dict) -> str:
 
 def core_targets(rows: list[dict]) -> list[tuple[str, bool, str]]:
     """
-    Judge the issue's core targets: (target, met, figures) for each.
+    Judge the benchmark's core targets: (target, met, figures) for each.
 
     Each is judged at the LARGEST integration step of the run whose peak coupler force is
     within 1 % of the reference for that train (the step a user who wants speed at that
@@ -234,7 +234,7 @@ def memory_section() -> str:
                          '## Memory of the offline commands (bench/memory.py)')
 
 
-#: the error-controlled stepping's accuracy/speed tables (issue 14): ``python bench/adaptive.py``
+#: the error-controlled stepping's accuracy/speed tables: ``python bench/adaptive.py``
 #: measures them (references at tolerance 1e-6 take ~15 min of CPU, so not on every run)
 ADAPTIVE_MD = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'adaptive_results.md')
 
@@ -268,7 +268,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
     if node_res:
         items += node_targets(node_res)
     if items:
-        parts += ['## Targets (issue 5)', '', targets_table(items), '']
+        parts += ['## Targets', '', targets_table(items), '']
     if core_res:
         parts += [
             '## Physics core (fixed-step ROS2 integrator, numba kernel)', '',
@@ -403,7 +403,7 @@ def main(argv=None) -> int:
         except Exception as exc:  # noqa: BLE001 - report and keep the core results
             log(f'node benchmark failed: {exc}')
     pneu_md = ''
-    if not args.no_pneumatic:       # issue 12: bench/pneumatic.py owns its section
+    if not args.no_pneumatic:       # bench/pneumatic.py owns its section
         import pneumatic
         rows = pneumatic.run_offline(log=log)
         pneu_md = pneumatic.render(rows, None if args.no_node else pneumatic.run_node(log=log))

@@ -1,5 +1,5 @@
 """
-`make soak` (issue 6): one hour of simulated time, 30 coaches, free-running, recorded.
+`make soak`: one hour of simulated time, 30 coaches, free-running, recorded.
 
 ``sim_node`` runs as a child process with ``num_coaches:=30 real_time_factor:=0.0
 publish_rate:=100.0 duration:=3600.0 record_bag:=<tmp>/soak_bag``; as soon as its first output
@@ -206,7 +206,7 @@ def render(res: dict) -> str:
     rss10 = at(600.0)
     rss_end = running[-1]['rss_kib'] / 1024.0
     half = at(running[-1]['sim_s'] / 2.0)
-    lines = ['## Soak (`make soak`, issue 6)', '',
+    lines = ['## Soak (`make soak`)', '',
              f"{res['date']}; load average before / after {res['load_before']:.2f} / "
              f"{res['load_after']:.2f}. `sim_node` with "
              + ' '.join(f'`{k}:={v}`' for k, v in res['params'].items() if k != 'record_bag')

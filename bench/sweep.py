@@ -38,8 +38,8 @@ from train_dynamics.cli.offline import main as cli_main  # noqa: E402
 from train_dynamics.cli.sweep_case import run_case  # noqa: E402
 from train_dynamics.cli.sweep_plan import make_plan  # noqa: E402
 from train_dynamics.cli.sweep_run import execute, prepare_output  # noqa: E402
-from train_dynamics.physics.parameters import SimConfig  # noqa: E402
-from train_dynamics.physics.runner import run_simulation  # noqa: E402
+from train_dynamics.physics.config import SimConfig  # noqa: E402
+from train_dynamics.simulation.runner import run_simulation  # noqa: E402
 import yaml  # noqa: E402
 
 RESULTS = os.path.join(HERE, 'RESULTS.md')

@@ -8,15 +8,15 @@ and reports best and spread of each, because this host's speed drifts within min
 Cases (120 s each, the freight scenario's inputs: emergency at t = 5 s; the cost is split
 into the moving part and the part with every vehicle at rest at an output period's start):
 
-- ``freight``: ``config/freight_750m.yaml`` (47 vehicles, every force of issue 11);
+- ``freight``: ``config/freight_750m.yaml`` (47 vehicles, every force of the real-train model);
 - ``uniformN``: N of the paper's coaches, ``SimConfig.from_dict({'num_coaches': N})``,
   flat, default step (the strokes as the defaults set them: long trains block);
-- ``paperN``: the same with the strokes out of reach (the paper's idealisation, as the
-  kernel before issue 11 computed it).
+- ``paperN``: the same with the strokes out of reach (the paper's idealisation, as a
+  kernel without strokes computed it).
 
 ``--python PY --path DIR`` (repeatable, pairwise) adds a kernel version: the case runs with
 ``PY`` and ``PYTHONPATH=DIR`` (e.g. a worktree of an older commit); the uniform and paper
-cases use only the simulator's oldest interface, so they run on kernels before issue 11.
+cases use only the simulator's oldest interface, so they also run on kernels without strokes.
 
     .venv/bin/python bench/vehicle_cost.py --cases freight,paper47 --repeats 5 \
         --python .venv/bin/python --path /path/to/other/worktree
@@ -52,7 +52,7 @@ def drive(sim, events, t: float) -> None:
 
 def _config(case: str):
     """Return the SimConfig of a case (see the module docstring)."""
-    from train_dynamics.physics.parameters import load_param_file, SimConfig
+    from train_dynamics.physics.config import load_param_file, SimConfig
     if case == 'freight':
         return load_param_file(os.path.join(ROOT, 'config', 'freight_750m.yaml'))
     if case.startswith('uniform'):
@@ -62,7 +62,7 @@ def _config(case: str):
         try:
             return SimConfig.from_dict({'num_coaches': n, 'buffer_stroke': 10.0,
                                         'draw_gear_stroke': 10.0})
-        except (KeyError, ValueError):      # a kernel before issue 11: no strokes
+        except (KeyError, ValueError):      # a kernel without strokes
             return SimConfig.from_dict({'num_coaches': n})
     raise ValueError(f'unknown case {case!r}')
 
@@ -76,7 +76,7 @@ def measure(case: str) -> dict:
     sim = TrainSimulator(cfg)
     events = []
     if case == 'freight':
-        from train_dynamics.physics.runner import traction_schedule
+        from train_dynamics.simulation.runner import traction_schedule
         events = sorted(traction_schedule(cfg), key=lambda e: e.step)
     per = int(round(SAMPLE / sim.h))
     cpu = [0.0, 0.0]        # moving, stopped (every vehicle at rest at the period's start)
@@ -112,7 +112,7 @@ def interleave(versions, cases, repeats: int = 5, log=print) -> dict:
 
     ``versions``: [(label, python, PYTHONPATH or None)]. Returns {'label case': summary}
     with the sorted totals 'ns' [ns per vehicle-step] and the best 'moving' and 'stopped'
-    figures; a case a version cannot run (freight before issue 11) is left out.
+    figures; a case a version cannot run (freight on a kernel without its forces) is left out.
     """
     combos = [(label, py, path, case) for label, py, path in versions for case in cases]
     for combo in list(combos):       # warm-up: load or compile the kernels

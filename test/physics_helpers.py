@@ -1,8 +1,8 @@
 """Shared scenario helpers for the physics tests (plain functions, no fixtures)."""
 import numpy as np
 
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel.couplers import coupler_force, TANH
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.reference import reference_solution
 from train_dynamics.physics.train import TrainSimulator
 

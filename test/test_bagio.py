@@ -93,6 +93,19 @@ def test_refuses_existing_path_and_bad_use(tmp_path):
     assert bag_info(tmp_path / 'y').topics == {'couplers': (JS, 0)}   # empty, topics recorded
 
 
+def test_custom_data_one_by_one_or_at_once(tmp_path):
+    rec = BagRecorder(tmp_path / 'c', atomic=True)
+    rec.set_custom_data('model_type', 'tanh')
+    rec.update_custom_data({'integration_step': '0.001', 'model_type': 'sign', 'z': ''})
+    with pytest.raises(TypeError):
+        rec.update_custom_data({'publish_rate': 100.0})      # values are strings
+    with pytest.raises(TypeError):
+        rec.set_custom_data('publish_rate', 100.0)
+    rec.close()
+    assert bag_info(tmp_path / 'c').custom_data == {
+        'model_type': 'sign', 'integration_step': '0.001', 'z': ''}
+
+
 def test_reads_sqlite3_and_bare_mcap(tmp_path):
     db = tmp_path / 'db'
     with Writer(db, version=9, storage_plugin=StoragePlugin.SQLITE3) as w:

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import io
+import json
 import math
 import os
 from pathlib import Path
@@ -17,13 +18,14 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from train_dynamics.cli import offline as cli
 from train_dynamics.cli.errors import EXIT_FAULT, EXIT_INTERRUPT, EXIT_TERMINATED
 from train_dynamics.cli.progress import progress_bar
-from train_dynamics.physics import runner, train
-from train_dynamics.physics.parameters import load_param_file
+from train_dynamics.physics import train
+from train_dynamics.physics.config import load_param_file
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording import messages
 from train_dynamics.recording.bags import bag_info, BagRecorder, read_topics
 from train_dynamics.recording.plots import png_size, SIZE_PX
 from train_dynamics.recording.sinks import BagSink
+from train_dynamics.simulation import runner
 
 ATM = 101325.0
 REPO = Path(__file__).resolve().parents[1]
@@ -320,6 +322,46 @@ def test_python_dash_m_and_help(tmp_path):
     assert not (tmp_path / 'o').exists()
     assert cli.main(['--help']) == 0
     assert cli.main(['simulate']) == 2                      # missing required options
+
+
+#: what ``simulate`` does not use: importing any of it costs start-up time (matplotlib alone
+#: ~0.3 s, dask and pandas ~2 s), so neither its argument parsing nor its run may load it;
+#: a run without an input bag reads no bag (``rosbags.highlevel``), one without a terminal
+#: shows no progress bar (``tqdm``)
+NOT_FOR_SIMULATE = ('matplotlib', 'dask', 'distributed', 'pandas', 'rclpy',
+                    'train_dynamics.ros', 'train_dynamics.recording.plots',
+                    'train_dynamics.recording.metrics_report', 'train_dynamics.cli.compare',
+                    'train_dynamics.cli.plot', 'train_dynamics.cli.report',
+                    'train_dynamics.cli.sweep', 'rosbags.highlevel', 'tqdm')
+
+#: run in a fresh interpreter: parse a command line, then run it; print the modules loaded
+#: after each as JSON
+_MODULES_OF_A_RUN = """
+import json, sys
+from train_dynamics.cli import offline
+argv = sys.argv[1:]
+offline.build_parser(offline.command_of(argv)).parse_args(argv)
+parsed = sorted(sys.modules)
+code = offline.main(argv)
+print(json.dumps({'code': code, 'parsed': parsed, 'ran': sorted(sys.modules)}))
+"""
+
+
+def test_simulate_imports_only_what_it_uses(tmp_path):
+    env = dict(os.environ,
+               PYTHONPATH=os.pathsep.join([str(REPO), os.environ.get('PYTHONPATH', '')]))
+    proc = subprocess.run([sys.executable, '-c', _MODULES_OF_A_RUN, 'simulate', '--params',
+                           str(REPO / 'config' / 'paper_3coach.yaml'), '--duration', '0.05',
+                           '--output', str(tmp_path / 'o'), '-q'],
+                          capture_output=True, text=True, env=env, timeout=600)
+    assert proc.returncode == 0, proc.stderr
+    seen = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert seen['code'] == 0 and (tmp_path / 'o' / 'metadata.yaml').exists()
+    assert 'train_dynamics.cli.simulate' in seen['parsed']      # the parse did load simulate
+    for stage in ('parsed', 'ran'):
+        unused = [m for m in seen[stage] if any(m == n or m.startswith(n + '.')
+                                                for n in NOT_FOR_SIMULATE)]
+        assert unused == [], f'{stage}: {unused}'
 
 
 def test_output_steps_and_input_steps():

@@ -2,8 +2,7 @@
 import numpy as np
 import pytest
 
-from train_dynamics.physics import consist
-from train_dynamics.physics.parameters import ConfigError, SimConfig
+from train_dynamics.physics.config import ConfigError, consist, files, SimConfig
 
 
 def write(tmp_path, text, name='train.yaml'):
@@ -93,11 +92,11 @@ def test_uniform_train_of_the_parameters():
 
 def test_relative_path_resolves_against_base_dir_then_config(tmp_path, monkeypatch):
     write(tmp_path, 'vehicles: [{type: paper_coach, count: 2}]\n', 'mine.yaml')
-    assert consist.resolve_path('mine.yaml', str(tmp_path)) == tmp_path / 'mine.yaml'
+    assert files.resolve_path('mine.yaml', str(tmp_path)) == tmp_path / 'mine.yaml'
     monkeypatch.chdir(tmp_path)             # without a base folder: the working directory
     assert consist.consist_of(values(consist_file='mine.yaml')).n == 2
     # the library itself is found in config/ from anywhere
-    assert consist.resolve_path('vehicles.yaml', str(tmp_path)).name == 'vehicles.yaml'
+    assert files.resolve_path('vehicles.yaml', str(tmp_path)).name == 'vehicles.yaml'
 
 
 @pytest.mark.parametrize('text, words', [
@@ -137,3 +136,16 @@ def test_missing_consist_file_is_a_clear_error(tmp_path):
 def test_connection_harmonic_mean_with_zero_friction():
     out = consist.connection_harmonic(np.array([0.0, 2.0]), np.array([1.0, 2.0]))
     assert list(out) == [0.0, 2.0]
+
+
+def test_the_per_vehicle_declarations_elsewhere_name_fields_of_the_table():
+    """The table holds each vehicle field once; the kernel's row maps only refer to it."""
+    from train_dynamics.physics.config import VEHICLE_PARAMETERS
+    from train_dynamics.physics.train import TrainSimulator
+
+    assert consist.VEHICLE_FIELDS == tuple(VEHICLE_PARAMETERS)
+    assert consist.PARAM_OF == {'mass': 'coach_mass', 'length': 'coach_length'}
+    connections = {f for f, s in VEHICLE_PARAMETERS.items() if s.connection}
+    assert set(consist.COUPLER_FIELDS) == connections == {*consist.HARMONIC, *consist.ARITHMETIC}
+    assert set(TrainSimulator._VEHICLE_ROWS) <= set(VEHICLE_PARAMETERS)
+    assert {*TrainSimulator._TRAVEL_ROWS, *TrainSimulator._COUPLER_ROWS} == connections

@@ -1,4 +1,4 @@
-"""The coupler law with free play (slack), stroke limits and blocking (issue 11)."""
+"""The coupler law with free play (slack), stroke limits and blocking."""
 import math
 
 import numpy as np

@@ -1,5 +1,5 @@
 """
-The in-train force envelope (issue 14).
+The in-train force envelope.
 
 Each coupler's largest tension and compression over every integration step, which the
 output samples can miss at a buffer-blocking impact.
@@ -7,8 +7,8 @@ output samples can miss at a buffer-blocking impact.
 import numpy as np
 import pytest
 
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.metrics import RunMetrics
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 
 #: 60 coaches of the paper, head pipe vented at t = 0: the run-in blocks the buffers (~5 s)

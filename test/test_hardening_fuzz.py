@@ -1,5 +1,5 @@
 """
-Issue 15: a property-based fuzz (Hypothesis) over the parameter space of the validator.
+A property-based fuzz (Hypothesis) over the parameter space of the validator.
 
 Any parameter set the validator accepts runs 1 s offline (in-process, the runner of the offline
 command) without an exception and with finite outputs; any set it rejects gives one line
@@ -14,9 +14,9 @@ from hypothesis import event, given, HealthCheck, settings, strategies as st
 import numpy as np
 import pytest
 from train_dynamics.cli import offline as cli
-from train_dynamics.physics import runner
 from train_dynamics.physics.brake_valve import BrakeValveModel
-from train_dynamics.physics.parameters import ConfigError, PARAMETERS, SimConfig
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig
+from train_dynamics.simulation import runner
 import yaml
 
 #: drawn as given (structural, costly or covered elsewhere)
@@ -73,7 +73,7 @@ def _run_one_second(cfg: SimConfig) -> None:
                                        sim.brake_force, sim.cylinder_pressure,
                                        sim.pipe_pressure]))
 
-    sim = runner.run_simulation(cfg, 1.0, runner.BrakeInputs('pipe_head', [], valve),
+    sim = runner.run_simulation(cfg, 1.0, runner.InputSchedule('pipe_head', [], valve),
                                 on_sample=sample)
     assert outputs and np.all(np.isfinite(np.asarray(outputs))), sim.fault
     if sim.fault is None:

@@ -1,5 +1,5 @@
 """
-Issue 15, item 1: offline commands stream; compare keeps its table, zoom and figures correct.
+Offline commands stream; compare keeps its table, zoom and figures correct.
 
 Peak memory is measured in a child process (``resource.getrusage(RUSAGE_CHILDREN)`` after it
 ends: ru_maxrss [KiB]) for two durations; the summary of a run is checked against the full
@@ -14,13 +14,13 @@ import sys
 import numpy as np
 import pytest
 
-from train_dynamics.physics import runner
 from train_dynamics.physics.brake_valve import BrakeValveModel
-from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.recording import summary as summary_mod
 from train_dynamics.recording.history import sign_changes_per_second
 from train_dynamics.recording.sinks import ArraySink
 from train_dynamics.recording.summary import RunSummary, Window, zoom_window
+from train_dynamics.simulation import runner
 
 REPO = Path(__file__).resolve().parents[1]
 CFG = REPO / 'config' / 'paper_3coach.yaml'
@@ -57,7 +57,7 @@ def test_simulate_memory_is_independent_of_duration(tmp_path):
 
 
 def _full_zoom(t, velocity, width, duration):
-    """Return the zoom window as compare chose it from the full history (before issue 15)."""
+    """Return the zoom window as compare chose it from the full history (unstreamed)."""
     best, where, coupler = -1, duration / 2, 0
     for j in range(velocity.shape[1]):
         s = np.sign(velocity[:, j])
@@ -82,7 +82,7 @@ def test_compare_summary_equals_the_full_history(monkeypatch, model, rows, plot_
     cfg = SimConfig.from_dict({'model_type': model, 'num_coaches': 4,
                                'integration_step': 0.001})
     duration = 3.0
-    inputs = runner.BrakeInputs('pipe_head', [], BrakeValveModel(schedule=['0.2:emergency']))
+    inputs = runner.InputSchedule('pipe_head', [], BrakeValveModel(schedule=['0.2:emergency']))
     steps = runner.output_steps(duration, 1000.0, 0.001)
     full = ArraySink()
     sim = runner.run_simulation(cfg, duration, inputs, on_sample=full.sample,

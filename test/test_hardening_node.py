@@ -1,5 +1,5 @@
 """
-Issue 15, the nodes: no traceback, no leftovers, bounded recorder, complete diagnostics.
+The nodes under hostile input: no traceback, no leftovers, bounded recorder, complete diagnostics.
 
 Items 2 (live set + reset), 3 (failed start), 6/7 (parameter files), 9 (valve schedule),
 10 (recorder bounded in bytes), 11 (wrong-type publisher), 12 (timers at shutdown).
@@ -65,6 +65,24 @@ def test_node_ignores_wildcard_keys_of_the_other_node(tmp_path, rclpy_context):
         assert node.simulator.n == 4
     finally:
         node.destroy_node()
+
+
+def test_node_takes_a_relative_consist_file_from_its_parameter_files_folder(tmp_path):
+    """The path rule as offline: next to the parameter file, not the cwd's same-named file."""
+    folder, cwd = tmp_path / 'params', tmp_path / 'cwd'
+    folder.mkdir()
+    cwd.mkdir()
+    (folder / 'mine.yaml').write_text('vehicles: [{type: paper_coach, count: 2}]\n')
+    (cwd / 'mine.yaml').write_text('vehicles: [{type: paper_coach, count: 3}]\n')
+    params = folder / 'p.yaml'
+    params.write_text('train_dynamics:\n  ros__parameters:\n    consist_file: mine.yaml\n'
+                      '    coach_mass: 45000\n    duration: 0.1\n    real_time_factor: 0.0\n')
+    cmd = [sys.executable, '-m', 'train_dynamics.ros.sim_node', '--ros-args',
+           '--params-file', str(params)]        # coach_mass: an integer for a double
+    proc = subprocess.run(cmd, cwd=str(cwd), capture_output=True, text=True, timeout=120,
+                          env={**os.environ, 'PYTHONPATH': str(REPO)})
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert 'started: 2 coaches' in proc.stderr, proc.stderr[-2000:]
 
 
 # -- item 9: the valve node applies the validator ----------------------------------------------

@@ -1,9 +1,9 @@
 """
-Issue 15, parameters and the offline command: one validator, one-line errors, nothing left.
+Parameters and the offline command: one validator, one-line errors, nothing left.
 
-Items 2 (physical bounds, memory), 4 (disk estimate, progress), 5 (replay rejects as the
-node), 6 (parameter-file sections), 8 (exact output grid), 9 (schedule time, unwritable
-output directories).
+Physical bounds and memory, the disk estimate and progress, replay rejecting as the node does,
+parameter-file sections, the exact output grid, the schedule time and unwritable output
+directories.
 """
 from __future__ import annotations
 
@@ -14,15 +14,15 @@ import pytest
 
 from train_dynamics.cli import offline as cli
 from train_dynamics.cli import simulate as simulate_cmd
-from train_dynamics.physics import runner
 from train_dynamics.physics.brake_valve import BrakeValveModel, MAX_SCHEDULE_TIME
-from train_dynamics.physics.parameters import (ConfigError, input_rejection,
-                                               MAX_SIMULATOR_MEMORY, output_disk, PARAMETERS,
-                                               SimConfig, SIMULATOR_FIXED_BYTES,
-                                               simulator_memory, validate_value)
+from train_dynamics.physics.config import (ConfigError, input_rejection, MAX_SIMULATOR_MEMORY,
+                                           output_disk, PARAMETERS, SimConfig, simulator_memory,
+                                           validate_value)
+from train_dynamics.physics.config.budgets import SIMULATOR_FIXED_BYTES
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import BagRecorder, read_topics
 from train_dynamics.recording.cdr import encode_fluid_pressure
+from train_dynamics.simulation import runner
 
 REPO = Path(__file__).resolve().parents[1]
 CFG = REPO / 'config' / 'paper_3coach.yaml'
@@ -199,7 +199,7 @@ def test_disk_estimate_is_close_to_the_real_bag(tmp_path, capsys):
 
 def test_progress_is_paced_by_wall_time_not_by_the_fraction_of_the_run(monkeypatch):
     cfg = SimConfig.from_dict({})
-    inputs = runner.BrakeInputs('pipe_head', [], BrakeValveModel(schedule=['0.5:emergency']))
+    inputs = runner.InputSchedule('pipe_head', [], BrakeValveModel(schedule=['0.5:emergency']))
     calls: list[float] = []
     monkeypatch.setattr(runner, 'PROGRESS_PERIOD', 1e9)      # never within a short run
     runner.run_simulation(cfg, 2.0, inputs, on_sample=lambda s: None, progress=calls.append)

@@ -1,11 +1,11 @@
-"""The one rule for traction commands, used by sim_node and the offline replay (issue 11)."""
+"""The one rule for traction commands, used by sim_node and the offline replay."""
 from __future__ import annotations
 
 import math
 
 import pytest
 
-from train_dynamics.physics.parameters import traction_rejection
+from train_dynamics.physics.config import traction_rejection
 
 
 @pytest.mark.parametrize('command, reason', [

@@ -11,11 +11,11 @@ import os
 import numpy as np
 import pytest
 
+from train_dynamics.physics.config import load_param_file, SimConfig
 from train_dynamics.physics.kernel import coupler_rows
 from train_dynamics.physics.kernel.layout import CACHE, COUNT, OUTPUT, STATE, WORK
-from train_dynamics.physics.parameters import load_param_file, SimConfig
-from train_dynamics.physics.runner import traction_schedule
 from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.simulation.runner import traction_schedule
 
 CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config')
 

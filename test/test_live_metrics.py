@@ -5,8 +5,8 @@ The simulation thread only queues samples; they are folded in its idle time or b
 diagnostics callback, and the result is the offline accumulator's, sample for sample.
 """
 
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.metrics import RunMetrics
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.ros import live_metrics
 from train_dynamics.ros.live_metrics import LiveMetrics

@@ -11,9 +11,9 @@ import pytest
 
 from train_dynamics import topics
 from train_dynamics.cli.scenario import valve_from_param_file
+from train_dynamics.physics.config import load_param_file, SimConfig
 from train_dynamics.physics.metrics import FLAT_KEYS, RunMetrics
-from train_dynamics.physics.parameters import load_param_file, SimConfig
-from train_dynamics.physics.runner import BrakeInputs, run_simulation
+from train_dynamics.simulation.runner import InputSchedule, run_simulation
 
 PAPER = 'config/paper_3coach.yaml'
 
@@ -210,7 +210,7 @@ def test_run_energies_match_the_integrator_and_the_kinetic_energy():
     """
     cfg = load_param_file(PAPER)
     metrics = RunMetrics.for_run(cfg)
-    inputs = BrakeInputs(topics.PIPE_HEAD, [], valve_from_param_file(PAPER, cfg), 'valve')
+    inputs = InputSchedule(topics.PIPE_HEAD, [], valve_from_param_file(PAPER, cfg), 'valve')
     sim = run_simulation(cfg, 60.0, inputs, on_sample=metrics.sample)
     tr = metrics.result()['train']
     assert tr['brake_energy'] == pytest.approx(sim.work_brake, rel=5e-4)
@@ -230,7 +230,7 @@ def test_for_run_takes_limits_and_strokes_from_the_parameters():
     cfg = SimConfig.from_dict({'coupler_force_limit': 1e5, 'jerk_limit': 2.0})
     m = RunMetrics.for_run(cfg)
     assert m.force_crossings.limit == 1e5 and m.jerk_crossings.limit == 2.0
-    # the default strokes of the parameters (issue 11): 60 mm draw gear, 105 mm buffers
+    # the default strokes of the parameters: 60 mm draw gear, 105 mm buffers
     assert list(m.block_t) == [0.06, 0.06] and list(m.block_c) == [0.105, 0.105]
     assert not m.has_slack.any()
 

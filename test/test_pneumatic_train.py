@@ -4,7 +4,7 @@ import pytest
 
 from train_dynamics.cli.offline import main
 from train_dynamics.physics import pneumatic as pn
-from train_dynamics.physics.parameters import ConfigError, SimConfig
+from train_dynamics.physics.config import ConfigError, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import bag_info
 from train_dynamics.recording.history import load_history

@@ -1,10 +1,10 @@
-"""Real trains in the model (issue 11): gradients, resistance, traction, free play, blocking."""
+"""Real trains in the model: gradients, resistance, traction, free play, blocking."""
 import numpy as np
 import pytest
 
 from train_dynamics.physics import couplers
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel.layout import COUPLER
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.resistance import coast_down_speed
 from train_dynamics.physics.train import TrainSimulator
 

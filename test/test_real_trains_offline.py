@@ -1,4 +1,4 @@
-"""The offline command with a consist, a track and a traction schedule or bag (issue 11)."""
+"""The offline command with a consist, a track and a traction schedule or bag."""
 from pathlib import Path
 
 import numpy as np

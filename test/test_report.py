@@ -15,10 +15,10 @@ import pytest
 from train_dynamics import topics
 from train_dynamics.cli.offline import main
 from train_dynamics.cli.scenario import valve_from_param_file
+from train_dynamics.physics.config import load_param_file
 from train_dynamics.physics.metrics import RunMetrics
-from train_dynamics.physics.parameters import load_param_file
-from train_dynamics.physics.runner import BrakeInputs, run_simulation
 from train_dynamics.recording.plots import png_size
+from train_dynamics.simulation.runner import InputSchedule, run_simulation
 import yaml
 
 PAPER = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config',
@@ -46,7 +46,7 @@ def test_report_of_an_offline_bag_equals_the_live_metrics(tmp_path):
     doc = json.loads((out / 'summary.json').read_text())
     cfg = load_param_file(PAPER)
     live = RunMetrics.for_run(cfg, coupler_force_limit=4000.0)
-    inputs = BrakeInputs(topics.PIPE_HEAD, [], valve_from_param_file(PAPER, cfg), 'valve')
+    inputs = InputSchedule(topics.PIPE_HEAD, [], valve_from_param_file(PAPER, cfg), 'valve')
     run_simulation(cfg, 12.0, inputs, on_sample=live.sample)
     expected = live.result()
     for k in ('max_tension_every_step', 'max_compression_every_step'):

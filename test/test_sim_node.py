@@ -1,5 +1,5 @@
 """
-sim_node with real rclpy, in-process, DDS on loopback (issue 3).
+sim_node with real rclpy, in-process, DDS on loopback.
 
 Parameters (contract names, defaults, descriptors, rejection of invalid values), the node's
 output against the physics core run offline on the same inputs, brake_valve -> sim_node over
@@ -20,7 +20,7 @@ CONTRACT_ONLY_NAMED = ('scale_factor', 'adhesion_coefficient', 'integration_step
 
 def _invalid_values(spec):
     """Values of every wrong kind for one parameter spec."""
-    from train_dynamics.physics.parameters import BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, STRING
+    from train_dynamics.physics.config import BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER, STRING
 
     nan, inf = float('nan'), float('inf')
     k = spec.kind
@@ -57,7 +57,7 @@ def _invalid_values(spec):
 def test_parameters_declared_with_contract_defaults_and_descriptors(harness, contract_defaults):
     from rcl_interfaces.msg import ParameterType
 
-    from train_dynamics.physics.parameters import DOUBLE, DOUBLE_ARRAY, INTEGER, PARAMETERS
+    from train_dynamics.physics.config import DOUBLE, DOUBLE_ARRAY, INTEGER, PARAMETERS
 
     node = harness.start()
     assert node.get_name() == 'train_dynamics'
@@ -93,7 +93,7 @@ def test_parameters_declared_with_contract_defaults_and_descriptors(harness, con
 def test_every_kind_of_invalid_parameter_is_rejected_and_changes_nothing(harness):
     from rclpy.parameter import Parameter
 
-    from train_dynamics.physics.parameters import PARAMETERS
+    from train_dynamics.physics.config import PARAMETERS
 
     node = harness.start(real_time_factor=5.0)
     assert harness.wait(lambda: node.sim_time > 0.2, 10.0)
@@ -183,7 +183,7 @@ def test_cylinder_inputs_over_topics_match_the_core_run_offline(harness, tmp_pat
     from sensor_msgs.msg import JointState
 
     from train_dynamics.recording.bags import read_topics
-    from train_dynamics.physics.parameters import SimConfig
+    from train_dynamics.physics.config import SimConfig
 
     bag = tmp_path / 'run'
     params = {'brake_input': 'cylinder_per_coach', 'real_time_factor': 2.0, 'duration': 4.0,
@@ -279,8 +279,8 @@ def test_live_model_switches_take_effect_with_continuous_state(harness):
     """
     from sensor_msgs.msg import JointState
 
+    from train_dynamics.physics.config import PARAMETERS
     from train_dynamics.physics.kernel import couplers as C
-    from train_dynamics.physics.parameters import PARAMETERS
 
     node = harness.start(brake_input='cylinder_per_coach', real_time_factor=2.0, duration=4.0)
     couplers = harness.collect(JointState, 'couplers')
@@ -357,7 +357,7 @@ def test_clock_monotonic_and_reset_restarts_with_pending_changes(harness):
     assert harness.wait(lambda: diag_values(diags, 'train_dynamics: simulation') is not None
                         and 'num_coaches: 3 -> 4' in diag_values(
                             diags, 'train_dynamics: simulation')['pending_changes'], 5.0)
-    # The standstill counters (issue 14) in both stepping modes; not error control's.
+    # The standstill counters in both stepping modes; not error control's.
     simulation = diag_values(diags, 'train_dynamics: simulation')
     assert simulation['hold_capped'] == '0' and int(simulation['hold_solves']) >= 0
     assert 'fallback_periods' not in simulation
@@ -420,6 +420,24 @@ def test_set_callback_validates_only_and_the_post_set_callback_applies(harness):
     node.remove_on_set_parameters_callback(veto)
     assert node.set_parameters_atomically(live).successful
     assert (node.simulator.model_type, node.simulator.u) == ('sign', 50.0)
+
+
+def test_a_deleted_consist_file_leaves_the_running_node_alone(harness, tmp_path):
+    """Sets, pending changes and diagnostics use the consist read at start: no file access."""
+    from rclpy.parameter import Parameter
+
+    path = tmp_path / 'train.yaml'
+    path.write_text('vehicles: [{type: paper_coach, count: 4}]\n')
+    node = harness.start(consist_file=str(path), real_time_factor=2.0)
+    assert harness.wait(lambda: node.sim_time > 0.1, 10.0)
+    path.unlink()
+    for p in (Parameter('scale_factor', value=50.0), Parameter('initial_speed', value=10.0)):
+        assert node.set_parameters([p])[0].successful
+    assert node.pending_changes() == 'initial_speed: 44.444 -> 10'
+    t = node.sim_time
+    assert harness.wait(lambda: node.sim_time > t + 1.5, 10.0)      # diagnostics ticked
+    assert node.simulator.n == 4 and node.fault is None
+    assert not node.set_parameters([Parameter('davis_a', value=10.0)])[0].successful
 
 
 def test_duration_changes_after_the_end_resume_the_run(harness):

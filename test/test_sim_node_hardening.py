@@ -1,5 +1,5 @@
 """
-sim_node hardening (issue 6), real rclpy and real bags.
+sim_node hardening (faults, stale inputs, recording), real rclpy and real bags.
 
 Bad and flooding inputs, stale inputs, numerical faults, SIGINT/SIGTERM/SIGKILL during a
 recorded run, a long free run, rapid live model switching.

@@ -1,5 +1,5 @@
 """
-sim_node's run metrics in /diagnostics (issue 13): the running maxima and the limit WARN.
+sim_node's run metrics in /diagnostics: the running maxima and the limit WARN.
 
 The node feeds :class:`train_dynamics.physics.metrics.RunMetrics` with every published sample,
 as the offline command does, so its maxima equal the ones of the samples it recorded.

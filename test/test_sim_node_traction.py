@@ -1,4 +1,4 @@
-"""sim_node's traction input and vehicle_forces output (issue 11), real rclpy."""
+"""sim_node's traction input and vehicle_forces output, real rclpy."""
 from __future__ import annotations
 
 from pathlib import Path

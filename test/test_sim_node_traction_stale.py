@@ -1,5 +1,5 @@
 """
-Stale traction commands in ``/diagnostics`` (issue 11 with issue 6's staleness), real rclpy.
+Stale traction commands in ``/diagnostics`` (the brake inputs' staleness rule), real rclpy.
 
 A locomotive whose ``coach_<i>/traction/command`` goes silent for ``input_timeout`` is
 reported like a silent brake input: ``stale``, ``stale_inputs``, ``input_age_s``, and with

@@ -1,13 +1,13 @@
-"""Standstill (issue 14): brakes holding the vehicles at rest, a complementarity problem."""
+"""Standstill: brakes holding the vehicles at rest, a complementarity problem."""
 import itertools
 
 import numpy as np
 import pytest
 
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel import standstill
 from train_dynamics.physics.kernel.layout import WORK
 from train_dynamics.physics.kernel.step import make_workspace
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 
 G = 9.81

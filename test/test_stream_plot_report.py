@@ -1,5 +1,5 @@
 """
-Issue 15: ``plot`` and ``report`` read a bag block-wise; memory independent of its length.
+``plot`` and ``report`` read a bag block-wise; memory independent of its length.
 
 Peak memory is measured in a child process (``ru_maxrss``) for a bag and one 10x longer, with
 the figures' sample limit lowered so that both bags are past it (with the default 20000 the
@@ -19,9 +19,9 @@ import pytest
 
 from train_dynamics.cli import offline
 from train_dynamics.cli.report import report_metrics
-from train_dynamics.physics.parameters import load_param_file
+from train_dynamics.physics.config import load_param_file
 from train_dynamics.recording import history as history_mod
-from train_dynamics.recording import report as report_mod
+from train_dynamics.recording import metrics_report as report_mod
 from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.history import Envelope, load_history, stream_history
 from train_dynamics.recording.messages import joint_state
@@ -32,8 +32,8 @@ CFG = REPO / 'config' / 'paper_3coach.yaml'
 #: run ``train-dynamics`` with a lower figure limit and metrics block, print the peak RSS
 PEAK = r"""
 import resource, subprocess, sys
-code = ('import sys; from train_dynamics.recording import history, report; '
-        'history.MAX_PLOT_SAMPLES = 1000; report.FEED_ROWS = 1000; '
+code = ('import sys; from train_dynamics.recording import history, metrics_report; '
+        'history.MAX_PLOT_SAMPLES = 1000; metrics_report.FEED_ROWS = 1000; '
         'from train_dynamics.cli.offline import main; sys.exit(main(sys.argv[1:]))')
 subprocess.run([sys.executable, '-c', code, *sys.argv[1:]], check=True,
                stdout=subprocess.DEVNULL)

@@ -3,8 +3,8 @@ import numpy as np
 from physics_helpers import paper_sim
 import pytest
 
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel.layout import STATE
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 
 G = 9.81

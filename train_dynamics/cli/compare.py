@@ -3,8 +3,8 @@
 
 The same scenario (parameter file, brake input as for ``simulate``) with the sign model at several
 integration steps and the tanh model at several scale factors u, sampled on the runner's output
-grid (:func:`train_dynamics.physics.runner.iter_output_steps`) at ``--sample-rate``, at most once
-per integration step, and summarised as they run
+grid (:func:`train_dynamics.simulation.runner.iter_output_steps`) at ``--sample-rate``, at most
+once per integration step, and summarised as they run
 (:class:`train_dynamics.recording.summary.RunSummary`: memory independent of the duration; curves
 min/max-decimated beyond 20000 samples per run; the zoom at full rate; a sign run whose own densest
 window is not the chosen one is run again up to its end). Writes one figure per quantity and a zoom
@@ -23,10 +23,10 @@ from train_dynamics.cli.errors import CliError, EXIT_OK, warn
 from train_dynamics.cli.output import output_dir, remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
-from train_dynamics.physics.parameters import ConfigError, PARAMETERS, SimConfig
-from train_dynamics.physics.runner import BrakeInputs, iter_output_steps, run_simulation
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig
 from train_dynamics.recording.plots import plot_comparison
 from train_dynamics.recording.summary import densest, RunSummary, Window, zoom_window
+from train_dynamics.simulation.runner import InputSchedule, iter_output_steps, run_simulation
 
 #: width of a run's label in the table and the progress bar
 LABEL_WIDTH = 34
@@ -76,7 +76,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise
 
 
-def _compare(args: argparse.Namespace, base: SimConfig, inputs: BrakeInputs,
+def _compare(args: argparse.Namespace, base: SimConfig, inputs: InputSchedule,
              variants: list[tuple[str, SimConfig]], duration: float, steps: list[float]) -> int:
     """Run every variant streaming (:class:`RunSummary`), then draw and print."""
     h0 = float(base.integration_step)
@@ -163,7 +163,7 @@ def _grid_rate(base: SimConfig, h: float) -> float:
     return rate if abs(1.0 / (rate * h) - k) <= 1e-9 * k else 1.0 / (k * h)
 
 
-def _run(label: str, cfg: SimConfig, duration: float, inputs: BrakeInputs,
+def _run(label: str, cfg: SimConfig, duration: float, inputs: InputSchedule,
          args: argparse.Namespace, *, track: bool = False,
          capture: Window | None = None) -> tuple[RunSummary, float]:
     """Run one variant, summarised as it goes; return its summary and wall time [s]."""

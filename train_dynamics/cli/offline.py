@@ -12,7 +12,7 @@
 This module is the entry point (``main``; also ``python -m train_dynamics.cli.offline``): the
 parser, the exit statuses and the signals. The commands are :mod:`.simulate` (runs
 :class:`train_dynamics.physics.train.TrainSimulator`, the class ``sim_node`` runs, as fast as
-the machine allows, through :func:`train_dynamics.physics.runner.run_simulation`),
+the machine allows, through :func:`train_dynamics.simulation.runner.run_simulation`),
 :mod:`.plot`, :mod:`.compare`, :mod:`.report` (run metrics of a bag) and :mod:`.sweep`
 (parameter studies on Dask); the parameter file and brake inputs of a run are read by
 :mod:`.scenario`. Brake input:
@@ -38,13 +38,13 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Sequence
+import importlib
 import os
 import signal
 import sys
 import threading
 
 from train_dynamics import __version__
-from train_dynamics.cli import compare, plot, report, simulate, sweep
 from train_dynamics.cli.errors import (CliError, error, EXIT_ERROR, EXIT_INTERRUPT,
                                        EXIT_TERMINATED, EXIT_USAGE, PROG, Terminated)
 
@@ -57,23 +57,42 @@ class _Parser(argparse.ArgumentParser):
         raise CliError(message)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Return the parser of ``train-dynamics`` and its commands."""
+#: the commands, in the order of ``--help``: each one a module of this package with
+#: ``add_parser(sub)`` (its options, its ``func``), imported only when the command is chosen
+COMMANDS = ('simulate', 'plot', 'compare', 'report', 'sweep')
+
+
+def build_parser(command: str | None = None) -> argparse.ArgumentParser:
+    """
+    Return the parser of ``train-dynamics`` and its commands.
+
+    With ``command`` (one of :data:`COMMANDS`) only that command's module is imported and
+    only its options are known: a run does not pay for the imports of the other commands
+    (matplotlib, dask, pandas, bag reading). Without it, all of them (``--help``).
+    """
     p = _Parser(prog=PROG, description='Longitudinal train dynamics, offline: simulate, plot '
                 'and compare coupler models (the sim_node model, as fast as possible).')
     p.add_argument('--version', action='version', version=f'%(prog)s {__version__}')
     sub = p.add_subparsers(dest='command', required=True, metavar='COMMAND', parser_class=_Parser)
-    simulate.add_parser(sub)
-    plot.add_parser(sub)
-    compare.add_parser(sub)
-    report.add_parser(sub)
-    sweep.add_parser(sub)
+    for name in COMMANDS:
+        if command is None or name == command:
+            importlib.import_module(f'{__package__}.{name}').add_parser(sub)
+        else:
+            sub.add_parser(name)        # a name only: this run is another command
     return p
+
+
+def command_of(argv: Sequence[str]) -> str | None:
+    """Return the command ``argv`` names (its first word that is not an option), or None."""
+    word = next((a for a in argv if not a.startswith('-')), None)
+    return word if word in COMMANDS else None
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command line; return the exit status."""
-    parser = build_parser()
+    if argv is None:
+        argv = sys.argv[1:]
+    parser = build_parser(command_of(argv))
     previous = _install_sigterm()
     try:
         args = parser.parse_args(argv)

@@ -27,9 +27,9 @@ import subprocess
 import sys
 import time
 
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel import compiler
 from train_dynamics.physics.metrics import RunMetrics
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 
 #: variant group -> the configurations (parameter overrides) whose runs compile it
@@ -52,7 +52,7 @@ def warm(groups) -> None:
 
 
 def warm_metrics() -> None:
-    """Feed the run metrics of the default train as the node does (``ros/outputs.py``)."""
+    """Feed the run metrics of the default train as the node does (``ros/publishers.py``)."""
     cfg = SimConfig.from_dict({})
     sim = TrainSimulator(cfg)
     metrics = RunMetrics.for_run(cfg, sim)

@@ -4,9 +4,9 @@
 Reads ``couplers`` and ``coaches`` from a bag written by ``train-dynamics simulate``, by the
 node's ``record_bag`` or by ``ros2 bag record`` (the same topics) block by block, feeds them
 into :class:`train_dynamics.physics.metrics.RunMetrics` (the code the sweep and the node run)
-as they are read (:class:`train_dynamics.recording.report.MetricsFeed`; memory does not depend
-on the bag's length, the figures' curves are bounded) and writes
-:func:`train_dynamics.recording.report.write_report`'s files. The run's parameters
+as they are read (:class:`train_dynamics.recording.metrics_report.MetricsFeed`; memory does not
+depend on the bag's length, the figures' curves are bounded) and writes
+:func:`train_dynamics.recording.metrics_report.write_report`'s files. The run's parameters
 (limits, strokes and slacks, coupler stiffness for the dissipated energy) come from
 ``--params``, else from the bag's ``custom_data`` ``parameters`` (recorded by the node), else
 the limits are off and the dissipated energy is not given.
@@ -21,11 +21,11 @@ from typing import Any
 
 from train_dynamics.cli.errors import CliError, EXIT_ERROR, EXIT_OK
 from train_dynamics.cli.scenario import load_config
+from train_dynamics.physics.config import ConfigError, SimConfig
 from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
-from train_dynamics.physics.parameters import ConfigError, SimConfig
 from train_dynamics.recording.bags import bag_info, BagError
 from train_dynamics.recording.history import History, stream_history
-from train_dynamics.recording.report import MetricsFeed, write_report
+from train_dynamics.recording.metrics_report import MetricsFeed, write_report
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:

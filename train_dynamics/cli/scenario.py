@@ -20,10 +20,10 @@ from typing import Any
 from train_dynamics import topics
 from train_dynamics.cli.errors import CliError, warn
 from train_dynamics.physics.brake_valve import BrakeValveModel, VALVE_PARAMETERS
-from train_dynamics.physics.parameters import (ConfigError, load_param_file, node_sections,
-                                               read_param_sections, SimConfig)
-from train_dynamics.physics.runner import BrakeInputs, traction_schedule
+from train_dynamics.physics.config import (ConfigError, load_param_file, node_sections,
+                                           read_param_sections, SimConfig)
 from train_dynamics.recording.inputs import InputBagError, read_input_bag, read_traction_bag
+from train_dynamics.simulation.runner import InputSchedule, traction_schedule
 
 #: the brake valve without a ``schedule`` or ``position`` in the parameter file
 DEFAULT_VALVE_SCHEDULE = ['0.0:release', '1.0:emergency']
@@ -46,7 +46,7 @@ def check_duration(duration: float) -> float:
     return duration
 
 
-def brake_inputs(args: argparse.Namespace, cfg: SimConfig) -> BrakeInputs:
+def brake_inputs(args: argparse.Namespace, cfg: SimConfig) -> InputSchedule:
     """
     Return the inputs of the run: the ``--input`` bag or the brake-valve schedule.
 
@@ -64,7 +64,7 @@ def brake_inputs(args: argparse.Namespace, cfg: SimConfig) -> BrakeInputs:
     return inputs
 
 
-def _brake_only(args: argparse.Namespace, cfg: SimConfig) -> BrakeInputs:
+def _brake_only(args: argparse.Namespace, cfg: SimConfig) -> InputSchedule:
     """Return the brake input of the run: the ``--input`` bag or the brake-valve schedule."""
     if args.input:
         try:
@@ -75,8 +75,8 @@ def _brake_only(args: argparse.Namespace, cfg: SimConfig) -> BrakeInputs:
         raise CliError(f'brake_input {cfg.brake_input} needs --input BAG with its pressures '
                        f'(without an input bag only {topics.PIPE_HEAD}, driven by the '
                        'brake_valve section, is possible)')
-    return BrakeInputs(topics.PIPE_HEAD, [], valve_from_param_file(args.params, cfg),
-                       'brake_valve schedule')
+    return InputSchedule(topics.PIPE_HEAD, [], valve_from_param_file(args.params, cfg),
+                         'brake_valve schedule')
 
 
 def valve_from_param_file(path: str, cfg: Any) -> BrakeValveModel:

@@ -9,7 +9,7 @@ re-stamped with their simulation time); :class:`train_dynamics.recording.sinks.B
 writes them. Its ``metadata.yaml`` ``custom_data`` records the model, step and input. Same
 inputs -> byte-identical bag. Nothing is left under the output path unless the command wrote
 a complete bag (it writes a hidden sibling directory and renames it at the end). The bag's size
-is estimated before the run (:func:`train_dynamics.physics.parameters.output_disk`): more
+is estimated before the run (:func:`train_dynamics.physics.config.output_disk`): more
 than the free space is refused, more than :data:`LARGE_BAG` needs ``--allow-large``. Memory
 does not grow with the duration (the samples stream to the bag).
 """
@@ -24,11 +24,11 @@ from train_dynamics.cli.errors import CliError, error, EXIT_FAULT, EXIT_OK, PROG
 from train_dynamics.cli.output import remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
-from train_dynamics.physics.parameters import fmt_bytes, output_disk, SimConfig
-from train_dynamics.physics.runner import BrakeInputs, run_simulation
+from train_dynamics.physics.config import fmt_bytes, output_disk, SimConfig
 from train_dynamics.recording.bags import BagError, BagRecorder
 from train_dynamics.recording.outputs import run_metadata
 from train_dynamics.recording.sinks import BagSink
+from train_dynamics.simulation.runner import InputSchedule, run_simulation
 
 #: [bytes] a bag estimated larger than this needs ``--allow-large`` (10 GB: ~2.5 h of the
 #: paper's 3 coaches, ~20 min of 100 coaches at 100 Hz)
@@ -71,8 +71,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     _check_disk(cfg, duration, inputs, parent, args.allow_large)
     created, rec = _open_recorder(out, parent)
     try:
-        for key, value in _model_info(cfg, inputs, duration).items():
-            rec.set_custom_data(key, value)
+        rec.update_custom_data(_model_info(cfg, inputs, duration))
         sink = BagSink(rec, cfg)
         if inputs.valve is not None:
             rec.add_topic(topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE)
@@ -96,7 +95,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     return EXIT_OK
 
 
-def _check_disk(cfg: SimConfig, duration: float, inputs: BrakeInputs, parent: Path,
+def _check_disk(cfg: SimConfig, duration: float, inputs: InputSchedule, parent: Path,
                 allow_large: bool) -> None:
     """Refuse a run whose bag would not fit, or exceed :data:`LARGE_BAG` unconfirmed."""
     need = output_disk(cfg, duration) + sum(len(e.msg.header.frame_id) + 80
@@ -131,7 +130,7 @@ def _open_recorder(out: Path, parent: Path) -> tuple[list[Path], BagRecorder]:
         raise CliError(str(exc)) from None
 
 
-def _model_info(cfg: SimConfig, inputs: BrakeInputs, duration: float) -> dict[str, str]:
+def _model_info(cfg: SimConfig, inputs: InputSchedule, duration: float) -> dict[str, str]:
     """Return the bag's ``custom_data``: the run's metadata and the valve schedule used."""
     info = run_metadata(cfg, f'{PROG} simulate', input=inputs.source,
                         duration=repr(float(duration)))

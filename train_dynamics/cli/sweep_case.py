@@ -18,12 +18,12 @@ from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.cli import simulate
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.metrics import FLAT_KEYS, RunMetrics
-from train_dynamics.physics.parameters import SimConfig
-from train_dynamics.physics.runner import BrakeInputs, run_simulation
 from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.outputs import parameters_json
 from train_dynamics.recording.sinks import BagSink
+from train_dynamics.simulation.runner import InputSchedule, run_simulation
 
 
 def failed_row(index: int, error: str) -> dict[str, Any]:
@@ -46,7 +46,7 @@ class _Metrics:
         self.metrics.sample(s)
 
 
-def run_case(index: int, params: dict[str, Any], duration: float, inputs: BrakeInputs,
+def run_case(index: int, params: dict[str, Any], duration: float, inputs: InputSchedule,
              bag: str | None = None) -> dict[str, Any]:
     """Run one case; return {'case', metrics of FLAT_KEYS, 'fault_time', 'error', 'wall_s'}."""
     t0 = time.perf_counter()
@@ -71,7 +71,7 @@ def run_case(index: int, params: dict[str, Any], duration: float, inputs: BrakeI
     return row
 
 
-def _run_with_bag(cfg: SimConfig, duration: float, inputs: BrakeInputs, sink: _Metrics,
+def _run_with_bag(cfg: SimConfig, duration: float, inputs: InputSchedule, sink: _Metrics,
                   out: Path):
     """Run as ``simulate`` does, writing its bag to ``out`` (replaced if a try left one)."""
     if out.exists():

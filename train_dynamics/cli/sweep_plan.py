@@ -16,7 +16,7 @@ A sweep file (YAML)::
         brake_propagation_speed: [150.0, 300.0]
         scale_factor: {min: 100.0, max: 10000.0, log: true}
 
-Any simulator parameter (:data:`train_dynamics.physics.parameters.PARAMETERS`) may be swept;
+Any simulator parameter (:data:`train_dynamics.physics.config.PARAMETERS`) may be swept;
 the rest come from the base parameter file. With both ``grid`` and ``lhs`` every grid point
 is combined with every sample (cases = grid points x samples), the grid varying slowest.
 The hypercube is :class:`scipy.stats.qmc.LatinHypercube` with the given ``seed``: the same
@@ -26,8 +26,8 @@ file gives the same cases. Integer parameters take ``lo + floor(u (hi - lo + 1))
 Every mistake in the file (unknown key or parameter, a value out of its range, a bad range,
 a missing input bag) raises :class:`train_dynamics.cli.errors.CliError` (exit 2) before
 any case runs. A case whose combination of values fails the cross-parameter checks
-(:meth:`SimConfig.check`, e.g. ``buffer_friction`` >= ``buffer_stiffness``) is kept as a
-case with that error, not run.
+(:meth:`~train_dynamics.physics.config.SimConfig.check`, e.g. ``buffer_friction`` >=
+``buffer_stiffness``) is kept as a case with that error, not run.
 """
 from __future__ import annotations
 
@@ -46,9 +46,9 @@ from scipy.stats import qmc
 
 from train_dynamics.cli.errors import CliError
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
-from train_dynamics.physics.parameters import (ConfigError, DOUBLE, INTEGER, PARAMETERS,
-                                               read_param_file, SimConfig, validate_value)
-from train_dynamics.physics.runner import BrakeInputs
+from train_dynamics.physics.config import (ConfigError, DOUBLE, INTEGER, PARAMETERS,
+                                           read_param_file, validate_value)
+from train_dynamics.simulation.runner import InputSchedule
 from train_dynamics.topics import VALVE_NODE_NAME
 import yaml
 
@@ -66,7 +66,7 @@ class Case:
     index: int
     swept: dict[str, Any]
     params: dict[str, Any] = field(default_factory=dict)
-    inputs: BrakeInputs | None = None
+    inputs: InputSchedule | None = None
     error: str = ''
 
 
@@ -118,7 +118,7 @@ def read_sweep_file(path: str) -> dict[str, Any]:
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
         raise CliError(f'cannot read sweep file {path}: {exc}'.splitlines()[0]) from None
     if not isinstance(doc, dict):
-        raise _fail(path, 'not a mapping (see the README for the format)')
+        raise _fail(path, 'not a mapping (see docs/offline.md, "sweep", for the format)')
     unknown = [k for k in doc if k not in _TOP_KEYS]
     if unknown:
         raise _fail(path, f'unknown key {unknown[0]!r} (allowed: {", ".join(_TOP_KEYS)})')
@@ -229,12 +229,12 @@ def make_plan(base_path: str, sweep_path: str) -> Plan:
     for index, (g, s) in enumerate(itertools.product(gpoints, lpoints)):
         case = Case(index, dict(zip(swept, g + s)))
         try:
-            cfg = SimConfig.from_dict({**base.values, **case.swept})
+            cfg = base.replace(**case.swept)      # the base's consist kept unless swept
         except ConfigError as exc:
             case.error = f'invalid parameters: {exc}'
         else:
             case.params = cfg.values
-            key = tuple(cfg.values[k] for k in (
+            key = tuple(case.params[k] for k in (
                 'brake_input', 'integration_step', 'atmospheric_pressure',
                 'pipe_nominal_pressure', 'full_service_pressure')) + (cfg.n_coaches,)
             if key not in inputs_cache:

@@ -35,7 +35,7 @@ from train_dynamics.cli.errors import CliError, EXIT_OK
 from train_dynamics.cli.sweep_case import failed_row, run_case
 from train_dynamics.cli.sweep_plan import make_plan, Plan
 from train_dynamics.physics.metrics import FLAT_KEYS
-from train_dynamics.recording.report import sweep_figures
+from train_dynamics.recording.metrics_report import sweep_figures
 
 RESULTS = 'results.parquet'
 #: the metrics drawn against each swept parameter

@@ -34,10 +34,11 @@ from dataclasses import dataclass
 import math
 from typing import Any, Iterable, Mapping
 
-from train_dynamics.physics.parameters import (
-    ATMOSPHERIC_PRESSURE, DOUBLE, FULL_SERVICE_PRESSURE, INTEGER, ParamSpec,
-    PIPE_NOMINAL_PRESSURE, read_param_file, ROS_BUILTIN_PARAMETERS, SIM_NODE_PARAMETERS, STRING,
-    STRING_ARRAY, validate_value)
+from train_dynamics.physics.config import (ATMOSPHERIC_PRESSURE, DOUBLE, FULL_SERVICE_PRESSURE,
+                                           INTEGER, ParamSpec, PIPE_NOMINAL_PRESSURE,
+                                           read_param_file, ROS_BUILTIN_PARAMETERS,
+                                           SIM_NODE_PARAMETERS, STRING, STRING_ARRAY,
+                                           validate_value)
 
 #: [s] latest schedule time: the longest run (``sim_node``'s ``duration`` bound, ~32 years)
 MAX_SCHEDULE_TIME = SIM_NODE_PARAMETERS['duration'].high

@@ -4,7 +4,7 @@ Run metrics: what an engineer asks of a run, computed from its output samples.
 One accumulator, :class:`RunMetrics`, is fed with the output samples of a run (per coupler
 t, y, ydot, F; per vehicle x, v, Fb: the contract's ``couplers`` and ``coaches`` topics) and
 keeps running values, so the very same code serves the offline runner (:meth:`RunMetrics.
-sample` as a :func:`train_dynamics.physics.runner.run_simulation` sink), the node (one
+sample` as a :func:`train_dynamics.simulation.runner.run_simulation` sink), the node (one
 :meth:`RunMetrics.add` per published sample) and ``train-dynamics report`` (a recorded
 history, :meth:`RunMetrics.add_block`). Samples are processed in blocks (vectorised over
 samples and couplers); the result depends only on the samples, not on the block size.
@@ -229,7 +229,7 @@ class RunMetrics:
 
     # -- feeding -----------------------------------------------------------------------------
     def sample(self, s: Any) -> None:
-        """Take a :class:`train_dynamics.physics.runner.Sample` (a ``run_simulation`` sink)."""
+        """Take a :class:`train_dynamics.simulation.runner.Sample` (a ``run_simulation`` sink)."""
         sim, b, k = s.sim, self._buf, self._k
         b['t'][k] = s.t
         b['x'][k], b['v'][k] = sim.x, sim.v
@@ -300,7 +300,7 @@ class RunMetrics:
                       'pc': ydot[-1] * f[-1], 'pb': fb[-1] * v[-1]}
 
     def _couplers(self, t, y, ydot) -> None:
-        """Blocking and free-play impacts (strokes and slacks)."""
+        """Blocking and free-play impacts (the couplings' strokes and slacks)."""
         prev = self._flags
         over = np.maximum(y - self.block_t, -y - self.block_c)
         blocked = over > 0.0

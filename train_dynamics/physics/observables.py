@@ -6,8 +6,9 @@ forces, brake pressures, the vehicles' external forces) and :class:`TrainBalance
 of the balances the tests check (eq. 8: momentum and impulse; kinetic + potential energy lost =
 brake + resistance work + coupler dissipation - traction work). Both are mixins of
 :class:`train_dynamics.physics.train.TrainSimulator`: they read its packed arrays (``coach``,
-``cpl``, ``sc``, ``ws``; :mod:`train_dynamics.physics.layout`) after ``_sync()`` brings the
-error-controlled chain to the present tick, and copy what they return. They change nothing.
+``cpl``, ``sc``, ``iv``, ``ws``; :mod:`train_dynamics.physics.kernel.layout`) after
+``_sync()`` brings the error-controlled chain to the present tick, and copy what they return.
+They change nothing.
 """
 from __future__ import annotations
 

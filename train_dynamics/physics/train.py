@@ -19,14 +19,17 @@ from __future__ import annotations
 
 import numpy as np
 
-from train_dynamics.physics import consist, parameters, pneumatic
+from train_dynamics.physics import pneumatic
+from train_dynamics.physics.config import (ConfigError, Consist, G_FILL_TIME, G_RELEASE_TIME,
+                                           P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
+                                           P_RELEASE_TIME, SimConfig)
+from train_dynamics.physics.config.consist import check_friction_below_stiffness
 from train_dynamics.physics.kernel import adaptive, brakes, couplers, fixed_step
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, COUNT, COUPLER,
                                                   INPUT, INTEGER, OPTION, PARAM, SCALAR,
                                                   SCALAR_INPUT, STATE, VEHICLE, WORK)
 from train_dynamics.physics.kernel.step import make_workspace, OK, STATUS_TEXT
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
-from train_dynamics.physics.parameters import SimConfig
 from train_dynamics.physics.resistance import equivalent_mass
 
 
@@ -68,14 +71,14 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         coaches i and i+1); the scalar parameters of ``cfg`` fill the rest.
         """
         self.cfg = cfg
-        self.consist = train = cfg.consist
-        self.n = n = train.n
+        self.consist = consist = cfg.consist
+        self.n = n = consist.n
         self.h = float(cfg.integration_step)
-        self.masses = np.array(train['mass'], dtype=float)
+        self.masses = np.array(consist['mass'], dtype=float)
         #: mass for inertia [kg], m (1 + rotating_mass_factor)
-        self.inertia = equivalent_mass(self.masses, train['rotating_mass_factor'])
-        self._build_couplers(train, coupler_constants)
-        self._build_brakes(cfg, train)
+        self.inertia = equivalent_mass(self.masses, consist['rotating_mass_factor'])
+        self._build_couplers(consist, coupler_constants)
+        self._build_brakes(cfg, consist)
         #: the line: gradient and curve profiles (track.py) as kernel arrays
         self.track = cfg.track
         self.gprof = np.array([self.track.gx, self.track.gv, self.track.gc], dtype=float)
@@ -97,15 +100,15 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self.reset()
         self.set_model(self.model_type, self.u)
 
-    def _build_couplers(self, train: consist.Consist, coupler_constants: dict | None) -> None:
+    def _build_couplers(self, consist: Consist, coupler_constants: dict | None) -> None:
         """Fill ``cpl``: each connection's constants (eqs. 2-3, free play, strokes, K_b)."""
         n = self.n
         self.cpl = np.empty((len(COUPLER), n - 1))
         for name, row in self._TRAVEL_ROWS.items():
-            self.cpl[row] = train.coupler(name)
+            self.cpl[row] = consist.coupler(name)
         extra = dict(coupler_constants or {})
         for name, row in self._COUPLER_ROWS.items():
-            value = extra.pop(name, train.coupler(name))
+            value = extra.pop(name, consist.coupler(name))
             arr = np.broadcast_to(np.asarray(value, dtype=float), (n - 1,))
             if not np.all(np.isfinite(arr)) or np.any(arr < 0.0):
                 raise ValueError(f'{name}: need {n - 1} finite values >= 0')
@@ -113,24 +116,24 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         if extra:
             raise ValueError(f'unknown coupler constants: {", ".join(sorted(extra))}')
         cpl = self.cpl
-        if (np.any(cpl[COUPLER.KF] >= cpl[COUPLER.KE])
-                or np.any(cpl[COUPLER.KFC] >= cpl[COUPLER.KEC])):
-            raise ValueError('every coupler needs k_f < k_e and k_fc < k_ec')
+        if coupler_constants:     # the consist's connections hold it (its vehicles' do)
+            check_friction_below_stiffness({n: cpl[row] for n, row in self._COUPLER_ROWS.items()},
+                                           'coupler_constants: ')
         self.ke, self.kf, self.kec, self.kfc = (cpl[COUPLER.KE], cpl[COUPLER.KF],
                                                 cpl[COUPLER.KEC], cpl[COUPLER.KFC])
 
-    def _build_brakes(self, cfg: SimConfig, train: consist.Consist) -> None:
+    def _build_brakes(self, cfg: SimConfig, consist: Consist) -> None:
         """Set up the brake system (eq. 13): mode, cylinder tables, pipe delays, pneumatics."""
         n = self.n
         self.mode = brakes.MODE_CODES[cfg.brake_input]
-        self.fill, self.rel = _cylinder_tables(cfg, train)
+        self.fill, self.rel = _cylinder_tables(cfg, consist)
         if cfg.consist_file:     # the pipe runs along the vehicles' lengths
-            ahead = np.concatenate(([0.0], np.cumsum(train['length'][:-1])))
+            ahead = np.concatenate(([0.0], np.cumsum(consist['length'][:-1])))
             self.delays = ahead / float(cfg.brake_propagation_speed)
         else:
             self.delays = brakes.pipe_delays(n, cfg.coach_length, cfg.brake_propagation_speed)
         #: p_max of each vehicle over the train's (eq. 13 works with p / p_max)
-        self.pmax_ratio = train['max_cylinder_pressure'] / float(cfg.max_cylinder_pressure)
+        self.pmax_ratio = consist['max_cylinder_pressure'] / float(cfg.max_cylinder_pressure)
         # brake_model pneumatic: the pneumatic brake hands its cylinder pressures to the
         # chain step by step (the chain then runs as in cylinder_per_coach); the bypass
         # cylinder_per_coach keeps the input cylinders
@@ -138,9 +141,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         if cfg.brake_model == 'pneumatic' and self.mode != brakes.CYLINDER_PER_COACH:
             per_vehicle = {}
             if cfg.consist_file:     # the consist's lengths, cylinder pressures and regimes
-                per_vehicle = {'lengths': np.array(train['length']),
-                               'p_max': np.array(train['max_cylinder_pressure']),
-                               'regimes': list(train.regimes)}
+                per_vehicle = {'lengths': np.array(consist['length']),
+                               'p_max': np.array(consist['max_cylinder_pressure']),
+                               'regimes': list(consist.regimes)}
             self.pneu = pneumatic.from_config(cfg, self.h,
                                               external_pipe=self.mode == brakes.PIPE_PER_COACH,
                                               **per_vehicle)
@@ -151,15 +154,15 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         """Fill the constant groups of the packed arrays: VEHICLE, PARAM, OPTION (layout.py)."""
         cfg = self.cfg
         c = self.coach
-        train = self.consist
+        consist = self.consist
         mu = float(cfg.adhesion_coefficient)
-        own = train['adhesion_coefficient']
+        own = consist['adhesion_coefficient']
         c[VEHICLE.MASS] = self.inertia
         c[VEHICLE.BMASS] = np.where(own == mu, self.masses, self.masses * own / mu)
         c[VEHICLE.WEIGHT] = self.masses * float(cfg.gravity)
         for name, row in self._VEHICLE_ROWS.items():
-            c[row] = train[name]
-        c[VEHICLE.FRONT0] = self.track.fronts(train['length'])
+            c[row] = consist[name]
+        c[VEHICLE.FRONT0] = self.track.fronts(consist['length'])
         c[VEHICLE.DELAY] = self.delays / self.h
         sc, iv = self.sc, self.iv
         sc[[PARAM.H, PARAM.PMAX, PARAM.MU, PARAM.G, PARAM.PNOM, PARAM.PFS, PARAM.SENS,
@@ -361,22 +364,22 @@ def _landing_ticks(rate: float, h: float) -> int:
     return k if k >= 1 and abs(k * h * rate - 1.0) < 1e-9 else 1
 
 
-def _cylinder_tables(cfg: SimConfig, train: consist.Consist) -> tuple[np.ndarray, np.ndarray]:
+def _cylinder_tables(cfg: SimConfig, consist: Consist) -> tuple[np.ndarray, np.ndarray]:
     """
     Return the filling and release tables of the train's brake regime.
 
     The parameters' own tables when set; else the regime of the vehicles (all the same:
     one regime per train for now) or of ``brake_regime``.
     """
-    regimes = set(train.regimes)
+    regimes = set(consist.regimes)
     if len(regimes) > 1 and not cfg.cylinder_fill_time:
-        raise parameters.ConfigError('brake_regime: the vehicles mix regimes '
-                                     f'({", ".join(sorted(regimes))}); one regime per train')
+        raise ConfigError('brake_regime: the vehicles mix regimes '
+                          f'({", ".join(sorted(regimes))}); one regime per train')
     regime = regimes.pop() if regimes else cfg.brake_regime
-    fill_t = parameters.P_FILL_TIME if regime == 'P' else parameters.G_FILL_TIME
-    rel_t = parameters.P_RELEASE_TIME if regime == 'P' else parameters.G_RELEASE_TIME
+    fill_t = P_FILL_TIME if regime == 'P' else G_FILL_TIME
+    rel_t = P_RELEASE_TIME if regime == 'P' else G_RELEASE_TIME
     fill = (list(cfg.cylinder_fill_time), list(cfg.cylinder_fill_fraction)) \
-        if cfg.cylinder_fill_time else (fill_t, parameters.P_FILL_FRACTION)
+        if cfg.cylinder_fill_time else (fill_t, P_FILL_FRACTION)
     rel = (list(cfg.cylinder_release_time), list(cfg.cylinder_release_fraction)) \
-        if cfg.cylinder_release_time else (rel_t, parameters.P_RELEASE_FRACTION)
+        if cfg.cylinder_release_time else (rel_t, P_RELEASE_FRACTION)
     return np.asarray(fill, dtype=float), np.asarray(rel, dtype=float)

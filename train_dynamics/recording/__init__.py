@@ -1,7 +1,7 @@
 """
 Runs on disk and in memory: rosbag2 I/O, output encoding, histories, figures (no rclpy).
 
-Import rule: may import ``train_dynamics.topics`` and ``train_dynamics.physics``, rosbags,
+Import rule: may import ``train_dynamics.topics``, ``physics`` and ``simulation``, rosbags,
 numpy and matplotlib; never rclpy or ROS message packages, nor the ``ros`` or ``cli`` layers.
 
 - :mod:`.bags`: rosbag2 directories written (:class:`~.bags.BagRecorder`) and read with
@@ -12,5 +12,7 @@ numpy and matplotlib; never rclpy or ROS message packages, nor the ``ros`` or ``
   offline command alike);
 - :mod:`.inputs`: brake inputs read from a bag, :mod:`.sinks`: where the offline run loop
   puts its samples;
-- :mod:`.history`: time histories as arrays, :mod:`.plots`: the figures (matplotlib).
+- :mod:`.history`: time histories as arrays, :mod:`.plots`: the figures (matplotlib),
+  :mod:`.summary`: the curves of ``compare``, :mod:`.metrics_report`: the run metrics
+  written as ``summary.json``, ``summary.md`` and figures (``report``), a sweep's figures.
 """

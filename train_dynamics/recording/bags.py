@@ -33,7 +33,7 @@ that do not embed their message definitions. Topic names are returned without a 
 """
 from __future__ import annotations
 
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from io import StringIO
 import os
@@ -42,7 +42,6 @@ import shutil
 import threading
 from typing import Any
 
-from rosbags.highlevel import AnyReader
 from rosbags.rosbag2 import StoragePlugin, Writer
 from ruamel.yaml import YAML
 
@@ -210,11 +209,15 @@ class BagRecorder:
 
     def set_custom_data(self, key: str, value: str) -> None:
         """Store ``key: value`` (strings) in the bag's ``metadata.yaml`` ``custom_data``."""
-        if not isinstance(key, str) or not isinstance(value, str):
+        self.update_custom_data({key: value})
+
+    def update_custom_data(self, items: Mapping[str, str]) -> None:
+        """Store every ``key: value`` of ``items`` (strings), writing ``metadata.yaml`` once."""
+        if not all(isinstance(k, str) and isinstance(v, str) for k, v in items.items()):
             raise TypeError('custom data keys and values must be strings')
         with self._lock:
             self._check_open()
-            self._custom[key] = value
+            self._custom.update(items)
             self._write_metadata()
 
     def flush(self) -> None:
@@ -382,6 +385,8 @@ def _open_reader(path: str | os.PathLike):
             p = files[0]
         else:
             raise BagError(f'not a rosbag2 bag (no metadata.yaml): {p}')
+    from rosbags.highlevel import AnyReader         # here: a writer's start-up skips it
+
     try:
         reader = AnyReader([p], default_typestore=typestore())
         reader.open()

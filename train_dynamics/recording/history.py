@@ -20,7 +20,7 @@ import re
 import numpy as np
 
 from train_dynamics import topics
-from train_dynamics.physics.parameters import PARAMETERS
+from train_dynamics.physics.config import PARAMETERS
 from train_dynamics.recording.bags import bag_info, read_topics
 
 #: samples of a topic kept for the figures before min/max decimation sets in

@@ -6,8 +6,8 @@ Brake inputs read from a rosbag2: the events that drive an offline run.
 [Pa]; a leading '/' and a namespace prefix are accepted) from an MCAP or sqlite3 bag. A
 message takes effect at its bag time relative to the bag's first message, at the first
 integration step starting at or after that time
-(:func:`train_dynamics.physics.runner.step_of`), and holds until the next one. Messages are
-rejected by the node's rule (:func:`train_dynamics.physics.parameters.input_rejection`:
+(:func:`train_dynamics.simulation.runner.step_of`), and holds until the next one. Messages are
+rejected by the node's rule (:func:`train_dynamics.physics.config.input_rejection`:
 non-finite, negative or above 20 bar absolute), with a warning counting them per reason.
 """
 from __future__ import annotations
@@ -18,10 +18,9 @@ from pathlib import Path
 from typing import Any
 
 from train_dynamics import topics
-from train_dynamics.physics.parameters import (input_rejection, INPUT_VALUE_REASONS,
-                                               traction_rejection)
-from train_dynamics.physics.runner import BrakeInputs, InputEvent, step_of, TractionEvent
+from train_dynamics.physics.config import input_rejection, INPUT_VALUE_REASONS, traction_rejection
 from train_dynamics.recording.bags import bag_info, BagError, BagInfo, read_topics
+from train_dynamics.simulation.runner import InputEvent, InputSchedule, step_of, TractionEvent
 
 _log = logging.getLogger(__name__)
 
@@ -31,7 +30,7 @@ class InputBagError(ValueError):
 
 
 def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
-                   warn: Callable[[str], None] = _log.warning) -> BrakeInputs:
+                   warn: Callable[[str], None] = _log.warning) -> InputSchedule:
     """
     Return the input events of ``cfg.brake_input`` in the bag at ``path``.
 
@@ -74,7 +73,7 @@ def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
     if not events:
         raise InputBagError(f'input bag {path}: no usable input message for brake_input {mode}')
     events.sort(key=lambda e: e.t_ns)           # stable: bag order for equal times
-    return BrakeInputs(mode, events, None, f'bag {Path(path).name}')
+    return InputSchedule(mode, events, None, f'bag {Path(path).name}')
 
 
 def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
@@ -84,7 +83,7 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
 
     Only locomotives (vehicles with traction or dynamic brake) take a command; a value that is
     not finite or outside [-1, 1] is rejected by the node's rule
-    (:func:`train_dynamics.physics.parameters.traction_rejection`; counted, reported through
+    (:func:`train_dynamics.physics.config.traction_rejection`; counted, reported through
     ``warn``). Empty when the bag has no traction topic.
     """
     ns = namespace.strip('/')

@@ -1,5 +1,5 @@
 """
-Output sinks of the offline run loop (:func:`train_dynamics.physics.runner.run_simulation`).
+Output sinks of the offline run loop (:func:`train_dynamics.simulation.runner.run_simulation`).
 
 - :class:`BagSink` writes the output topics of each sample, and the brake inputs used, to a
   :class:`train_dynamics.recording.bags.BagRecorder` (``train-dynamics simulate``);
@@ -14,12 +14,12 @@ import numpy as np
 
 from train_dynamics import topics
 from train_dynamics.physics.kernel import couplers
-from train_dynamics.physics.runner import InputEvent, Sample, TractionEvent
 from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.cdr import encode_float64, encode_fluid_pressure
 from train_dynamics.recording.history import History, JointSeries
 from train_dynamics.recording.messages import stamp
 from train_dynamics.recording.outputs import has_reservoirs, OutputEncoder, time_ns
+from train_dynamics.simulation.runner import InputEvent, Sample, TractionEvent
 
 
 class BagSink:

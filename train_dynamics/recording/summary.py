@@ -1,7 +1,7 @@
 """
 A run of ``train-dynamics compare`` summarised as it goes: memory independent of its duration.
 
-:class:`RunSummary` is the output sink (:func:`train_dynamics.physics.runner.run_simulation`)
+:class:`RunSummary` is the output sink (:func:`train_dynamics.simulation.runner.run_simulation`)
 of one compare run. It keeps, in blocks of at most :data:`BLOCK_ROWS` samples or
 :data:`BLOCK_SPAN` s:
 
@@ -30,9 +30,9 @@ import numpy as np
 
 from train_dynamics import topics
 from train_dynamics.physics.kernel import couplers
-from train_dynamics.physics.runner import Sample
 from train_dynamics.recording import history
 from train_dynamics.recording.history import Envelope, History
+from train_dynamics.simulation.runner import Sample
 
 #: samples of a run kept for the figures before min/max decimation sets in (the figures of
 #: a bag use the same, :data:`train_dynamics.recording.history.MAX_PLOT_SAMPLES`)

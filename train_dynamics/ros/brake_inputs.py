@@ -16,7 +16,7 @@ pressure > :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of a
 ``brake_input``), ``unknown_coach`` (``coach_<i>`` with i outside 1..N), ``out_of_range`` (a
 traction command outside [-1, 1], :mod:`train_dynamics.ros.traction_inputs`), ``malformed`` (not
 deserialisable); the first three by the rule the offline replay applies too
-(:func:`train_dynamics.physics.parameters.input_rejection`). Publishers of another message type
+(:func:`train_dynamics.physics.config.input_rejection`). Publishers of another message type
 on an input topic (never received: DDS does not match them) are found by the graph scan and
 reported as ``wrong_type`` in ``/diagnostics``. The head topic and the per-coach topics of the
 active mode are subscribed from the start; topics of the other modes and of coaches that do not
@@ -47,10 +47,10 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure
 
 from train_dynamics import topics
-from train_dynamics.physics.parameters import input_rejection, SimConfig
+from train_dynamics.physics.config import input_rejection, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
-from train_dynamics.ros.outputs import stamp
+from train_dynamics.ros.publishers import stamp
 from train_dynamics.ros.traction_inputs import TractionInputs
 
 HEAD = topics.PIPE_HEAD

@@ -56,13 +56,13 @@ class SimulationReport:
     backlog: int = 0
     backlog_bytes: int = 0
     record_error: str | None = None
-    #: the simulator's integration_stats (error-controlled stepping, issue 14), None: not given
+    #: the simulator's integration_stats (error-controlled stepping), None: not given
     integration: dict | None = None
 
 
 def integration_values(stats: dict | None) -> dict[str, str]:
     """
-    Return the diagnostics values of the integration (issue 14).
+    Return the diagnostics values of the integration.
 
     ``stats``: :attr:`TrainSimulator.integration_stats`. The standstill counters
     (hold_solves, hold_capped) in both stepping modes; the error control's counters only

@@ -27,9 +27,10 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from train_dynamics.physics.parameters import (ConfigError, node_sections, read_param_sections,
-                                               ROS_BUILTIN_PARAMETERS, unknown_sections,
-                                               unknown_sections_message)
+from train_dynamics.physics.config import (ConfigError, node_sections, read_param_sections,
+                                           ROS_BUILTIN_PARAMETERS, unknown_sections,
+                                           unknown_sections_message)
+from train_dynamics.physics.config.files import resolve_file_inputs
 
 try:   # rclpy >= 7 (Jazzy); the single-threaded executor otherwise
     from rclpy.experimental import EventsExecutor
@@ -109,6 +110,38 @@ def check_params_files(prog: str, args: Sequence[str], node_name: str,
     return 0
 
 
+def file_input_args(args: Sequence[str], node_name: str,
+                    specs: Mapping[str, Any]) -> list[str]:
+    """
+    Return ``args`` with each ``--params-file`` followed by its file inputs made absolute.
+
+    rclpy hands the node a parameter file's values as written; a relative file input of
+    ``node_name`` (own or ``/**`` section; ``file_input`` in ``specs``) is resolved by the path
+    rule of :mod:`train_dynamics.physics.config.files` against the file's folder, as the
+    offline command does, and given right after the file as ``-p name:='<absolute path>'``:
+    later ``--params-file`` or ``-p`` arguments still win, as rcl applies them in order.
+    Raises :class:`ConfigError` (naming the parameter file) when such a file is not found.
+    """
+    out, inside = [], False
+    for k, arg in enumerate(args):
+        out.append(arg)
+        if arg == '--ros-args':
+            inside = True
+        elif arg == '--':
+            inside = False
+        elif inside and k > 0 and args[k - 1] == '--params-file':
+            wildcard, own = node_sections(read_param_sections(arg), node_name)
+            try:
+                found = resolve_file_inputs({**wildcard, **own},
+                                            os.path.dirname(os.path.abspath(arg)), specs)
+            except ConfigError as exc:
+                raise ConfigError(f'{arg}: {exc}') from None
+            for name, path in found.items():
+                quoted = path.replace("'", "''")
+                out += ['-p', f"{name}:='{quoted}'"]
+    return out
+
+
 def shutdown_safe(node: Node, callback: Callable[..., Any]) -> Callable[..., Any]:
     """
     Return ``callback`` (a timer's) made quiet when the context is shut down under it.
@@ -161,13 +194,18 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
         status = check_params_files(prog, argv, node_name, specs or {})
         if status:
             return status
+        try:      # relative file inputs: the parameter file's folder (the path rule)
+            argv = file_input_args(argv, node_name, specs or {})
+        except ConfigError as exc:
+            print(f'{prog}: error: {exc}', file=sys.stderr)
+            return EXIT_BAD_PARAMETERS
     main_thread = threading.current_thread() is threading.main_thread()
     try:
         # In the main thread SIGINT/SIGTERM only ask the loop below to stop (_stop_on_signals):
         # rclpy's own handlers shut the context down under running callbacks, and the
         # KeyboardInterrupt they chain to is raised inside a timer callback, where the
-        # executor reports it as a FATAL exception (issue 15, item 12).
-        rclpy.init(args=args,
+        # executor reports it as a FATAL exception.
+        rclpy.init(args=argv,
                    signal_handler_options=SignalHandlerOptions.NO if main_thread else None)
     except Exception as exc:  # noqa: BLE001 - RCLError: bad --ros-args
         text = ' '.join(str(exc).split(', at ')[0].split())

@@ -23,10 +23,10 @@ import threading
 import time
 from typing import Any, Iterator
 
-from train_dynamics.physics.runner import end_step
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.ros.brake_inputs import BrakeInputs
-from train_dynamics.ros.outputs import Outputs
+from train_dynamics.ros.publishers import Outputs
+from train_dynamics.simulation.runner import end_step
 
 MIN_SLEEP = 0.001        # [s wall] shortest pause between two pacing iterations
 CHUNK_BUDGET = 0.005     # [s wall] longest stretch the simulation thread integrates in one go

@@ -1,11 +1,11 @@
 """
-ROS 2 parameters from :class:`~train_dynamics.physics.parameters.ParamSpec` tables.
+ROS 2 parameters from :class:`~train_dynamics.physics.config.ParamSpec` tables.
 
 One descriptor builder (:func:`descriptor`), one declaration (:func:`declare_parameters`) and
 one set-callback scheme (:func:`watch_parameters`) for both nodes, following the ROS 2
 parameter design: a pre-set callback converts what ``ros2 param set`` sends into the declared
 type, the set callback VALIDATES ONLY (no side effects; every value through
-:func:`~train_dynamics.physics.parameters.validate_value`, then the node's whole-batch check),
+:func:`~train_dynamics.physics.config.validate_value`, then the node's whole-batch check),
 and the change is APPLIED by the post-set callback, after rclpy has stored the new values.
 All three run on the executor thread (or the thread calling ``set_parameters``).
 """
@@ -15,13 +15,12 @@ from typing import Any, Callable, Mapping
 
 from rcl_interfaces.msg import (FloatingPointRange, IntegerRange, ParameterDescriptor,
                                 ParameterType, SetParametersResult)
-from rclpy.exceptions import ParameterUninitializedException
+from rclpy.exceptions import InvalidParameterTypeException, ParameterUninitializedException
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
-from train_dynamics.physics.parameters import (ARRAY_KINDS, BOOL, DOUBLE, DOUBLE_ARRAY,
-                                               INTEGER, ParamSpec, STRING, STRING_ARRAY,
-                                               validate_value)
+from train_dynamics.physics.config import (ARRAY_KINDS, BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER,
+                                           ParamSpec, STRING, STRING_ARRAY, validate_value)
 
 Specs = Mapping[str, ParamSpec]
 
@@ -37,14 +36,11 @@ _ANY_ARRAY = (Parameter.Type.INTEGER_ARRAY, Parameter.Type.BOOL_ARRAY,
 
 
 def constraints(spec: ParamSpec) -> str:
-    """Return the constraints of ``spec`` in words (choices, bounds), as the README shows."""
+    """Return the constraints of ``spec`` in words (choices, bounds), as the docs show them."""
     words = []
     if spec.choices:
         words.append('one of: ' + ', '.join(spec.choices))
-    if spec.low is not None:
-        words.append(('> ' if spec.low_exclusive else '>= ') + f'{spec.low:g}')
-    if spec.high is not None:
-        words.append(f'<= {spec.high:g}')
+    words += spec.bounds()
     if spec.kind == DOUBLE_ARRAY and words:
         words[0] = 'every element ' + words[0]
     return ', '.join(words)
@@ -91,23 +87,50 @@ def as_declared_type(param: Parameter, spec: ParamSpec | None) -> Parameter:
 
 
 def declare_parameters(node: Node, specs: Specs) -> None:
-    """Declare every parameter of ``specs`` with its default and descriptor."""
-    # rclpy keeps the overrides (command line, parameter file) here; an integer given for a
-    # double is converted first, as the offline command accepts it.
-    overrides = getattr(node, '_parameter_overrides', None)
+    """
+    Declare every parameter of ``specs`` with its default and descriptor.
+
+    The value of an override (command line, parameter file) wins, as rclpy does; one of
+    another type that :func:`as_declared_type` converts (an integer for a double, ``[]`` for
+    an array) is accepted as the offline command accepts it.
+    """
     for name, spec in specs.items():
-        if isinstance(overrides, dict) and name in overrides:
-            overrides[name] = as_declared_type(overrides[name], spec)
-        if spec.kind in ARRAY_KINDS:
-            # declared by type: an empty default would not tell rclpy the element type
-            node.declare_parameter(name, _PARAMETER_TYPE[spec.kind], descriptor(spec))
-            try:
-                node.get_parameter(name)
-            except ParameterUninitializedException:
-                node.set_parameters([Parameter(name, _PARAMETER_TYPE[spec.kind],
-                                               list(spec.default))])
-        else:
-            node.declare_parameter(name, spec.default, descriptor(spec))
+        try:
+            _declare(node, name, spec, ignore_override=False)
+        except InvalidParameterTypeException:
+            given = _override_of(node, name)
+            converted = as_declared_type(given, spec)
+            if converted.type_ == given.type_:
+                raise
+            _declare(node, name, spec, ignore_override=True, value=converted)
+
+
+def _declare(node: Node, name: str, spec: ParamSpec, ignore_override: bool,
+             value: Parameter | None = None) -> None:
+    """Declare ``name``: ``value``, else the override, else the default."""
+    if spec.kind in ARRAY_KINDS:
+        # declared by type: an empty default would not tell rclpy the element type
+        node.declare_parameter(name, _PARAMETER_TYPE[spec.kind], descriptor(spec),
+                               ignore_override=ignore_override)
+        if value is not None:
+            node.set_parameters([value])
+            return
+        try:
+            node.get_parameter(name)
+        except ParameterUninitializedException:
+            node.set_parameters([Parameter(name, _PARAMETER_TYPE[spec.kind],
+                                           list(spec.default))])
+    else:
+        default = spec.default if value is None else value.value
+        node.declare_parameter(name, default, descriptor(spec), ignore_override=ignore_override)
+
+
+def _override_of(node: Node, name: str) -> Parameter:
+    """Return the override of ``name`` whatever its type (declared untyped, then undeclared)."""
+    node.declare_parameter(name, None, ParameterDescriptor(dynamic_typing=True))
+    given = node.get_parameter(name)
+    node.undeclare_parameter(name)
+    return given
 
 
 def parameter_values(node: Node, specs: Specs) -> dict[str, Any]:

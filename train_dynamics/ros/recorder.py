@@ -19,7 +19,7 @@ import time
 from typing import Any
 
 from train_dynamics import topics
-from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.outputs import output_topics, parameters_json, run_metadata
 

@@ -9,7 +9,7 @@ behaviour and owns its state:
   rejection counts, staleness and the fail-safe, the graph scan, ``wait_for_input``;
 - :mod:`train_dynamics.ros.pacing`: the simulation thread (pacing at ``real_time_factor``,
   the lag policy, chunking), ``duration``, numerical faults;
-- :mod:`train_dynamics.ros.outputs`: ``couplers``, ``coaches``, ``brake_cylinders`` and
+- :mod:`train_dynamics.ros.publishers`: ``couplers``, ``coaches``, ``brake_cylinders`` and
   ``/clock`` at ``publish_rate`` in simulation time;
 - :mod:`train_dynamics.ros.recorder`: ``record_bag`` (inputs and outputs, a rosbag2 MCAP
   written on its own thread);
@@ -24,8 +24,8 @@ values between their callbacks and the simulation thread. This node owns the run
 configuration ``_cfg`` (replaced and changed by the executor thread only, under the simulation
 lock; the simulation thread never reads it: each part holds the values it uses).
 
-Parameters: every parameter of :data:`train_dynamics.physics.parameters.PARAMETERS` plus the
-node's own (:data:`~train_dynamics.physics.parameters.SIM_NODE_PARAMETERS`): ``duration``
+Parameters: every parameter of :data:`train_dynamics.physics.config.PARAMETERS` plus the
+node's own (:data:`~train_dynamics.physics.config.SIM_NODE_PARAMETERS`): ``duration``
 (simulation seconds after which the node stops by itself, 0 = forever), ``wait_for_input``
 (hold t = 0 until the brake-input topics have publishers, at most that many wall seconds) and
 ``record_flush_period``. Invalid values are rejected with a reason and change nothing. The
@@ -54,9 +54,8 @@ from rclpy.serialization import serialize_message
 from std_srvs.srv import Trigger
 
 from train_dynamics import topics
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SIM_NODE_PARAMETERS, SimConfig
 from train_dynamics.physics.metrics import RunMetrics
-from train_dynamics.physics.parameters import (ConfigError, PARAMETERS, SIM_NODE_PARAMETERS,
-                                               SimConfig)
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import BagError
 from train_dynamics.recording.outputs import has_reservoirs, time_ns
@@ -65,8 +64,8 @@ from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INP
                                              MAX_ABSOLUTE_PRESSURE, REJECT_REASONS)
 from train_dynamics.ros.diagnostics import diagnostic_array, InputReport, SimulationReport
 from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
-from train_dynamics.ros.outputs import OUTPUT_QOS, Outputs
 from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
+from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
                                          open_bag, reset_bag_path)
 
@@ -96,6 +95,11 @@ class SimNode(Node):
         self._resets = 0                 # executor thread only
         ros_parameters.declare_parameters(self, SPECS)
         cfg = SimConfig.from_dict(self._parameter_values())   # raises ConfigError (main: 2)
+        #: the configuration of the node's current parameter values (the running one plus
+        #: the pending changes); sets derive it from the last one (a consist is read only
+        #: when a value it is built from changes), the reset service builds it anew
+        self._params_cfg = cfg
+        self._checked: tuple[SimConfig, dict[str, Any], SimConfig] | None = None
         self._flush_period = float(self.get_parameter('record_flush_period').value)
         if cfg.record_bag:
             check_bag_path(cfg.record_bag)
@@ -132,28 +136,34 @@ class SimNode(Node):
         return ros_parameters.parameter_values(self, PARAMETERS)
 
     def _check_parameters(self, changes: dict[str, Any]) -> None:
-        """Set callback: raise if the batch is not acceptable as a whole (no side effects)."""
+        """Set callback: raise if the batch is not acceptable as a whole (changes nothing)."""
         sim_changes = {k: v for k, v in changes.items() if k in PARAMETERS}
-        SimConfig.from_dict({**self._parameter_values(), **sim_changes})
+        cfg = self._params_cfg.replace(**sim_changes)
         bag = changes.get('record_bag')
         if bag and bag != self._cfg.record_bag:
             check_bag_path(bag)
+        self._checked = (self._params_cfg, sim_changes, cfg)   # what post-set adopts
 
     def _apply_parameters(self, changes: dict[str, Any]) -> None:
         """Post-set callback: apply live changes at once; report structural ones pending."""
+        sim_changes = {k: v for k, v in changes.items() if k in PARAMETERS}
+        checked, self._checked = self._checked, None
+        if checked is not None and checked[0] is self._params_cfg and checked[1] == sim_changes:
+            self._params_cfg = checked[2]
+        else:
+            self._params_cfg = self._params_cfg.replace(**sim_changes)
         cfg = self._cfg
         with self._lock.held():
             if 'model_type' in changes or 'scale_factor' in changes:
-                cfg.values.update({k: changes[k] for k in ('model_type', 'scale_factor')
-                                   if k in changes})
+                cfg.set_live(**{k: changes[k] for k in ('model_type', 'scale_factor')
+                                if k in changes})
                 self._pacer.sim.set_model(cfg.model_type, cfg.scale_factor)
                 self.get_logger().info(
                     f't = {self._pacer.sim.t:.3f} s: coupler model {cfg.model_type}, '
                     f'scale_factor {cfg.scale_factor:g} s/m')
-            for name in ('real_time_factor', 'publish_clock', 'input_timeout',
-                         'on_input_timeout', 'coupler_force_limit', 'jerk_limit'):
-                if name in changes:
-                    cfg.values[name] = changes[name]
+            cfg.set_live(**{name: changes[name] for name in (
+                'real_time_factor', 'publish_clock', 'input_timeout', 'on_input_timeout',
+                'coupler_force_limit', 'jerk_limit') if name in changes})
             self._outputs.metrics.set_limits(cfg.coupler_force_limit, cfg.jerk_limit)
             if 'real_time_factor' in changes:
                 self._pacer.set_real_time_factor(cfg.real_time_factor)
@@ -174,7 +184,7 @@ class SimNode(Node):
 
     def pending_changes(self) -> str:
         """Return 'name: old -> new, ...' of the values the running simulation does not use."""
-        return self._pending_changes(SimConfig.from_dict(self._parameter_values()))
+        return self._pending_changes(self._params_cfg)
 
     def _pending_changes(self, cfg: SimConfig) -> str:
         running = self._cfg.values
@@ -234,6 +244,7 @@ class SimNode(Node):
             pending = self._pending_changes(cfg)
             old = self._outputs.take_writer()
             self._start(cfg, writer)
+        self._params_cfg = cfg
         if old is not None:
             old.close()
             log.info(f'bag closed: {old.path} ({old.written} messages)')
@@ -344,7 +355,6 @@ def main(args: list[str] | None = None) -> int:
     Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 1 other
     errors.
     """
-    sys.setswitchinterval(0.0005)     # the simulation thread gets the GIL back quickly
     return run_node('sim_node', SimNode, args, node_name=NODE_NAME, specs=SPECS, exits=(
         ExitOn((ConfigError, ParameterException, FileExistsError, ValueError),
                'invalid parameters', 2),

@@ -28,7 +28,7 @@ from rclpy.serialization import deserialize_message, serialize_message
 from std_msgs.msg import Float64
 
 from train_dynamics import topics
-from train_dynamics.physics.parameters import traction_rejection
+from train_dynamics.physics.config import traction_rejection
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
 

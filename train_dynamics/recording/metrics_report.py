@@ -314,8 +314,8 @@ def summary_markdown(doc: dict[str, Any]) -> str:
                      f"{e['t']:.3f} s (beyond {e['limit']:.4g} {unit} from {e['t_start']:.3f} "
                      f'to {end})')
     lines += ['', 'Deceleration and jerk over the comfort window (EN 12299 practice); '
-              'energies by the trapezoid rule over the recorded samples. See the README '
-              '("Reports and sweeps").', '']
+              'energies by the trapezoid rule over the recorded samples. See docs/offline.md '
+              '("Run metrics").', '']
     return '\n'.join(lines)
 
 

@@ -50,7 +50,7 @@ class TractionEvent:
 
 
 @dataclass
-class BrakeInputs:
+class InputSchedule:
     """The inputs of a run: brake events (sorted) or a brake-valve model; traction events."""
 
     mode: str
@@ -59,13 +59,14 @@ class BrakeInputs:
     source: str = ''
     traction: list[TractionEvent] = field(default_factory=list)
 
-    def for_step(self, h: float) -> BrakeInputs:
+    def for_step(self, h: float) -> InputSchedule:
         """Return the same inputs for a run with integration step ``h`` [s] (:func:`step_of`)."""
         if not self.events and not self.traction:
             return self
-        return BrakeInputs(self.mode, [replace(e, step=step_of(e.t_ns, h)) for e in self.events],
-                           self.valve if not self.events else None, self.source,
-                           [replace(e, step=step_of(e.t_ns, h)) for e in self.traction])
+        return InputSchedule(self.mode,
+                             [replace(e, step=step_of(e.t_ns, h)) for e in self.events],
+                             self.valve if not self.events else None, self.source,
+                             [replace(e, step=step_of(e.t_ns, h)) for e in self.traction])
 
 
 def traction_schedule(cfg: Any) -> list[TractionEvent]:
@@ -177,7 +178,7 @@ class _DueEvents:
         return self._events[self._next].step if self._next < len(self._events) else default
 
 
-def run_simulation(cfg, duration: float, inputs: BrakeInputs, *,
+def run_simulation(cfg, duration: float, inputs: InputSchedule, *,
                    on_sample: Callable[[Sample], None],
                    on_input: Callable[[InputEvent], None] | None = None,
                    sample_steps: Sequence[int] | None = None,

@@ -3,7 +3,7 @@ The outputs of ``sim_node``: publishers, the output schedule and the run's recor
 
 Outputs (reliable, keep-last 10, ``header.stamp`` = simulation time), at ``publish_rate`` in
 simulation time, at the integration steps nearest to k / publish_rate
-(:func:`train_dynamics.physics.runner.output_step`, the offline command's grid):
+(:func:`train_dynamics.simulation.runner.output_step`, the offline command's grid):
 
 - ``couplers``: JointState ``coupler_1..N-1``: position y [m], velocity ydot [m/s], effort F [N];
 - ``coaches``: JointState ``coach_1..N``: position x [m], velocity v [m/s], effort Fb [N];
@@ -30,11 +30,11 @@ from sensor_msgs.msg import JointState
 
 from train_dynamics import topics
 from train_dynamics.physics.metrics import RunMetrics
-from train_dynamics.physics.runner import output_step
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
 from train_dynamics.ros.live_metrics import LiveMetrics
 from train_dynamics.ros.recorder import BagWriter
+from train_dynamics.simulation.runner import output_step
 
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                         reliability=ReliabilityPolicy.RELIABLE,

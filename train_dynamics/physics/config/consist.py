@@ -9,121 +9,111 @@ A consist file (parameter ``consist_file``) is YAML::
       - {type: electric_passenger_locomotive}
       - {type: my_wagon, count: 20, davis_a: 900.0}    # count repeats; fields override
 
-Every field of :data:`VEHICLE_FIELDS` is also a simulator parameter of the same name (``mass``
-is ``coach_mass``, ``length`` is ``coach_length``): the value of the uniform train (no
-consist file) and the default of a type that leaves the field out.
+The fields a vehicle may set are the parameters with ``vehicle`` in the table
+(:data:`~train_dynamics.physics.config.table.VEHICLE_PARAMETERS`; ``mass`` is ``coach_mass``,
+``length`` is ``coach_length``): the parameter's value is the field of the uniform train (no
+consist file) and the default of a type that leaves the field out; its range is the field's.
 
 Couplings. A vehicle's buffer and draw-gear constants describe a connection between two such
 vehicles, as the paper's constants do. Coupler i joins vehicles i and i+1 (a, b); it takes
 the harmonic mean 2 k_a k_b / (k_a + k_b) of each stiffness and friction constant and of the
-blocked stiffness (springs in series), and the arithmetic mean of each stroke and slack. Two
-identical vehicles give their own values (exactly).
+blocked stiffness (springs in series), and the arithmetic mean of each stroke and slack (the
+``connection`` of each field in the table). Two identical vehicles give their own values
+(exactly).
 
 Errors (unknown field, missing type, non-physical value) raise
-:class:`~train_dynamics.physics.parameters.ConfigError` naming the file, the vehicle and the
+:class:`~train_dynamics.physics.config.spec.ConfigError` naming the file, the vehicle and the
 field. Never imports rclpy.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
-import os
 from pathlib import Path
-import sys
-from typing import Any
+from typing import Any, Mapping
 
 import numpy as np
-# parameters imports this module: use its names at call time only (parameters.X)
-from train_dynamics.physics import parameters
+from train_dynamics.physics.config import spec
+from train_dynamics.physics.config.files import config_dirs, resolve_path, RosParamLoader
+from train_dynamics.physics.config.spec import ConfigError
+from train_dynamics.physics.config.table import PARAMETERS, validate_value, VEHICLE_PARAMETERS
 import yaml
 
-#: the fields a vehicle type may set (each also a simulator parameter, see PARAM_OF)
-VEHICLE_FIELDS = (
-    'mass', 'length', 'rotating_mass_factor', 'davis_a', 'davis_b', 'davis_c',
-    'buffer_stiffness', 'buffer_friction', 'buffer_stroke', 'buffer_slack',
-    'draw_gear_stiffness', 'draw_gear_friction', 'draw_gear_stroke', 'draw_gear_slack',
-    'blocked_stiffness', 'adhesion_coefficient', 'max_cylinder_pressure', 'brake_regime',
-    'max_tractive_force', 'max_power', 'max_dynamic_brake_force', 'max_dynamic_brake_power',
-    'traction_build_up_time', 'traction_adhesion', 'dynamic_brake_fade_speed')
+#: the fields a vehicle type may set (each a simulator parameter, see PARAM_OF)
+VEHICLE_FIELDS = tuple(VEHICLE_PARAMETERS)
 
 #: vehicle field -> simulator parameter, where the names differ
-PARAM_OF = {'mass': 'coach_mass', 'length': 'coach_length'}
+PARAM_OF = {f: s.name for f, s in VEHICLE_PARAMETERS.items() if f != s.name}
 
 #: connection constants: harmonic mean (springs in series) and arithmetic mean
-HARMONIC = ('buffer_stiffness', 'buffer_friction', 'draw_gear_stiffness',
-            'draw_gear_friction', 'blocked_stiffness')
-ARITHMETIC = ('buffer_stroke', 'buffer_slack', 'draw_gear_stroke', 'draw_gear_slack')
+HARMONIC = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.HARMONIC)
+ARITHMETIC = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.ARITHMETIC)
 
 #: per-coupler constants in the order the kernel stores them
 COUPLER_FIELDS = ('buffer_stiffness', 'buffer_friction', 'draw_gear_stiffness',
                   'draw_gear_friction', 'draw_gear_slack', 'buffer_slack', 'draw_gear_stroke',
                   'buffer_stroke', 'blocked_stiffness')
 
+#: the parameters a consist is built from: a configuration whose values of these are
+#: unchanged keeps its consist (no file is read again)
+CONSIST_PARAMETERS = frozenset({'consist_file', 'num_coaches', 'masses',
+                                *(s.name for s in VEHICLE_PARAMETERS.values())})
+
+#: friction below stiffness, for buffers and draw gear: (stiffness, friction, in symbols)
+_FRICTION_PAIRS = (('buffer_stiffness', 'buffer_friction', 'k_f < k_e'),
+                   ('draw_gear_stiffness', 'draw_gear_friction', 'k_fc < k_ec'))
+
 LIBRARY = 'vehicles.yaml'
 
 
-def _error(message: str) -> Exception:
-    """Return a ConfigError (looked up late: the parameters module imports this one)."""
-    return parameters.ConfigError(message)
+def check_friction_below_stiffness(fields: Mapping[str, Any], where: str = '') -> None:
+    """
+    Raise :class:`ConfigError` unless friction < stiffness for buffers and draw gear (eqs. 2-3).
 
-
-def config_dirs() -> list[Path]:
-    """Return the folders holding the shipped ``config/`` files: source tree, then installed."""
-    dirs = [Path(__file__).resolve().parents[2] / 'config']
-    try:   # optional: only present in a sourced ROS 2 environment
-        from ament_index_python.packages import get_package_share_directory
-        dirs.append(Path(get_package_share_directory('train_dynamics')) / 'config')
-    except Exception:  # noqa: B902 - not installed, or the package is not in the index
-        pass
-    dirs.append(Path(sys.prefix) / 'share' / 'train_dynamics' / 'config')
-    return dirs
-
-
-def resolve_path(name: str, base_dir: str | None = None) -> Path:
-    """Return the file ``name``: absolute, else in ``base_dir`` (or cwd), else in ``config/``."""
-    path = Path(os.path.expanduser(name))
-    if path.is_absolute():
-        if path.is_file():
-            return path
-        raise _error(f'consist_file: file not found: {path}')
-    tried = [Path(base_dir or os.getcwd()) / path] + [d / path for d in config_dirs()]
-    for candidate in tried:
-        if candidate.is_file():
-            return candidate
-    raise _error(f'consist_file: {name!r} not found (looked in '
-                 f'{", ".join(str(t.parent) for t in tried)})')
+    Otherwise the force would change sign on unloading. ``fields``: numbers or arrays (one
+    value per coupler; the first failing one is named); ``where`` prefixes the message.
+    """
+    for stiff, fric, rule in _FRICTION_PAIRS:
+        k = np.atleast_1d(np.asarray(fields[stiff], dtype=float))
+        f = np.broadcast_to(np.asarray(fields[fric], dtype=float), k.shape)
+        bad = np.flatnonzero(~(f < k))
+        if bad.size:
+            i = bad[0]
+            at = f' at coupler {i + 1}' if k.size > 1 else ''
+            raise ConfigError(f'{where}{fric} must be < {stiff} ({rule}; {f[i]:g} >= {k[i]:g}'
+                              f'{at}), or the force would change sign on unloading')
 
 
 def _read_yaml(path: Path) -> Any:
     try:
         with open(path, encoding='utf-8') as fh:
-            return yaml.load(fh, Loader=parameters._RosParamLoader)
+            return yaml.load(fh, Loader=RosParamLoader)
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise _error(f'cannot read {path}: {exc}'.splitlines()[0]) from None
+        raise ConfigError(f'cannot read {path}: {exc}'.splitlines()[0]) from None
 
 
 def check_field(field: str, value: Any, where: str) -> Any:
     """Return ``value`` validated as vehicle field ``field``; ConfigError names ``where``."""
     if field not in VEHICLE_FIELDS:
-        raise _error(f'{where}: unknown field {field!r} (fields: '
-                     f'{", ".join(VEHICLE_FIELDS)})')
+        raise ConfigError(f'{where}: unknown field {field!r} (fields: '
+                          f'{", ".join(VEHICLE_FIELDS)})')
     param = PARAM_OF.get(field, field)
     try:
-        return parameters.validate_value(param, value)
-    except parameters.ConfigError as exc:
+        return validate_value(param, value)
+    except ConfigError as exc:
         reason = str(exc).split(': ', 1)[-1]
-        raise _error(f'{where}: {field}: {reason}') from None
+        raise ConfigError(f'{where}: {field}: {reason}') from None
 
 
 def _types_of(doc: Any, source: str) -> dict[str, dict[str, Any]]:
     if doc is None:
         return {}
     if not isinstance(doc, dict):
-        raise _error(f'{source}: vehicle_types must be a mapping of name -> fields')
+        raise ConfigError(f'{source}: vehicle_types must be a mapping of name -> fields')
     types = {}
     for name, fields in doc.items():
         fields = fields or {}
         if not isinstance(fields, dict):
-            raise _error(f'{source}: vehicle type {name!r}: fields must be a mapping')
+            raise ConfigError(f'{source}: vehicle type {name!r}: fields must be a mapping')
         types[str(name)] = {k: check_field(k, v, f'{source}: vehicle type {name!r}')
                             for k, v in fields.items()}
     return types
@@ -141,7 +131,7 @@ def defaults_of(values: dict[str, Any]) -> dict[str, Any]:
     out = {}
     for field in VEHICLE_FIELDS:
         param = PARAM_OF.get(field, field)
-        out[field] = values.get(param, parameters.PARAMETERS[param].default)
+        out[field] = values.get(param, PARAMETERS[param].default)
     return out
 
 
@@ -194,16 +184,14 @@ def connection_harmonic(a, b) -> np.ndarray:
 
 
 def _make(rows: list[tuple[str, dict[str, Any]]], source: str) -> Consist:
-    """Build a Consist from (type, complete field dict) rows; cross-field checks."""
+    """Build a Consist from (type, complete field dict) rows of a file; cross-field checks."""
+    checked: set[int] = set()
     for k, (name, f) in enumerate(rows, start=1):
-        where = f'{source}: vehicle {k} ({name})'
-        for stiff, fric in (('buffer_stiffness', 'buffer_friction'),
-                            ('draw_gear_stiffness', 'draw_gear_friction')):
-            if not f[fric] < f[stiff]:
-                raise _error(f'{where}: {fric}: must be < {stiff} ({f[fric]:g} >= '
-                             f'{f[stiff]:g})')
+        if id(f) not in checked:        # a vehicle repeated by count: its fields once
+            check_friction_below_stiffness(f, f'{source}: vehicle {k} ({name}): ')
+            checked.add(id(f))
     if len(rows) < 2:
-        raise _error(f'{source}: a train needs at least 2 vehicles, got {len(rows)}')
+        raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {len(rows)}')
     numeric = [f for f in VEHICLE_FIELDS if f != 'brake_regime']
     fields = {f: np.array([r[1][f] for r in rows], dtype=float) for f in numeric}
     return Consist([r[0] for r in rows], fields, [r[1]['brake_regime'] for r in rows])
@@ -219,31 +207,31 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
     source = str(file)
     doc = _read_yaml(file)
     if not isinstance(doc, dict):
-        raise _error(f'{source}: a consist file is a mapping with vehicles: (and '
-                     'optionally vehicle_types:)')
+        raise ConfigError(f'{source}: a consist file is a mapping with vehicles: (and '
+                          'optionally vehicle_types:)')
     unknown = set(doc) - {'vehicle_types', 'vehicles'}
     if unknown:
-        raise _error(f'{source}: unknown key(s) {", ".join(sorted(map(str, unknown)))} '
-                     '(expected vehicle_types, vehicles)')
+        raise ConfigError(f'{source}: unknown key(s) {", ".join(sorted(map(str, unknown)))} '
+                          '(expected vehicle_types, vehicles)')
     types = library_types()
     types.update(_types_of(doc.get('vehicle_types'), source))
     vehicles = doc.get('vehicles')
     if not isinstance(vehicles, list) or not vehicles:
-        raise _error(f'{source}: vehicles: must be a non-empty list, front to rear')
+        raise ConfigError(f'{source}: vehicles: must be a non-empty list, front to rear')
     defaults = defaults_of(values)
     rows: list[tuple[str, dict[str, Any]]] = []
     for k, entry in enumerate(vehicles, start=1):
         where = f'{source}: vehicles[{k}]'
         if not isinstance(entry, dict) or 'type' not in entry:
-            raise _error(f'{where}: each entry needs type: NAME')
+            raise ConfigError(f'{where}: each entry needs type: NAME')
         entry = dict(entry)
         name = str(entry.pop('type'))
         if name not in types:
-            raise _error(f'{where}: unknown vehicle type {name!r} (known: '
-                         f'{", ".join(sorted(types))})')
+            raise ConfigError(f'{where}: unknown vehicle type {name!r} (known: '
+                              f'{", ".join(sorted(types))})')
         count = entry.pop('count', 1)
         if not isinstance(count, int) or isinstance(count, bool) or count < 1:
-            raise _error(f'{where} ({name}): count: must be an integer >= 1, got {count!r}')
+            raise ConfigError(f'{where} ({name}): count: must be an integer >= 1, got {count!r}')
         overrides = {f: check_field(f, v, f'{where} ({name})') for f, v in entry.items()}
         merged = {**defaults, **types[name], **overrides}
         rows.extend((name, merged) for _ in range(count))
@@ -251,12 +239,21 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
 
 
 def uniform_consist(values: dict[str, Any]) -> Consist:
-    """Return the uniform train of the parameters (num_coaches/masses and the constants)."""
+    """
+    Return the uniform train of the parameters (num_coaches/masses and the constants).
+
+    The parameters are checked as a whole by the configuration (friction below stiffness
+    included), not here.
+    """
     defaults = defaults_of(values)
     masses = values.get('masses') or [float(values.get('coach_mass', defaults['mass']))] * int(
-        values.get('num_coaches', parameters.PARAMETERS['num_coaches'].default))
-    rows = [('coach', {**defaults, 'mass': float(m)}) for m in masses]
-    return _make(rows, 'parameters')
+        values.get('num_coaches', PARAMETERS['num_coaches'].default))
+    n = len(masses)
+    if n < 2:
+        raise ConfigError(f'parameters: a train needs at least 2 vehicles, got {n}')
+    fields = {f: np.full(n, float(v)) for f, v in defaults.items() if f != 'brake_regime'}
+    fields['mass'] = np.array([float(m) for m in masses])
+    return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n)
 
 
 def consist_of(values: dict[str, Any], base_dir: str | None = None) -> Consist:

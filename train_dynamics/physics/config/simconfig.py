@@ -1,0 +1,328 @@
+"""
+The simulator's configuration: :class:`SimConfig`, each parameter a typed attribute.
+
+Build one with :meth:`SimConfig.from_dict` (values checked one by one with the table's
+validator, then as a whole by :meth:`SimConfig.check`), :func:`load_param_file` (a ROS 2
+parameter file) or :meth:`SimConfig.replace`. A configuration does not change afterwards, except
+the live (``dynamic``) values ``sim_node`` sets with :meth:`SimConfig.set_live`.
+
+The consist (:class:`~train_dynamics.physics.config.consist.Consist`) is built when the
+configuration is: a consist file is read once and kept. :meth:`SimConfig.replace` keeps the
+parent's consist unless a value it is built from (:data:`CONSIST_PARAMETERS`) changes, so a
+consist file that changes or disappears later never affects a configuration already built, nor
+one derived from it by a change of other values. Never imports rclpy.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+import math
+from typing import Any, Callable, Mapping
+
+from train_dynamics.physics import track
+from train_dynamics.physics.config.budgets import fmt_bytes, MAX_SIMULATOR_MEMORY, simulator_memory
+from train_dynamics.physics.config.consist import (check_friction_below_stiffness, Consist,
+                                                   consist_of, CONSIST_PARAMETERS)
+from train_dynamics.physics.config.files import simulator_params
+from train_dynamics.physics.config.spec import ConfigError
+from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERVICE_PRESSURE,
+                                                 G_FILL_TIME, G_RELEASE_TIME,
+                                                 INTEGRATION_TOLERANCE, P_FILL_FRACTION,
+                                                 P_FILL_TIME, P_RELEASE_FRACTION, P_RELEASE_TIME,
+                                                 PARAMETERS, PIPE_NOMINAL_PRESSURE, validate_value)
+
+#: relative tolerance of ``1 / (publish_rate * integration_step)`` being a whole number
+GRID_TOLERANCE = 1e-9
+
+
+@dataclass(frozen=True)
+class SimConfig:
+    """
+    All parameters of the simulator (:data:`~train_dynamics.physics.config.table.PARAMETERS`).
+
+    One attribute per parameter, declared here with its type and default (a test checks them
+    against the table, which holds the description, unit and range of each).
+    """
+
+    # coupler model (paper eqs. 2-4, 14-16)
+    model_type: str = 'tanh'                          # friction law: 'tanh' or 'sign' (live)
+    scale_factor: float = 1000.0                      # u in tanh(u ydot) [s/m] (live)
+    # the uniform train (no consist_file)
+    num_coaches: int = 3                              # N >= 2, unless masses is set
+    coach_mass: float = 45000.0                       # m_i [kg]; vehicle field 'mass'
+    masses: list[float] = field(default_factory=list)  # per coach [kg], front to rear
+    coach_length: float = 25.0                        # [m]; vehicle field 'length'
+    buffer_stiffness: float = 2.8e6                   # k_e [N/m] (eq. 2)
+    buffer_friction: float = 1.4e6                    # k_f [N/m] (eq. 2), < k_e
+    draw_gear_stiffness: float = 5.46e6               # k_ec [N/m] (eq. 3)
+    draw_gear_friction: float = 2.43e6                # k_fc [N/m] (eq. 3), < k_ec
+    adhesion_coefficient: float = 0.1                 # mu_a [-] (eqs. 12-13)
+    gravity: float = 9.81                             # g [m/s^2]
+    max_cylinder_pressure: float = 380000.0           # p_max, gauge [Pa] (eq. 13)
+    initial_speed: float = 44.444                     # v_i(0) [m/s]
+    # brake inputs and the empirical brake
+    brake_input: str = 'pipe_head'                    # pipe_head, pipe_per_coach, cylinder_...
+    brake_propagation_speed: float = 250.0            # brake wave along the pipe [m/s]
+    # integration and outputs
+    integration_step: float = 2.0e-3                  # fixed step h [s]
+    publish_rate: float = 100.0                       # outputs [Hz] (simulation time)
+    real_time_factor: float = 1.0                     # sim s per wall s; 0 = fast (live)
+    publish_clock: bool = False                       # publish /clock (live)
+    record_bag: str = ''                              # rosbag2 path; '' = no recording
+    atmospheric_pressure: float = ATMOSPHERIC_PRESSURE  # absolute -> gauge [Pa]
+    # brake cylinders and the distributors
+    brake_regime: str = 'P'                           # default characteristics: 'P' or 'G'
+    cylinder_fill_time: list[float] = field(default_factory=list)         # [s]; [] = regime
+    cylinder_fill_fraction: list[float] = field(default_factory=list)     # p / p_max [-]
+    cylinder_release_time: list[float] = field(default_factory=list)      # [s]; [] = regime
+    cylinder_release_fraction: list[float] = field(default_factory=list)  # p / p_max [-]
+    pipe_nominal_pressure: float = PIPE_NOMINAL_PRESSURE  # running pressure, gauge [Pa]
+    full_service_pressure: float = FULL_SERVICE_PRESSURE  # full service, gauge [Pa]
+    distributor_sensitivity: float = 30000.0          # pipe drop a distributor ignores [Pa]
+    max_coupler_displacement: float = 5.0             # |y| fault bound [m]
+    # stale brake inputs (live)
+    input_timeout: float = 0.0                        # [s wall]; 0 = never stale
+    on_input_timeout: str = 'hold'                    # 'hold' or 'emergency'
+    # pneumatic brake (physics/pneumatic.py)
+    brake_model: str = 'empirical'                    # 'empirical' or 'pneumatic'
+    brake_pipe_leakage: float = 0.0                   # lapped pipe's drop rate [Pa/s]
+    angle_cock_closed: int = 0                        # coupling cut off; 0 = all open
+    brake_pipe_diameter: float = 0.032                # inner diameter [m]
+    main_reservoir_pressure: float = 900000.0         # gauge [Pa]
+    # run metrics (live)
+    coupler_force_limit: float = 0.0                  # |F| limit [N]; 0 = off
+    jerk_limit: float = 0.0                           # |jerk| limit [m/s^3]; 0 = off
+    # real trains: consist, coupler travel, resistance, traction (vehicle fields)
+    consist_file: str = ''                            # YAML consist; '' = uniform train
+    rotating_mass_factor: float = 0.0                 # inertia m (1 + factor) [-]
+    davis_a: float = 0.0                              # Davis A [N]
+    davis_b: float = 0.0                              # Davis B [N s/m]
+    davis_c: float = 0.0                              # Davis C [N s^2/m^2]
+    buffer_stroke: float = 0.105                      # S_c [m]
+    draw_gear_stroke: float = 0.06                    # S_t [m]
+    buffer_slack: float = 0.0                         # g_c [m]
+    draw_gear_slack: float = 0.0                      # g_t [m]
+    blocked_stiffness: float = 1.0e8                  # K_b [N/m]
+    max_tractive_force: float = 0.0                   # [N]; 0 = no traction
+    max_power: float = 0.0                            # traction power at the rim [W]
+    max_dynamic_brake_force: float = 0.0              # [N]
+    max_dynamic_brake_power: float = 0.0              # [W]
+    traction_build_up_time: float = 4.0               # 0 -> full command [s]
+    traction_adhesion: float = 0.33                   # at standstill [-]
+    dynamic_brake_fade_speed: float = 1.4             # [m/s]
+    # the line
+    initial_position: float = 0.0                     # front of vehicle 1 at t = 0 [m]
+    track_gradient_positions: list[float] = field(default_factory=list)   # [m], increasing
+    track_gradients: list[float] = field(default_factory=list)            # [per mille]
+    track_curve_starts: list[float] = field(default_factory=list)         # [m]
+    track_curve_ends: list[float] = field(default_factory=list)           # [m]
+    track_curve_radii: list[float] = field(default_factory=list)          # [m]
+    traction_schedule_times: list[float] = field(default_factory=list)    # [s], increasing
+    traction_schedule_commands: list[float] = field(default_factory=list)  # [-1, 1]
+    # error-controlled stepping
+    integration_tolerance: float = INTEGRATION_TOLERANCE  # [-]; 0 = fixed step
+    integration_max_steps: int = 100                  # steps per output period
+
+    #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
+    _consist = None
+
+    @classmethod
+    def from_dict(cls, overrides: Mapping[str, Any] | None = None, *,
+                  ignore_unknown: bool = False) -> SimConfig:
+        """Return the configuration of the defaults and ``overrides``; raises ConfigError."""
+        values = {}
+        for name, value in (overrides or {}).items():
+            if name not in PARAMETERS:
+                if ignore_unknown:
+                    continue
+                raise ConfigError(f'unknown parameter {name!r}')
+            values[name] = validate_value(name, value)
+        return cls._checked(values, None)
+
+    @classmethod
+    def _checked(cls, values: dict[str, Any], consist: Consist | None) -> SimConfig:
+        cfg = cls(**values)
+        object.__setattr__(cfg, '_consist', consist)
+        cfg.check()
+        return cfg
+
+    def replace(self, **changes: Any) -> SimConfig:
+        """
+        Return a configuration with ``changes``, checked as a whole.
+
+        The consist is kept (no file read) unless a value of :data:`CONSIST_PARAMETERS`
+        changes.
+        """
+        old = self.values
+        new = dict(old)
+        for name, value in changes.items():
+            if name not in PARAMETERS:
+                raise ConfigError(f'unknown parameter {name!r}')
+            new[name] = validate_value(name, value)
+        same = all(new[n] == old[n] for n in CONSIST_PARAMETERS)
+        return SimConfig._checked(new, self.consist if same else None)
+
+    def set_live(self, **changes: Any) -> None:
+        """Change live (``dynamic``) values in place (``sim_node``); the others never change."""
+        for name, value in changes.items():
+            if not PARAMETERS[name].dynamic:
+                raise ConfigError(f'{name} is not a live parameter')
+            object.__setattr__(self, name, validate_value(name, value))
+
+    @property
+    def values(self) -> dict[str, Any]:
+        """Return ``{name: value}`` of every parameter, in table order (a new dict)."""
+        return {name: getattr(self, name) for name in PARAMETERS}
+
+    # -- derived quantities -------------------------------------------------------------
+    @property
+    def consist(self) -> Consist:
+        """Return the vehicles of the train (built once, then kept)."""
+        if self._consist is None:
+            object.__setattr__(self, '_consist', consist_of(self.values))
+        return self._consist
+
+    @property
+    def n_coaches(self) -> int:
+        """Return the number of vehicles."""
+        if self.consist_file:
+            return self.consist.n
+        return len(self.masses) if self.masses else int(self.num_coaches)
+
+    @property
+    def mass_array(self) -> list[float]:
+        """Return the mass [kg] of every vehicle, front to rear."""
+        if self.consist_file:
+            return [float(m) for m in self.consist['mass']]
+        if self.masses:
+            return list(self.masses)
+        return [float(self.coach_mass)] * int(self.num_coaches)
+
+    @property
+    def external_forces(self) -> bool:
+        """Return True when the train has resistance, gradients, curves or traction."""
+        if self.consist_file or self.davis_a or self.davis_b or self.davis_c:
+            return True
+        return bool(self.track_gradients or self.track_curve_starts
+                    or self.max_tractive_force or self.max_dynamic_brake_force)
+
+    @property
+    def track(self) -> track.Track:
+        """Return the line (:class:`~train_dynamics.physics.track.Track`) of the parameters."""
+        return track.Track.from_lists(self.initial_position, self.track_gradient_positions,
+                                      self.track_gradients, self.track_curve_starts,
+                                      self.track_curve_ends, self.track_curve_radii)
+
+    def fill_table(self) -> tuple[list[float], list[float]]:
+        """Return the cylinder filling characteristic: times [s], p / p_max."""
+        if self.cylinder_fill_time:
+            return list(self.cylinder_fill_time), list(self.cylinder_fill_fraction)
+        times = P_FILL_TIME if self.brake_regime == 'P' else G_FILL_TIME
+        return list(times), list(P_FILL_FRACTION)
+
+    def release_table(self) -> tuple[list[float], list[float]]:
+        """Return the cylinder release characteristic: times [s], p / p_max."""
+        if self.cylinder_release_time:
+            return list(self.cylinder_release_time), list(self.cylinder_release_fraction)
+        times = P_RELEASE_TIME if self.brake_regime == 'P' else G_RELEASE_TIME
+        return list(times), list(P_RELEASE_FRACTION)
+
+    # -- the checks as a whole ------------------------------------------------------------
+    def check(self) -> None:
+        """Cross-parameter checks; raises :class:`ConfigError`."""
+        self._check_real_train()
+        if self.masses and len(self.masses) < 2:
+            raise ConfigError(f'masses: a train needs at least 2 coaches, got {len(self.masses)}')
+        check_output_grid(float(self.publish_rate), float(self.integration_step))
+        memory = simulator_memory(self.n_coaches, float(self.coach_length),
+                                  float(self.brake_propagation_speed),
+                                  float(self.integration_step))
+        if memory > MAX_SIMULATOR_MEMORY:
+            raise ConfigError(
+                f'the simulator would need {fmt_bytes(memory)} (limit '
+                f'{fmt_bytes(MAX_SIMULATOR_MEMORY)}): the brake-pipe delay line holds '
+                '(num_coaches - 1) * coach_length / brake_propagation_speed / integration_step '
+                'samples; raise brake_propagation_speed or integration_step, or shorten the train')
+        # the uniform train's vehicles (and the defaults of a consist's)
+        check_friction_below_stiffness(self.values)
+        if not (self.full_service_pressure + self.distributor_sensitivity
+                < self.pipe_nominal_pressure):
+            raise ConfigError('full_service_pressure + distributor_sensitivity must be below '
+                              'pipe_nominal_pressure')
+        if self.angle_cock_closed > self.n_coaches - 1:
+            raise ConfigError(f'angle_cock_closed: the couplings are 1..{self.n_coaches - 1} '
+                              f'(0 = none), got {self.angle_cock_closed}')
+        if (self.brake_model == 'pneumatic'
+                and self.main_reservoir_pressure <= self.pipe_nominal_pressure):
+            raise ConfigError('main_reservoir_pressure must be above pipe_nominal_pressure')
+        for kind in ('fill', 'release'):
+            self._check_cylinder_table(kind)
+
+    def _check_cylinder_table(self, kind: str) -> None:
+        t_name, f_name = f'cylinder_{kind}_time', f'cylinder_{kind}_fraction'
+        times, fracs = getattr(self, t_name), getattr(self, f_name)
+        if len(times) != len(fracs):
+            raise ConfigError(f'{t_name} and {f_name} must have the same length '
+                              f'({len(times)} != {len(fracs)})')
+        if not times:
+            return
+        if len(times) < 2:
+            raise ConfigError(f'{t_name}: a characteristic needs at least 2 points')
+        if times[0] != 0.0 or any(b <= a for a, b in zip(times, times[1:])):
+            raise ConfigError(f'{t_name}: must start at 0 and strictly increase')
+        if kind == 'fill':
+            ok = fracs[0] == 0.0 and fracs[-1] == 1.0 and all(
+                b > a for a, b in zip(fracs, fracs[1:]))
+            if not ok:
+                raise ConfigError(f'{f_name}: must rise strictly from 0 to 1')
+        else:
+            ok = fracs[0] == 1.0 and fracs[-1] == 0.0 and all(
+                b < a for a, b in zip(fracs, fracs[1:]))
+            if not ok:
+                raise ConfigError(f'{f_name}: must fall strictly from 1 to 0')
+
+    def _check_real_train(self) -> None:
+        """Check the track, the traction schedule and the consist file (read it once)."""
+        try:
+            self.track
+        except ValueError as exc:
+            raise ConfigError(str(exc)) from None
+        times, cmds = self.traction_schedule_times, self.traction_schedule_commands
+        if len(times) != len(cmds):
+            raise ConfigError('traction_schedule_times and traction_schedule_commands must have '
+                              f'the same length ({len(times)} != {len(cmds)})')
+        if any(b <= a for a, b in zip(times, times[1:])):
+            raise ConfigError('traction_schedule_times: must strictly increase')
+        if self.consist_file:
+            self.consist
+
+
+def check_output_grid(rate: float, h: float) -> None:
+    """Raise unless 1 / ``rate`` [Hz] is a whole number of steps ``h`` [s] (exact grid)."""
+    ratio = 1.0 / (rate * h)
+    steps = round(ratio)
+    if steps >= 1 and abs(ratio - steps) <= GRID_TOLERANCE * steps:
+        return
+    up = max(1, math.ceil(ratio - GRID_TOLERANCE * ratio))
+    rates = sorted({1.0 / (k * h) for k in (max(1, math.floor(ratio)), up)
+                    if 1.0 / (k * h) <= PARAMETERS['publish_rate'].high})
+    hint = ' or '.join(f'{r:.9g}' for r in rates)
+    raise ConfigError(
+        f'publish_rate {rate:g} Hz and integration_step {h:g} s: an output period of '
+        f'{ratio:.6g} steps; outputs must land on whole steps, so 1 / publish_rate must be a '
+        f'whole number of integration steps: use publish_rate {hint or "<= 1 / step"} Hz, or '
+        f'integration_step {1.0 / (rate * up):.9g} s')
+
+
+def load_param_file(path: str, warn: Callable[[str], None] | None = None) -> SimConfig:
+    """
+    Read the simulator configuration from a ROS 2 parameter file (``train_dynamics``).
+
+    The file is read by :func:`~train_dynamics.physics.config.files.simulator_params` (its
+    rules for sections, unknown keys and relative paths); an unknown key of the node's own
+    section is an error. ConfigError messages name the file.
+    """
+    params = simulator_params(path, warn)
+    try:
+        return SimConfig.from_dict(params)
+    except ConfigError as exc:
+        raise ConfigError(f'{path}: {exc}') from None

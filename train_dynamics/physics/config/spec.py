@@ -1,0 +1,137 @@
+"""
+The parameter description format (:class:`ParamSpec`) and its one validator (:func:`check_value`).
+
+Every parameter of the simulator and of ``sim_node`` (:mod:`~train_dynamics.physics.config.table`)
+and of the brake valve is declared as a :class:`ParamSpec`; the nodes build their ROS 2
+parameter descriptors from it and every value, from whichever source (parameter file, ``ros2
+param set``, consist file, sweep file), goes through :func:`check_value`. Never imports rclpy.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+import math
+from typing import Any
+
+# Kinds of value, named after the ROS 2 parameter types they map to.
+DOUBLE = 'double'
+INTEGER = 'integer'
+STRING = 'string'
+BOOL = 'bool'
+DOUBLE_ARRAY = 'double_array'
+STRING_ARRAY = 'string_array'
+ARRAY_KINDS = (DOUBLE_ARRAY, STRING_ARRAY)
+
+#: how a per-vehicle field joins two vehicles into one coupler (see config.consist)
+HARMONIC = 'harmonic'       # 2 k_a k_b / (k_a + k_b): springs in series
+ARITHMETIC = 'arithmetic'   # (a + b) / 2
+
+
+class ConfigError(ValueError):
+    """A parameter value or a parameter file that cannot be used; the message says why."""
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """
+    Declaration of one parameter: what ``ros2 param describe`` shows.
+
+    ``dynamic``: the value may change while the node runs and acts at once; otherwise it is
+    structural (``sim_node`` keeps it pending until the ``reset`` service).
+    ``file_input``: the value names a file to read (relative: the path rule of
+    :mod:`~train_dynamics.physics.config.files`).
+    ``vehicle``: the field of a consist's vehicle this parameter is the default of (its name
+    in a consist file), '' when not per vehicle; ``connection``: how the field of two
+    vehicles makes the value of the coupler between them (:data:`HARMONIC`,
+    :data:`ARITHMETIC`), '' when it is no connection constant.
+    """
+
+    name: str
+    default: Any
+    kind: str
+    description: str
+    low: float | None = None          # lower bound, inclusive unless low_exclusive
+    high: float | None = None         # upper bound, inclusive
+    low_exclusive: bool = False
+    choices: tuple[str, ...] = ()
+    dynamic: bool = False
+    file_input: bool = False
+    vehicle: str = ''
+    connection: str = ''
+
+    def bounds(self) -> list[str]:
+        """Return the numeric range in words, e.g. ``['> 0', '<= 1e+07']`` (docs, descriptors)."""
+        words = []
+        if self.low is not None:
+            words.append(('> ' if self.low_exclusive else '>= ') + f'{self.low:g}')
+        if self.high is not None:
+            words.append(f'<= {self.high:g}')
+        return words
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def check_value(spec: ParamSpec, value: Any) -> Any:
+    """
+    Check one value of the parameter ``spec`` declares; return it normalised.
+
+    Integers become floats for doubles, arrays become lists. Raises :class:`ConfigError`
+    with a one-line reason.
+    """
+    name, kind = spec.name, spec.kind
+    if kind in (DOUBLE, INTEGER):
+        return _check_number(spec, value, name)
+    if kind == BOOL:
+        if not isinstance(value, bool):
+            raise ConfigError(f'{name}: expected true or false, got {value!r}')
+        return value
+    if kind == STRING:
+        if not isinstance(value, str):
+            raise ConfigError(f'{name}: expected a string, got {type(value).__name__} {value!r}')
+        if spec.choices and value not in spec.choices:
+            raise ConfigError(f'{name}: {value!r} is not one of {", ".join(spec.choices)}')
+        return value
+    if kind in ARRAY_KINDS:
+        if isinstance(value, (str, bytes)) or not hasattr(value, '__iter__'):
+            what = 'numbers' if kind == DOUBLE_ARRAY else 'strings'
+            raise ConfigError(f'{name}: expected a list of {what}, got {value!r}')
+        if kind == STRING_ARRAY:
+            return [_check_string(item, f'{name}[{k}]') for k, item in enumerate(value)]
+        return [_check_number(spec, item, f'{name}[{k}]') for k, item in enumerate(value)]
+    raise AssertionError(kind)
+
+
+def _check_string(value: Any, label: str) -> str:
+    if not isinstance(value, str):
+        raise ConfigError(f'{label}: expected a string, got {value!r}')
+    return value
+
+
+def _check_number(spec: ParamSpec, value: Any, label: str) -> float | int:
+    """Check a number of ``spec`` (an element for a double array), range included."""
+    if spec.kind == INTEGER:
+        if not isinstance(value, int) or isinstance(value, bool):
+            raise ConfigError(f'{label}: expected an integer, got {type(value).__name__} '
+                              f'{value!r}')
+        value = int(value)
+    elif not _is_number(value):
+        if spec.kind == DOUBLE_ARRAY:
+            raise ConfigError(f'{label}: expected a number, got {value!r}')
+        raise ConfigError(f'{label}: expected a number, got {type(value).__name__} {value!r}')
+    else:
+        value = float(value)
+    _check_range(spec, value, label)
+    return value
+
+
+def _check_range(spec: ParamSpec, value: float, label: str) -> None:
+    if isinstance(value, float) and not math.isfinite(value):
+        raise ConfigError(f'{label}: must be finite, got {value}')
+    if spec.low is not None:
+        if spec.low_exclusive and not value > spec.low:
+            raise ConfigError(f'{label}: must be > {spec.low:g}, got {value:g}')
+        if not spec.low_exclusive and not value >= spec.low:
+            raise ConfigError(f'{label}: must be >= {spec.low:g}, got {value:g}')
+    if spec.high is not None and not value <= spec.high:
+        raise ConfigError(f'{label}: must be <= {spec.high:g}, got {value:g}')

@@ -1,0 +1,309 @@
+"""
+The simulator's parameter table :data:`PARAMETERS`, and ``sim_node``'s own parameters.
+
+Every parameter of the product contract is declared once here, with its default, type, unit,
+range and whether it may change while the simulation runs; ``sim_node`` and the offline
+command share the table, the docs' parameter table is generated from it
+(:mod:`~train_dynamics.physics.config.docs`). The per-vehicle fields of a consist are the
+entries with ``vehicle`` set (:data:`VEHICLE_PARAMETERS`): name in a consist file, unit, range,
+default and connection rule in one place. Pressures in parameters are GAUGE pressures [Pa],
+except :data:`ATMOSPHERIC_PRESSURE`.
+"""
+from __future__ import annotations
+
+from typing import Any, Mapping
+
+from train_dynamics.physics.config.spec import (ARITHMETIC, BOOL, check_value, ConfigError, DOUBLE,
+                                                DOUBLE_ARRAY, HARMONIC, INTEGER, ParamSpec, STRING)
+
+# Pressure defaults, written once (used by the simulator and the brake valve).
+ATMOSPHERIC_PRESSURE = 101325.0    # [Pa absolute]: FluidPressure (absolute) = gauge + this
+PIPE_NOMINAL_PRESSURE = 500000.0   # [Pa gauge] brake-pipe running pressure (UIC: 5 bar)
+FULL_SERVICE_PRESSURE = 350000.0   # [Pa gauge] brake pipe at full service (UIC: 3.5 bar)
+
+
+# Quick-acting passenger (UIC "P") brake: cylinder filling and release characteristics,
+# as fractions of the maximum cylinder pressure against time [s]. Filling reaches 95 % in
+# 4.0 s (UIC 540: 3-5 s); release from maximum to 0.4 bar (10.5 % of 3.8 bar) in 17 s
+# (UIC: 15-20 s). The filling curve has the shape of the paper's measured Fig. 4: a fast
+# first stage, then an exponential approach.
+P_FILL_TIME = [0.0, 0.3, 0.6, 1.0, 1.5, 2.0, 2.5, 3.0, 3.5, 4.0, 5.0, 6.0]
+P_FILL_FRACTION = [0.0, 0.16, 0.28, 0.41, 0.55, 0.66, 0.75, 0.83, 0.90, 0.95, 0.99, 1.0]
+P_RELEASE_TIME = [0.0, 2.0, 4.0, 6.0, 8.0, 10.0, 12.0, 14.0, 17.0, 20.0, 24.0, 28.0]
+P_RELEASE_FRACTION = [1.0, 0.768, 0.589, 0.452, 0.347, 0.267, 0.205, 0.157, 0.105, 0.07, 0.03,
+                      0.0]
+# Goods (UIC "G") brake: the same shapes stretched to 95 % filling in 24 s (UIC: 18-30 s)
+# and release to 0.4 bar in 52 s (UIC: 45-60 s).
+G_FILL_TIME = [round(t * 6.0, 3) for t in P_FILL_TIME]
+G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
+
+#: default integration_tolerance: 0 = fixed step
+INTEGRATION_TOLERANCE = 0.0
+
+_PARAMS = [
+    ParamSpec('model_type', 'tanh', STRING,
+              'Coupler friction law: "tanh" uses tanh(u*ydot) (paper eqs. 14-16), '
+              '"sign" uses sgn(ydot) (paper eqs. 2-3).',
+              choices=('tanh', 'sign'), dynamic=True),
+    ParamSpec('scale_factor', 1000.0, DOUBLE,
+              'u in tanh(u*ydot) [s/m], > 0 (paper eq. 14).',
+              low=0.0, high=1.0e7, low_exclusive=True, dynamic=True),
+    ParamSpec('num_coaches', 3, INTEGER, 'Number of coaches N >= 2 (ignored when masses is set).',
+              low=2, high=100000),
+    ParamSpec('coach_mass', 45000.0, DOUBLE,
+              'Mass of every coach m_i [kg], unless masses is set. Bounds: a track trolley '
+              '(~0.5 t) to a loaded heavy-load wagon (~800 t).', low=500.0, high=1.0e6,
+              vehicle='mass'),
+    ParamSpec('masses', [], DOUBLE_ARRAY,
+              'Per-coach masses [kg], front to rear; non-empty overrides num_coaches and '
+              'coach_mass. Bounds as coach_mass.', low=500.0, high=1.0e6),
+    ParamSpec('coach_length', 25.0, DOUBLE,
+              'Coach length [m]: brake-pipe length per coach. Bounds: a trolley (1 m) to '
+              'twice the longest rail vehicles (~50 m).', low=1.0, high=100.0, vehicle='length'),
+    ParamSpec('buffer_stiffness', 2.8e6, DOUBLE,
+              'Buffer stiffness k_e [N/m] (paper eq. 2). Real buffers: 0.5-50 MN/m; the '
+              'bounds allow two decades either side.', low=1.0e4, high=1.0e10,
+              vehicle='buffer_stiffness', connection=HARMONIC),
+    ParamSpec('buffer_friction', 1.4e6, DOUBLE,
+              'Buffer friction constant k_f [N/m] (paper eq. 2), 0 <= k_f < k_e.',
+              low=0.0, high=1.0e10, vehicle='buffer_friction', connection=HARMONIC),
+    ParamSpec('draw_gear_stiffness', 5.46e6, DOUBLE,
+              'Draw-gear stiffness k_ec [N/m] (paper eq. 3). Bounds as buffer_stiffness.',
+              low=1.0e4, high=1.0e10, vehicle='draw_gear_stiffness', connection=HARMONIC),
+    ParamSpec('draw_gear_friction', 2.43e6, DOUBLE,
+              'Draw-gear friction constant k_fc [N/m] (paper eq. 3), 0 <= k_fc < k_ec.',
+              low=0.0, high=1.0e10, vehicle='draw_gear_friction', connection=HARMONIC),
+    ParamSpec('adhesion_coefficient', 0.1, DOUBLE,
+              'Wheel-rail adhesion coefficient mu_a (paper eqs. 12-13): full braking force '
+              'is mu_a*m*g per coach.', low=0.0, high=1.0, low_exclusive=True,
+              vehicle='adhesion_coefficient'),
+    ParamSpec('gravity', 9.81, DOUBLE,
+              'Gravitational acceleration g [m/s^2]. Bounds: the Moon (1.6) to Jupiter '
+              '(24.8), rounded.', low=1.0, high=30.0),
+    ParamSpec('max_cylinder_pressure', 380000.0, DOUBLE,
+              'Maximum brake-cylinder pressure p_max, gauge [Pa] (paper eq. 13). Bounds: '
+              '0.1 bar to the 20 bar input limit.', low=1.0e4, high=2.0e6,
+              vehicle='max_cylinder_pressure'),
+    ParamSpec('initial_speed', 44.444, DOUBLE, 'Initial speed of every coach v_i(0) [m/s].',
+              low=0.0, high=200.0),
+    ParamSpec('brake_input', 'pipe_head', STRING,
+              'Which input drives the brakes: pipe_head, pipe_per_coach or cylinder_per_coach.',
+              choices=('pipe_head', 'pipe_per_coach', 'cylinder_per_coach')),
+    ParamSpec('brake_propagation_speed', 250.0, DOUBLE,
+              'Brake-wave propagation speed along the pipe [m/s]. Bounds: the slowest '
+              'pneumatic brakes (~50 m/s; UIC asks >= 250) to an electro-pneumatic signal '
+              '(1e5: all coaches at once). Sizes the delay line (see the memory limit).',
+              low=50.0, high=1.0e5),
+    ParamSpec('integration_step', 2.0e-3, DOUBLE,
+              'Fixed integrator step [s] (ROS2, L-stable Rosenbrock): 2 ms keeps the peak '
+              'coupler force within 0.35 % of a tight reference at u = 1e3 for 3 to 1000 '
+              "coaches (0.07 % on the paper's 3); 5 ms is ~2x faster, within 0.7 %.",
+              low=1.0e-6, high=0.05),
+    ParamSpec('publish_rate', 100.0, DOUBLE,
+              'Output rate [Hz] in simulation time; 1 / publish_rate must be a whole number '
+              'of integration steps (outputs on an exact grid).',
+              low=0.0, high=10000.0, low_exclusive=True),
+    ParamSpec('real_time_factor', 1.0, DOUBLE,
+              'Simulation seconds per wall second; 0 = as fast as possible.',
+              low=0.0, high=1000.0, dynamic=True),
+    ParamSpec('publish_clock', False, BOOL, 'Publish /clock with the simulation time.',
+              dynamic=True),
+    ParamSpec('record_bag', '', STRING,
+              'When set, a path: record inputs and outputs to a rosbag2 (MCAP).'),
+    ParamSpec('atmospheric_pressure', ATMOSPHERIC_PRESSURE, DOUBLE,
+              'Atmospheric pressure [Pa]: converts the absolute pressures of FluidPressure '
+              'messages to gauge.', low=50000.0, high=150000.0),
+    # Brake system (beyond the contract; documented in the README).
+    ParamSpec('brake_regime', 'P', STRING,
+              'Brake regime for the default cylinder characteristics: "P" passenger '
+              '(fill 95 % in 4 s, release in 17 s) or "G" goods (24 s, 52 s).',
+              choices=('P', 'G'), vehicle='brake_regime'),
+    ParamSpec('cylinder_fill_time', [], DOUBLE_ARRAY,
+              'Filling characteristic, times [s] (increasing, from 0); empty = regime default.',
+              low=0.0, high=1000.0),
+    ParamSpec('cylinder_fill_fraction', [], DOUBLE_ARRAY,
+              'Filling characteristic, p/p_max at cylinder_fill_time (increasing 0 -> 1).',
+              low=0.0, high=1.0),
+    ParamSpec('cylinder_release_time', [], DOUBLE_ARRAY,
+              'Release characteristic, times [s] (increasing, from 0); empty = regime default.',
+              low=0.0, high=1000.0),
+    ParamSpec('cylinder_release_fraction', [], DOUBLE_ARRAY,
+              'Release characteristic, p/p_max at cylinder_release_time (decreasing 1 -> 0).',
+              low=0.0, high=1.0),
+    ParamSpec('pipe_nominal_pressure', PIPE_NOMINAL_PRESSURE, DOUBLE,
+              'Brake-pipe running pressure, gauge [Pa] (UIC: 5 bar).', low=1.0e5, high=1.0e6),
+    ParamSpec('full_service_pressure', FULL_SERVICE_PRESSURE, DOUBLE,
+              'Brake-pipe pressure at full service, gauge [Pa] (UIC: 3.5 bar).',
+              low=0.0, high=1.0e6),
+    ParamSpec('distributor_sensitivity', 30000.0, DOUBLE,
+              'Pipe-pressure drop below nominal [Pa] that a distributor ignores; a larger '
+              'drop applies the brake (first stage).', low=0.0, high=5.0e5),
+    ParamSpec('max_coupler_displacement', 5.0, DOUBLE,
+              'Numerical-fault bound on |y| [m]: beyond it the coaches would overlap or part '
+              '(a real buffer strokes ~0.1 m); the integration stops with a fault.',
+              low=0.0, high=1000.0, low_exclusive=True),
+    # Node behaviour on stale inputs.
+    ParamSpec('input_timeout', 0.0, DOUBLE,
+              'Seconds (wall) without any brake input before it is reported stale; 0 = never.',
+              low=0.0, high=3600.0, dynamic=True),
+    ParamSpec('on_input_timeout', 'hold', STRING,
+              'On a stale input: "hold" the last value or apply an "emergency" brake.',
+              choices=('hold', 'emergency'), dynamic=True),
+    # Pneumatic brake (physics/pneumatic.py, README "Pneumatic brake").
+    ParamSpec('brake_model', 'empirical', STRING,
+              'Brake system model: "empirical" (propagation delay, distributor map, filling '
+              'tables) or "pneumatic" (brake-pipe gas dynamics, relay valve, UIC '
+              'distributors with reservoirs). In pneumatic, brake_pipe/pressure is the '
+              'pressure the brake valve of the driver regulates the pipe head to.',
+              choices=('empirical', 'pneumatic')),
+    ParamSpec('brake_pipe_leakage', 0.0, DOUBLE,
+              'Pneumatic: leakage of the brake pipe, as the pressure drop rate [Pa/s] of '
+              'the lapped pipe at the running pressure, spread evenly along the train.',
+              low=0.0, high=1.0e5),
+    ParamSpec('angle_cock_closed', 0, INTEGER,
+              'Pneumatic: coupling k (between vehicles k and k+1) whose angle cocks are '
+              'closed, cutting the brake pipe; 0 = all open.', low=0, high=100000),
+    ParamSpec('brake_pipe_diameter', 0.032, DOUBLE,
+              'Pneumatic: inner diameter of the brake pipe [m] (EN 15355: 25-32 mm).',
+              low=0.01, high=0.1),
+    ParamSpec('main_reservoir_pressure', 900000.0, DOUBLE,
+              'Pneumatic: main-reservoir pressure feeding the brake valve of the driver, gauge '
+              '[Pa].', low=1.0e5, high=2.0e6),
+    # Run metrics (physics/metrics.py): a crossing is a WARN in /diagnostics.
+    ParamSpec('coupler_force_limit', 0.0, DOUBLE,
+              'Coupler force limit on abs(F) [N]: each excursion beyond it is a limit crossing '
+              '(coupler, value, time) in the run metrics; 0 = off.',
+              low=0.0, high=1.0e9, dynamic=True),
+    ParamSpec('jerk_limit', 0.0, DOUBLE,
+              'Jerk limit [m/s^3] on abs(jerk) of each vehicle, evaluated over 1 s windows '
+              '(EN 12299 practice): each excursion is a limit crossing; 0 = off.',
+              low=0.0, high=1000.0, dynamic=True),
+    # Real trains: consist, coupler travel, resistance, track, traction. A parameter with
+    # ``vehicle`` set is also a field of a consist's vehicles (config/consist.py; mass is
+    # coach_mass, length is coach_length): the value of the uniform train and the default of a
+    # vehicle type that leaves it out. Defaults are the paper's idealisation.
+    ParamSpec('consist_file', '', STRING,
+              'YAML consist (vehicle_types, vehicles front to rear); empty = the uniform train '
+              'of num_coaches/masses. Relative: to the folder of the parameter file that sets '
+              'it, else to the current directory; then config/.',
+              file_input=True),
+    ParamSpec('rotating_mass_factor', 0.0, DOUBLE,
+              'Rotating-mass allowance: the inertia of a vehicle is m (1 + factor).',
+              low=0.0, high=2.0, vehicle='rotating_mass_factor'),
+    ParamSpec('davis_a', 0.0, DOUBLE, 'Running resistance (Davis) constant term A [N].',
+              low=0.0, high=1.0e6, vehicle='davis_a'),
+    ParamSpec('davis_b', 0.0, DOUBLE, 'Running resistance (Davis) B |v| term [N s/m].',
+              low=0.0, high=1.0e6, vehicle='davis_b'),
+    ParamSpec('davis_c', 0.0, DOUBLE, 'Running resistance (Davis) C v^2 term [N s^2/m^2].',
+              low=0.0, high=1.0e5, vehicle='davis_c'),
+    ParamSpec('buffer_stroke', 0.105, DOUBLE,
+              'Buffer stroke S_c [m] before blocking (UIC 526-1: 105 mm).',
+              low=0.0, high=10.0, low_exclusive=True,
+              vehicle='buffer_stroke', connection=ARITHMETIC),
+    ParamSpec('draw_gear_stroke', 0.06, DOUBLE,
+              'Draw-gear spring travel S_t [m] before blocking (UIC 520 draw gear, typical).',
+              low=0.0, high=10.0, low_exclusive=True,
+              vehicle='draw_gear_stroke', connection=ARITHMETIC),
+    ParamSpec('buffer_slack', 0.0, DOUBLE,
+              'Free play g_c [m] before the buffers take load (0: tight screw coupling).',
+              low=0.0, high=1.0, vehicle='buffer_slack', connection=ARITHMETIC),
+    ParamSpec('draw_gear_slack', 0.0, DOUBLE,
+              'Free play g_t [m] before the draw gear takes load (0: tight coupling).',
+              low=0.0, high=1.0, vehicle='draw_gear_slack', connection=ARITHMETIC),
+    ParamSpec('blocked_stiffness', 1.0e8, DOUBLE,
+              'Stiffness K_b [N/m] once a buffer or draw gear is at the end of its stroke '
+              '(vehicle underframe, ~1e8 N/m).', low=0.0, high=1.0e12, low_exclusive=True,
+              vehicle='blocked_stiffness', connection=HARMONIC),
+    ParamSpec('max_tractive_force', 0.0, DOUBLE,
+              'Locomotive: starting tractive effort [N] (0: not a traction unit).',
+              low=0.0, high=1.0e7, vehicle='max_tractive_force'),
+    ParamSpec('max_power', 0.0, DOUBLE, 'Locomotive: power at the wheel rim in traction [W].',
+              low=0.0, high=1.0e8, vehicle='max_power'),
+    ParamSpec('max_dynamic_brake_force', 0.0, DOUBLE,
+              'Locomotive: maximum dynamic (electric) braking force [N].', low=0.0, high=1.0e7,
+              vehicle='max_dynamic_brake_force'),
+    ParamSpec('max_dynamic_brake_power', 0.0, DOUBLE,
+              'Locomotive: maximum dynamic braking power [W].', low=0.0, high=1.0e8,
+              vehicle='max_dynamic_brake_power'),
+    ParamSpec('traction_build_up_time', 4.0, DOUBLE,
+              'Locomotive: time [s] for the tractive/dynamic-brake force to go from 0 to the '
+              'full command (rate limit); 0 = immediate.', low=0.0, high=600.0,
+              vehicle='traction_build_up_time'),
+    ParamSpec('traction_adhesion', 0.33, DOUBLE,
+              'Locomotive: wheel-rail adhesion at standstill for traction and dynamic braking; '
+              'falls with speed as Curtius-Kniffler.', low=0.0, high=1.0, low_exclusive=True,
+              vehicle='traction_adhesion'),
+    ParamSpec('dynamic_brake_fade_speed', 1.4, DOUBLE,
+              'Locomotive: below this speed [m/s] the dynamic braking force fades linearly '
+              'to 0.', low=0.0, high=50.0, low_exclusive=True,
+              vehicle='dynamic_brake_fade_speed'),
+    ParamSpec('initial_position', 0.0, DOUBLE,
+              'Position along the track [m] of the front of vehicle 1 at t = 0.',
+              low=-1.0e7, high=1.0e7),
+    ParamSpec('track_gradient_positions', [], DOUBLE_ARRAY,
+              'Track positions [m] (increasing) where a gradient starts; 0 before the first.',
+              low=-1.0e7, high=1.0e7),
+    ParamSpec('track_gradients', [], DOUBLE_ARRAY,
+              'Gradient [per mille, > 0 uphill] from each track_gradient_positions entry on.',
+              low=-100.0, high=100.0),
+    ParamSpec('track_curve_starts', [], DOUBLE_ARRAY, 'Track positions [m] where curves start.',
+              low=-1.0e7, high=1.0e7),
+    ParamSpec('track_curve_ends', [], DOUBLE_ARRAY, 'Track positions [m] where curves end.',
+              low=-1.0e7, high=1.0e7),
+    ParamSpec('track_curve_radii', [], DOUBLE_ARRAY,
+              'Curve radii [m]; Roeckl resistance 650/(R-55) per mille (R >= 300 m), '
+              '500/(R-30) below.', low=100.0, high=1.0e6),
+    ParamSpec('traction_schedule_times', [], DOUBLE_ARRAY,
+              'Offline runs without a traction bag: times [s] (increasing) from which every '
+              'locomotive holds the matching traction_schedule_commands entry.',
+              low=0.0, high=1.0e7),
+    ParamSpec('traction_schedule_commands', [], DOUBLE_ARRAY,
+              'Traction command in [-1, 1] (> 0 traction, < 0 dynamic brake) from each '
+              'traction_schedule_times entry on.', low=-1.0, high=1.0),
+    # Error-controlled stepping (physics/adaptive.py).
+    ParamSpec('integration_tolerance', INTEGRATION_TOLERANCE, DOUBLE,
+              'Error-controlled integration: the local error of every coupler force per step, '
+              'relative to the largest coupler force in the train (at least 1e-3 of a '
+              "vehicle's weight) [-]; ROS2 with its embedded first-order estimate, PI step "
+              'control, landing on every output instant. 0 = fixed step integration_step.',
+              low=0.0, high=0.1),
+    ParamSpec('integration_max_steps', 100, INTEGER,
+              'Work budget of the error-controlled integration: steps per output period; '
+              'beyond it the rest of the period runs at the fixed integration_step (counted '
+              'in /diagnostics fallback_periods).', low=1, high=1000000),
+]
+
+PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
+
+#: ``sim_node``'s own parameters (not part of the simulator configuration; all live).
+SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
+    ParamSpec('duration', 0.0, DOUBLE,
+              'Simulation time [s] after which the node stops by itself (outputs up to and '
+              'including t = duration); 0 = run until shut down.',
+              low=0.0, high=1.0e9, dynamic=True),
+    ParamSpec('wait_for_input', 0.0, DOUBLE,
+              'Before the simulation clock starts (and after each reset), wait up to this many '
+              'wall seconds until a publisher is connected to every brake-input topic of '
+              'brake_input (the state stays at t = 0 meanwhile); 0 = start at once.',
+              low=0.0, high=3600.0, dynamic=True),
+    ParamSpec('record_flush_period', 10.0, DOUBLE,
+              'Wall-clock period [s] at which the record_bag MCAP file is finished and a new '
+              'one started: a SIGKILL loses at most this much of the recording.',
+              low=0.1, high=3600.0, dynamic=True),
+]}
+
+#: per-vehicle field name (as in a consist file) -> its parameter, in table order
+VEHICLE_PARAMETERS: dict[str, ParamSpec] = {p.vehicle: p for p in _PARAMS if p.vehicle}
+
+
+def validate_value(name: str, value: Any,
+                   table: Mapping[str, ParamSpec] = PARAMETERS) -> Any:
+    """
+    Check one value of parameter ``name`` of ``table``; return it normalised (:func:`check_value`).
+
+    Raises :class:`ConfigError` with a one-line reason (an unknown name too).
+    """
+    spec = table.get(name)
+    if spec is None:
+        raise ConfigError(f'unknown parameter {name!r}')
+    return check_value(spec, value)
