@@ -11,7 +11,7 @@ import sys
 import numpy as np
 import pytest
 
-from train_dynamics.physics.parameters import SimConfig
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'bench'))
