@@ -110,7 +110,6 @@ class SimConfig:
     traction_adhesion: float = 0.33                   # at standstill [-]
     dynamic_brake_fade_speed: float = 1.4             # [m/s]
     # the line
-    dummy_field: float = 0.0                          # documented dummy per-vehicle field [-]
     initial_position: float = 0.0                     # front of vehicle 1 at t = 0 [m]
     track_gradient_positions: list[float] = field(default_factory=list)   # [m], increasing
     track_gradients: list[float] = field(default_factory=list)            # [per mille]

@@ -238,9 +238,6 @@ _PARAMS = [
               'Locomotive: below this speed [m/s] the dynamic braking force fades linearly '
               'to 0.', low=0.0, high=50.0, low_exclusive=True,
               vehicle='dynamic_brake_fade_speed', row='DB_FADE'),
-    ParamSpec('dummy_field', 0.0, DOUBLE,
-              'Documented dummy per-vehicle field [-]: shows the one-place route of a field.',
-              low=0.0, high=1.0, vehicle='dummy_field', row='DUMMY'),
     ParamSpec('initial_position', 0.0, DOUBLE,
               'Position along the track [m] of the front of vehicle 1 at t = 0.',
               low=-1.0e7, high=1.0e7),
