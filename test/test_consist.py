@@ -167,8 +167,10 @@ def _vehicle_fields():
 @pytest.mark.parametrize('field, spec', _vehicle_fields(), ids=[f for f, _ in _vehicle_fields()])
 def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
     """
-    A per-vehicle field is its ParamSpec alone: the consist takes it, the docs list it, its
-    kernel row exists and a simulator carries a consist's value of it there.
+    Check that a per-vehicle field is its ParamSpec alone.
+
+    The consist takes it, the docs list it, its kernel row exists and a simulator carries a
+    consist's value of it there.
     """
     from pathlib import Path
 

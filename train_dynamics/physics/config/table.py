@@ -6,8 +6,8 @@ range and whether it may change while the simulation runs; ``sim_node`` and the 
 command share the table, the docs' parameter table is generated from it
 (:mod:`~train_dynamics.physics.config.docs`). The per-vehicle fields of a consist are the
 entries with ``vehicle`` set (:data:`VEHICLE_PARAMETERS`): name in a consist file, unit, range,
-default, connection rule and kernel row (:data:`KERNEL_ROWS`) in one place. Pressures in parameters are GAUGE pressures [Pa],
-except :data:`ATMOSPHERIC_PRESSURE`.
+default, connection rule and kernel row (:data:`KERNEL_ROWS`) in one place. Pressures in
+parameters are GAUGE pressures [Pa], except :data:`ATMOSPHERIC_PRESSURE`.
 """
 from __future__ import annotations
 

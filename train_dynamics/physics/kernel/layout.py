@@ -17,8 +17,8 @@ Each group below says what it holds and who writes it.
 
 - ``VEHICLE``: per-vehicle constants (masses, track position, pipe delay, then the consist
   fields the kernel reads as is: length, resistance, traction; their rows are declared with
-  the fields in the parameter table); written by ``TrainSimulator.__init__`` only. First, so ``coach[len(VEHICLE):]``
-  is everything ``reset()`` rewrites.
+  the fields in the parameter table); written by ``TrainSimulator.__init__`` only. First,
+  so ``coach[len(VEHICLE):]`` is everything ``reset()`` rewrites.
 - ``STATE``: integrated state (position, speed, pipe, distributor, cylinder, available
   braking force, holding, traction ramp); ``reset()``, then the kernel each step.
 - ``INPUT``: inputs held until the next ``set_*`` call (local pipe, cylinder, traction
