@@ -2,7 +2,8 @@
 Coupler force laws on the Python side: one coupler's law, energies, deflection bounds.
 
 The law of a single coupler for plots and tests, the energy stored with free play and
-blocking, the deflection a force allows.
+blocking, the deflection a force allows, and one vehicle end's quasi-static deflection and
+absorbed energy (a coupling is two ends in series, :mod:`~train_dynamics.physics.config.consist`).
 
 The law itself (paper eqs. 1-4, 14-16, sign conventions and the free play and blocking of a
 real coupler) is compiled: :mod:`train_dynamics.physics.kernel.couplers`.
@@ -46,3 +47,23 @@ def deflection_bounds(force, gt, gc, st, sc, kb):
     """
     extra = np.abs(np.asarray(force, dtype=float)) / kb
     return -(gc + sc + extra), gt + st + extra
+
+
+def end_deflection(force, k, k_friction, slack, stroke, kb):
+    """
+    Return one vehicle end's deflection [m] (> 0) under a quasi-static load ``force`` [N] (> 0).
+
+    On the loading branch of the paper's law (eqs. 2-3, friction opposing the motion): the free
+    play g, then F / (k + k_friction) up to the stroke S, then the blocked stiffness K_b:
+    g + min(F / (k + k_fr), S) + max(F - (k + k_fr) S, 0) / K_b. The ends of a coupling carry
+    the same force, so its deflection is the sum of its ends' (``config.consist``'s series rule).
+    """
+    force = np.asarray(force, dtype=float)
+    k_load = k + k_friction
+    return (slack + np.minimum(force / k_load, stroke)
+            + np.maximum(force - k_load * stroke, 0.0) / kb)
+
+
+def end_energy_to_blocking(k, k_friction, stroke):
+    """Return the energy [J] one end absorbs loaded to blocking: (k + k_fr) S^2 / 2."""
+    return 0.5 * (k + k_friction) * stroke * stroke

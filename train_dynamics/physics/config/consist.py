@@ -14,12 +14,21 @@ The fields a vehicle may set are the parameters with ``vehicle`` in the table
 ``length`` is ``coach_length``): the parameter's value is the field of the uniform train (no
 consist file) and the default of a type that leaves the field out; its range is the field's.
 
-Couplings. A vehicle's buffer and draw-gear constants describe a connection between two such
-vehicles, as the paper's constants do. Coupler i joins vehicles i and i+1 (a, b); it takes
-the harmonic mean 2 k_a k_b / (k_a + k_b) of each stiffness and friction constant and of the
-blocked stiffness (springs in series), and the arithmetic mean of each stroke and slack (the
-``connection`` of each field in the table). Two identical vehicles give their own values
-(exactly).
+Couplings: two vehicle ends in series. A vehicle's buffer and draw-gear fields are those of
+each of its ends (its datasheet: stiffness and friction constant [N/m] of the paper's law,
+stroke, free play, blocked stiffness); ``front:`` and ``rear:`` mappings in a type or a vehicle
+entry give one end its own values. Coupler i joins the rear end of vehicle i to the front end
+of vehicle i+1 (:func:`coupling_of_ends`): the springs are in series, so the compliances of the
+loading branches (k + k_friction) add and so do those of the unloading branches
+(k - k_friction); strokes add and free play adds (the ``connection`` of each field in the
+table). Two identical ends give a coupling of half their stiffness and friction and twice
+their travel, exactly.
+
+Whole-coupling constants, where a user has only those: the parameters of the uniform train (no
+consist file) are the constants of each coupling (the paper's measured constants are), and a
+consist's ``couplings:`` mapping sets constants of every coupling as is. A vehicle type that
+leaves an end field out takes the end whose coupling with an identical end is the parameter's
+(:func:`end_of_coupling`).
 
 Errors (unknown field, missing type, non-physical value) raise
 :class:`~train_dynamics.physics.config.spec.ConfigError` naming the file, the vehicle and the
@@ -44,9 +53,12 @@ VEHICLE_FIELDS = tuple(VEHICLE_PARAMETERS)
 #: vehicle field -> simulator parameter, where the names differ
 PARAM_OF = {f: s.name for f, s in VEHICLE_PARAMETERS.items() if f != s.name}
 
-#: connection constants: harmonic mean (springs in series) and arithmetic mean
-HARMONIC = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.HARMONIC)
-ARITHMETIC = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.ARITHMETIC)
+#: coupling constants: ends in series (compliances add) and travels that add
+SERIES = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.SERIES)
+ADDED = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.ADDED)
+
+#: the keys of a type or vehicle entry that hold one end's own fields
+END_KEYS = ('front', 'rear')
 
 #: per-coupler constants in the order the kernel stores them
 COUPLER_FIELDS = ('buffer_stiffness', 'buffer_friction', 'draw_gear_stiffness',
@@ -93,9 +105,18 @@ def _read_yaml(path: Path) -> Any:
 
 def check_field(field: str, value: Any, where: str) -> Any:
     """Return ``value`` validated as vehicle field ``field``; ConfigError names ``where``."""
+    if field in END_KEYS:
+        if not isinstance(value, dict):
+            raise ConfigError(f'{where}: {field}: a mapping of end fields '
+                              f'({", ".join(COUPLER_FIELDS)})')
+        bad = set(value) - set(COUPLER_FIELDS)
+        if bad:
+            raise ConfigError(f'{where}: {field}: not an end field: {", ".join(sorted(bad))} '
+                              f'(end fields: {", ".join(COUPLER_FIELDS)})')
+        return {k: check_field(k, v, f'{where}: {field}') for k, v in value.items()}
     if field not in VEHICLE_FIELDS:
         raise ConfigError(f'{where}: unknown field {field!r} (fields: '
-                          f'{", ".join(VEHICLE_FIELDS)})')
+                          f'{", ".join(VEHICLE_FIELDS)}, {", ".join(END_KEYS)})')
     param = PARAM_OF.get(field, field)
     try:
         return validate_value(param, value)
@@ -126,22 +147,92 @@ def library_types() -> dict[str, dict[str, Any]]:
     return _types_of(doc.get('vehicle_types'), str(path))
 
 
+def end_of_coupling(field: str, value: float) -> float:
+    """
+    Return the end value whose coupling with an identical end is ``value`` (a coupling constant).
+
+    Stiffness and friction: 2 k (two such ends in series give k); travel: S / 2. Exact in
+    floating point (a factor of 2), so the coupling of two such ends is ``value`` bit for bit.
+    """
+    if field in SERIES:
+        return 2.0 * value
+    if field in ADDED:
+        return 0.5 * value
+    return value
+
+
 def defaults_of(values: dict[str, Any]) -> dict[str, Any]:
-    """Return each vehicle field's default: the simulator parameter of the same name."""
+    """
+    Return each vehicle field's default from the simulator parameters.
+
+    The parameter of the same name; for an end field the end whose coupling with an identical
+    end is the parameter's (:func:`end_of_coupling`: parameters are whole-coupling constants).
+    """
     out = {}
     for field in VEHICLE_FIELDS:
         param = PARAM_OF.get(field, field)
-        out[field] = values.get(param, PARAMETERS[param].default)
+        out[field] = end_of_coupling(field, values.get(param, PARAMETERS[param].default))
+    return out
+
+
+def series(a, b) -> np.ndarray:
+    """
+    Return a b / (a + b): two springs of stiffness a and b in series (compliances add).
+
+    Exactly a / 2 when a == b; 0 when either is 0 (arrays or scalars [N/m]).
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        both = np.where(a + b > 0.0, a * b / (a + b), 0.0)
+    return np.where(a == b, 0.5 * a, both)
+
+
+def coupling_of_ends(rear: Mapping[str, np.ndarray],
+                     front: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """
+    Return the coupling constants of the rear ends ``rear`` joined to the front ends ``front``.
+
+    Both: end field -> array (one per coupling). The law of each end is the paper's (eqs. 2-3):
+    loading branch (k + k_fr)|y|, unloading (k - k_fr)|y|. Under the one force the coupling
+    carries, both ends load or unload together, so the coupling's loading stiffness is the
+    series of the ends' loading stiffnesses, its unloading stiffness the series of the
+    unloading ones: k = (K_load + K_unload) / 2, k_fr = (K_load - K_unload) / 2 (exactly the
+    ends' halves when the ends are identical). Blocked stiffness in series; strokes and free
+    play add.
+    """
+    out = {}
+    for stiff, fric in (('buffer_stiffness', 'buffer_friction'),
+                        ('draw_gear_stiffness', 'draw_gear_friction')):
+        ka, fa, kb, fb = rear[stiff], rear[fric], front[stiff], front[fric]
+        load = series(ka + fa, kb + fb)
+        unload = series(ka - fa, kb - fb)
+        same = (ka == kb) & (fa == fb)
+        out[stiff] = np.where(same, 0.5 * ka, 0.5 * (load + unload))
+        out[fric] = np.where(same, 0.5 * fa, 0.5 * (load - unload))
+    for field in COUPLER_FIELDS:
+        if field in out:
+            continue
+        if field in SERIES:
+            out[field] = series(rear[field], front[field])
+        else:
+            out[field] = np.asarray(rear[field], dtype=float) + np.asarray(front[field], float)
     return out
 
 
 @dataclass
 class Consist:
-    """The vehicles front to rear: their type names and each field's values (arrays of N)."""
+    """
+    The vehicles front to rear: type names, each field's values (arrays of N), the couplings.
+
+    ``fields`` holds a vehicle's fields (the end fields of ends without their own values);
+    ``couplings`` the constants of each coupling, :data:`COUPLER_FIELDS` -> array of N-1.
+    """
 
     types: list[str]
     fields: dict[str, np.ndarray]      # numeric fields, arrays of N
     regimes: list[str]                 # brake_regime per vehicle
+    couplings: dict[str, np.ndarray]   # coupling constants, arrays of N-1
 
     @property
     def n(self) -> int:
@@ -160,41 +251,62 @@ class Consist:
                 if f['max_tractive_force'][i] > 0.0 or f['max_dynamic_brake_force'][i] > 0.0]
 
     def coupler(self, field: str) -> np.ndarray:
-        """Return the connection value of a field, one per coupler: N-1 values."""
-        a = self.fields[field][:-1]
-        b = self.fields[field][1:]
-        if field in HARMONIC:
-            return connection_harmonic(a, b)
-        if field in ARITHMETIC:
-            return np.where(a == b, a, 0.5 * (a + b))
-        raise KeyError(field)
+        """Return one constant of every coupling (:data:`COUPLER_FIELDS`): N-1 values."""
+        return self.couplings[field]
 
     def coupler_array(self) -> np.ndarray:
         """Return the (9, N-1) array of :data:`COUPLER_FIELDS` per coupler."""
         return np.array([self.coupler(f) for f in COUPLER_FIELDS])
 
 
-def connection_harmonic(a, b) -> np.ndarray:
-    """Return 2 a b / (a + b) (springs in series): a when a == b, 0 when either is 0."""
-    a = np.asarray(a, dtype=float)
-    b = np.asarray(b, dtype=float)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        mean = np.where(a + b > 0.0, 2.0 * a * b / (a + b), 0.0)
-    return np.where(a == b, a, mean)
+def _end(row: dict[str, Any], key: str) -> dict[str, float]:
+    """Return the end fields of one end (``front`` or ``rear``) of a complete field dict."""
+    own = row.get(key) or {}
+    return {f: float(own.get(f, row[f])) for f in COUPLER_FIELDS}
 
 
-def _make(rows: list[tuple[str, dict[str, Any]]], source: str) -> Consist:
-    """Build a Consist from (type, complete field dict) rows of a file; cross-field checks."""
+def _make(rows: list[tuple[str, dict[str, Any]]], source: str,
+          whole: Mapping[str, float] | None = None) -> Consist:
+    """
+    Build a Consist from (type, complete field dict) rows of a file; cross-field checks.
+
+    ``whole``: whole-coupling constants that replace the ends' series values in every coupling.
+    """
     checked: set[int] = set()
     for k, (name, f) in enumerate(rows, start=1):
         if id(f) not in checked:        # a vehicle repeated by count: its fields once
-            check_friction_below_stiffness(f, f'{source}: vehicle {k} ({name}): ')
+            for key in END_KEYS:
+                check_friction_below_stiffness(_end(f, key),
+                                               f'{source}: vehicle {k} ({name}) {key} end: ')
             checked.add(id(f))
     if len(rows) < 2:
         raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {len(rows)}')
     numeric = [f for f in VEHICLE_FIELDS if f != 'brake_regime']
     fields = {f: np.array([r[1][f] for r in rows], dtype=float) for f in numeric}
-    return Consist([r[0] for r in rows], fields, [r[1]['brake_regime'] for r in rows])
+    rear = [_end(r[1], 'rear') for r in rows[:-1]]
+    front = [_end(r[1], 'front') for r in rows[1:]]
+    couplings = coupling_of_ends({f: np.array([e[f] for e in rear]) for f in COUPLER_FIELDS},
+                                 {f: np.array([e[f] for e in front]) for f in COUPLER_FIELDS})
+    for f, v in (whole or {}).items():
+        couplings[f] = np.full(len(rows) - 1, float(v))
+    if whole:
+        check_friction_below_stiffness(couplings, f'{source}: couplings: ')
+    return Consist([r[0] for r in rows], fields, [r[1]['brake_regime'] for r in rows],
+                   couplings)
+
+
+def _whole_couplings(doc: Any, source: str) -> dict[str, float]:
+    """Return a consist's ``couplings:`` (whole-coupling constants, as the parameters), checked."""
+    if doc is None:
+        return {}
+    if not isinstance(doc, dict):
+        raise ConfigError(f'{source}: couplings: a mapping of coupling constants '
+                          f'({", ".join(COUPLER_FIELDS)})')
+    bad = set(doc) - set(COUPLER_FIELDS)
+    if bad:
+        raise ConfigError(f'{source}: couplings: not a coupling constant: '
+                          f'{", ".join(sorted(map(str, bad)))} ({", ".join(COUPLER_FIELDS)})')
+    return {k: check_field(k, v, f'{source}: couplings') for k, v in doc.items()}
 
 
 def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None) -> Consist:
@@ -209,10 +321,10 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
     if not isinstance(doc, dict):
         raise ConfigError(f'{source}: a consist file is a mapping with vehicles: (and '
                           'optionally vehicle_types:)')
-    unknown = set(doc) - {'vehicle_types', 'vehicles'}
+    unknown = set(doc) - {'vehicle_types', 'vehicles', 'couplings'}
     if unknown:
         raise ConfigError(f'{source}: unknown key(s) {", ".join(sorted(map(str, unknown)))} '
-                          '(expected vehicle_types, vehicles)')
+                          '(expected vehicle_types, vehicles, couplings)')
     types = library_types()
     types.update(_types_of(doc.get('vehicle_types'), source))
     vehicles = doc.get('vehicles')
@@ -234,8 +346,10 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
             raise ConfigError(f'{where} ({name}): count: must be an integer >= 1, got {count!r}')
         overrides = {f: check_field(f, v, f'{where} ({name})') for f, v in entry.items()}
         merged = {**defaults, **types[name], **overrides}
+        for key in END_KEYS:     # an end's own fields: the type's, then the entry's
+            merged[key] = {**(types[name].get(key) or {}), **(overrides.get(key) or {})}
         rows.extend((name, merged) for _ in range(count))
-    return _make(rows, source)
+    return _make(rows, source, _whole_couplings(doc.get('couplings'), source))
 
 
 def uniform_consist(values: dict[str, Any]) -> Consist:
@@ -253,7 +367,9 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
         raise ConfigError(f'parameters: a train needs at least 2 vehicles, got {n}')
     fields = {f: np.full(n, float(v)) for f, v in defaults.items() if f != 'brake_regime'}
     fields['mass'] = np.array([float(m) for m in masses])
-    return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n)
+    ends = {f: fields[f][1:] for f in COUPLER_FIELDS}
+    return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n,
+                   coupling_of_ends(ends, ends))
 
 
 def consist_of(values: dict[str, Any], base_dir: str | None = None) -> Consist:

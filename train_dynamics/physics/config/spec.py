@@ -22,8 +22,8 @@ STRING_ARRAY = 'string_array'
 ARRAY_KINDS = (DOUBLE_ARRAY, STRING_ARRAY)
 
 #: how a per-vehicle field joins two vehicles into one coupler (see config.consist)
-HARMONIC = 'harmonic'       # 2 k_a k_b / (k_a + k_b): springs in series
-ARITHMETIC = 'arithmetic'   # (a + b) / 2
+SERIES = 'series'   # the two ends' springs in series: compliances add, k_a k_b / (k_a + k_b)
+ADDED = 'added'     # the two ends' travels add: a + b
 
 
 class ConfigError(ValueError):
@@ -41,8 +41,8 @@ class ParamSpec:
     :mod:`~train_dynamics.physics.config.files`).
     ``vehicle``: the field of a consist's vehicle this parameter is the default of (its name
     in a consist file), '' when not per vehicle; ``connection``: how the field of two
-    vehicles makes the value of the coupler between them (:data:`HARMONIC`,
-    :data:`ARITHMETIC`), '' when it is no connection constant; ``row``: the name of the
+    vehicle ends makes the value of the coupling between them (:data:`SERIES`,
+    :data:`ADDED`), '' when it is no coupling constant; ``row``: the name of the
     per-vehicle constant row of the kernel (``layout.VEHICLE``) that holds the field's value
     of each vehicle as is, '' when the kernel has no such row. A per-vehicle field is this one
     declaration: the consist field list, the docs' tables, the kernel row and the copy into

@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from train_dynamics.physics.config.spec import (ARITHMETIC, BOOL, check_value, ConfigError, DOUBLE,
-                                                DOUBLE_ARRAY, HARMONIC, INTEGER, ParamSpec, STRING)
+from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
+                                                DOUBLE_ARRAY, INTEGER, ParamSpec, SERIES, STRING)
 
 # Pressure defaults, written once (used by the simulator and the brake valve).
 ATMOSPHERIC_PRESSURE = 101325.0    # [Pa absolute]: FluidPressure (absolute) = gauge + this
@@ -64,16 +64,16 @@ _PARAMS = [
     ParamSpec('buffer_stiffness', 2.8e6, DOUBLE,
               'Buffer stiffness k_e [N/m] (paper eq. 2). Real buffers: 0.5-50 MN/m; the '
               'bounds allow two decades either side.', low=1.0e4, high=1.0e10,
-              vehicle='buffer_stiffness', connection=HARMONIC),
+              vehicle='buffer_stiffness', connection=SERIES),
     ParamSpec('buffer_friction', 1.4e6, DOUBLE,
               'Buffer friction constant k_f [N/m] (paper eq. 2), 0 <= k_f < k_e.',
-              low=0.0, high=1.0e10, vehicle='buffer_friction', connection=HARMONIC),
+              low=0.0, high=1.0e10, vehicle='buffer_friction', connection=SERIES),
     ParamSpec('draw_gear_stiffness', 5.46e6, DOUBLE,
               'Draw-gear stiffness k_ec [N/m] (paper eq. 3). Bounds as buffer_stiffness.',
-              low=1.0e4, high=1.0e10, vehicle='draw_gear_stiffness', connection=HARMONIC),
+              low=1.0e4, high=1.0e10, vehicle='draw_gear_stiffness', connection=SERIES),
     ParamSpec('draw_gear_friction', 2.43e6, DOUBLE,
               'Draw-gear friction constant k_fc [N/m] (paper eq. 3), 0 <= k_fc < k_ec.',
-              low=0.0, high=1.0e10, vehicle='draw_gear_friction', connection=HARMONIC),
+              low=0.0, high=1.0e10, vehicle='draw_gear_friction', connection=SERIES),
     ParamSpec('adhesion_coefficient', 0.1, DOUBLE,
               'Wheel-rail adhesion coefficient mu_a (paper eqs. 12-13): full braking force '
               'is mu_a*m*g per coach.', low=0.0, high=1.0, low_exclusive=True,
@@ -200,21 +200,21 @@ _PARAMS = [
     ParamSpec('buffer_stroke', 0.105, DOUBLE,
               'Buffer stroke S_c [m] before blocking (UIC 526-1: 105 mm).',
               low=0.0, high=10.0, low_exclusive=True,
-              vehicle='buffer_stroke', connection=ARITHMETIC),
+              vehicle='buffer_stroke', connection=ADDED),
     ParamSpec('draw_gear_stroke', 0.06, DOUBLE,
               'Draw-gear spring travel S_t [m] before blocking (UIC 520 draw gear, typical).',
               low=0.0, high=10.0, low_exclusive=True,
-              vehicle='draw_gear_stroke', connection=ARITHMETIC),
+              vehicle='draw_gear_stroke', connection=ADDED),
     ParamSpec('buffer_slack', 0.0, DOUBLE,
               'Free play g_c [m] before the buffers take load (0: tight screw coupling).',
-              low=0.0, high=1.0, vehicle='buffer_slack', connection=ARITHMETIC),
+              low=0.0, high=1.0, vehicle='buffer_slack', connection=ADDED),
     ParamSpec('draw_gear_slack', 0.0, DOUBLE,
               'Free play g_t [m] before the draw gear takes load (0: tight coupling).',
-              low=0.0, high=1.0, vehicle='draw_gear_slack', connection=ARITHMETIC),
+              low=0.0, high=1.0, vehicle='draw_gear_slack', connection=ADDED),
     ParamSpec('blocked_stiffness', 1.0e8, DOUBLE,
               'Stiffness K_b [N/m] once a buffer or draw gear is at the end of its stroke '
               '(vehicle underframe, ~1e8 N/m).', low=0.0, high=1.0e12, low_exclusive=True,
-              vehicle='blocked_stiffness', connection=HARMONIC),
+              vehicle='blocked_stiffness', connection=SERIES),
     ParamSpec('max_tractive_force', 0.0, DOUBLE,
               'Locomotive: starting tractive effort [N] (0: not a traction unit).',
               low=0.0, high=1.0e7, vehicle='max_tractive_force', row='T_FORCE'),
