@@ -9,7 +9,8 @@ depend on the bag's length, the figures' curves are bounded) and writes
 :func:`train_dynamics.recording.metrics_report.write_report`'s files. The run's parameters
 (limits, strokes and slacks, coupler stiffness for the dissipated energy) come from
 ``--params``, else from the bag's ``custom_data`` ``parameters`` (recorded by the node), else
-the limits are off and the dissipated energy is not given.
+the limits are off and the dissipated energy is not given. Strokes and slacks are those of the
+parameters' consist (its vehicle ends in series), read as the simulator reads them.
 """
 from __future__ import annotations
 
