@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from train_dynamics.physics import pneumatic
+from train_dynamics.physics import equilibrium, pneumatic
 from train_dynamics.physics.config import (ConfigError, Consist, G_FILL_TIME, G_RELEASE_TIME,
                                            P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
                                            P_RELEASE_TIME, SimConfig)
@@ -29,7 +29,9 @@ from train_dynamics.physics.kernel import adaptive, brakes, couplers, fixed_step
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, COUNT, COUPLER,
                                                   INPUT, INTEGER, OPTION, PARAM, SCALAR,
                                                   SCALAR_INPUT, STATE, VEHICLE, WORK)
+from train_dynamics.physics.kernel.resistance import running_resistance
 from train_dynamics.physics.kernel.step import make_workspace, OK, STATUS_TEXT
+from train_dynamics.physics.kernel.traction import traction_force
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.resistance import equivalent_mass
 
@@ -177,7 +179,12 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         iv[OPTION.BUDGET] = int(cfg.integration_max_steps)
 
     def reset(self) -> None:
-        """Go back to t = 0: coaches at ``initial_speed``, couplers undeformed, brakes released."""
+        """
+        Go back to t = 0: coaches at ``initial_speed``, brakes released, couplers unstressed.
+
+        ``initial_state: equilibrium``: the couplers then take their quasi-static deflections
+        (:meth:`_settle`).
+        """
         cfg = self.cfg
         p_nom = float(cfg.pipe_nominal_pressure)
         self.steps = 0
@@ -202,6 +209,47 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             self.pneu.reset()
             c[INPUT.CYL] = self.pneu.cylinder_pressure
         self.fault: str | None = None
+        self._settle()
+
+    def _settle(self) -> None:
+        """
+        At t = 0 with ``initial_state: equilibrium``: put the couplers at their static deflections.
+
+        The vehicles' forces at t = 0 (gradient, curve and running resistance at
+        ``initial_speed``, traction at its command, brakes released) in the chain of
+        :mod:`~train_dynamics.physics.equilibrium`; STATE.X takes the deflections (x_1 = 0).
+        Nothing changes when every coupler force is 0 (a level train without resistance and
+        traction: the paper's start).
+        """
+        if self.cfg.initial_state != 'equilibrium' or self.steps != 0:
+            return
+        c = self.coach
+        n = self.n
+        v0 = float(self.cfg.initial_speed)
+        grade, curve = self.track.forces(np.zeros(n), c[VEHICLE.LENGTH], self.masses,
+                                         float(self.cfg.gravity))
+        external = grade.copy()
+        if v0 != 0.0:
+            res = running_resistance(np.full(n, v0), c[VEHICLE.DAVIS_A], c[VEHICLE.DAVIS_B],
+                                     c[VEHICLE.DAVIS_C], np.empty(n))
+            external -= np.sign(v0) * (res + curve)
+        for i in self.consist.locomotives:
+            if c[STATE.T_EFF, i] != 0.0:
+                external[i] += traction_force(
+                    c[STATE.T_EFF, i], v0, c[VEHICLE.T_FORCE, i], c[VEHICLE.T_POWER, i],
+                    c[VEHICLE.DB_FORCE, i], c[VEHICLE.DB_POWER, i], c[VEHICLE.DB_FADE, i],
+                    c[VEHICLE.T_ADH, i], c[VEHICLE.WEIGHT, i])
+        force = equilibrium.chain_forces(external, self.inertia)
+        if not np.any(force):
+            c[STATE.X] = 0.0
+            return
+        cpl = self.cpl
+        y = equilibrium.static_deflection(force, cpl[COUPLER.KE], cpl[COUPLER.KEC],
+                                          cpl[COUPLER.GT], cpl[COUPLER.GC], cpl[COUPLER.ST],
+                                          cpl[COUPLER.SC], cpl[COUPLER.KB])
+        c[STATE.X] = equilibrium.positions(y)
+        self.ws[WORK.XKEY] = np.nan      # the static resistance at the new positions
+        self.iv[CACHE.WS_VALID] = 0
 
     def set_model(self, model_type: str, scale_factor: float) -> None:
         """Switch the coupler friction law live (state untouched)."""
@@ -266,6 +314,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         if index not in self.consist.locomotives:
             raise ValueError(f'vehicle {index + 1} is not a locomotive (no traction)')
         self.coach[INPUT.T_CMD, index] = c
+        if self.steps == 0 and self.cfg.initial_state == 'equilibrium':
+            # the train starts running at this setting: its force is built up, in the balance
+            self.coach[STATE.T_EFF, index] = c
+            self._settle()
 
     # -- integration -------------------------------------------------------------------------
     @property

@@ -109,6 +109,7 @@ class SimConfig:
     traction_build_up_time: float = 4.0               # 0 -> full command [s]
     traction_adhesion: float = 0.33                   # at standstill [-]
     dynamic_brake_fade_speed: float = 1.4             # [m/s]
+    initial_state: str = 'equilibrium'                # couplers at t = 0, or 'unstressed'
     # the line
     initial_position: float = 0.0                     # front of vehicle 1 at t = 0 [m]
     track_gradient_positions: list[float] = field(default_factory=list)   # [m], increasing

@@ -238,6 +238,11 @@ _PARAMS = [
               'Locomotive: below this speed [m/s] the dynamic braking force fades linearly '
               'to 0.', low=0.0, high=50.0, low_exclusive=True,
               vehicle='dynamic_brake_fade_speed', row='DB_FADE'),
+    ParamSpec('initial_state', 'equilibrium', STRING,
+              'The couplers at t = 0: "equilibrium" (the quasi-static deflections that balance '
+              'gradient, curve, resistance and traction at t = 0, free play included: a steady '
+              'run stays steady) or "unstressed" (every coupler at y = 0, the paper\'s start).',
+              choices=('equilibrium', 'unstressed')),
     ParamSpec('initial_position', 0.0, DOUBLE,
               'Position along the track [m] of the front of vehicle 1 at t = 0.',
               low=-1.0e7, high=1.0e7),
