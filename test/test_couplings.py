@@ -120,3 +120,15 @@ def test_two_paper_coaches_are_coupled_as_in_the_paper(tmp_path):
     assert list(c.coupler('draw_gear_stiffness')) == [5.46e6, 5.46e6]
     assert list(c.coupler('draw_gear_friction')) == [2.43e6, 2.43e6]
     assert list(c.coupler('buffer_stroke')) == [0.105, 0.105]
+
+
+def test_library_locomotives_match_their_sources():
+    lib = consist.library_types()
+    db101 = lib['electric_passenger_locomotive']
+    # DB 101: its 300 kN starting effort within its adhesion at standstill
+    assert db101['traction_adhesion'] * db101['mass'] * 9.81 >= db101['max_tractive_force']
+    # the UK Class 66 has no dynamic brake
+    class66 = lib['heavy_freight_locomotive']
+    assert class66.get('max_dynamic_brake_force', 0.0) == 0.0
+    db185 = lib['electric_freight_locomotive']
+    assert db185['traction_adhesion'] * db185['mass'] * 9.81 >= db185['max_tractive_force']

@@ -177,7 +177,7 @@ def defaults_of(values: dict[str, Any]) -> dict[str, Any]:
 
 def series(a, b) -> np.ndarray:
     """
-    Return the stiffness of two springs a and b in series (compliances add): a b / (a + b).
+    Return a b / (a + b), the stiffness of springs a and b joined end to end: compliances add.
 
     Exactly a / 2 when a == b; 0 when either is 0 (arrays or scalars [N/m]).
     """
