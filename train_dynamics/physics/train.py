@@ -314,8 +314,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         if index not in self.consist.locomotives:
             raise ValueError(f'vehicle {index + 1} is not a locomotive (no traction)')
         self.coach[INPUT.T_CMD, index] = c
-        if self.steps == 0 and self.cfg.initial_state == 'equilibrium':
-            # the train starts running at this setting: its force is built up, in the balance
+        if (self.steps == 0 and self.cfg.initial_state == 'equilibrium'
+                and float(self.cfg.initial_speed) != 0.0):
+            # a train running at t = 0 runs at this setting: its force is built up, in the
+            # balance (a train at rest notches up from 0 through the build-up time)
             self.coach[STATE.T_EFF, index] = c
             self._settle()
 
