@@ -21,6 +21,8 @@ thread holds the GIL meanwhile: output jitter).
 """
 from __future__ import annotations
 
+import time
+
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
@@ -74,6 +76,10 @@ class Outputs:
         self._h = 0.0
         self._index = 0                 # number of the next output, t = index / rate
         self._encoder: OutputEncoder | None = None
+        self.published = 0              # outputs published in this run
+        self.last_step = -1             # integration step of the last output
+        self.last_t_ns = -1             # [ns] its stamp
+        self.last_wall = 0.0            # [s wall, monotonic] when it was published
         self.metrics = LiveMetrics()    # the run's metrics, fed every output
 
     def start(self, n: int, rate: float, h: float, publish_clock: bool,
@@ -99,6 +105,13 @@ class Outputs:
         self.writer = writer
         self._index = 0
         self.next_step = 0
+        self.published = 0
+        self.last_step = -1
+        self.last_t_ns = -1
+
+    def subscribed(self) -> bool:
+        """Return True if a subscriber is matched on one of the JointState outputs."""
+        return any(pub.get_subscription_count() > 0 for pub in self._pubs)
 
     def take_writer(self) -> BagWriter | None:
         """Return the run's writer and stop recording (to close it, or at a reset)."""
@@ -142,3 +155,7 @@ class Outputs:
                 w.write(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE, t_ns, forces)
             if clock is not None:
                 w.write(topics.CLOCK_TOPIC, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
+        self.published += 1
+        self.last_step = sim.steps
+        self.last_t_ns = t_ns
+        self.last_wall = time.monotonic()

@@ -47,6 +47,7 @@ import time
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 import rclpy.logging
 from rclpy.node import Node
@@ -66,6 +67,7 @@ from train_dynamics.ros.diagnostics import diagnostic_array, InputReport, Simula
 from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
 from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
 from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
+from train_dynamics.ros.run_control import RunControl
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
                                          open_bag, reset_bag_path)
 
@@ -76,6 +78,9 @@ NODE_NAME = topics.NODE_NAME
 DIAGNOSTICS_PERIOD = 1.0  # [s wall]
 #: every parameter the node declares: the simulator's and its own
 SPECS = {**PARAMETERS, **SIM_NODE_PARAMETERS}
+#: the node parameters of the run control (pause/step, lock-step, input timing)
+CONTROL_PARAMETERS = frozenset({'sync_mode', 'input_timing', 'lockstep_timeout',
+                                'lockstep_on_timeout', 'step_periods'})
 
 
 def _fmt(value: Any) -> str:
@@ -110,6 +115,10 @@ class SimNode(Node):
         self._pacer = Pacer(self._lock, self.get_logger(), self.context, self._inputs,
                             self._outputs)
         self._pacer.duration = float(self.get_parameter('duration').value)
+        self._control = RunControl(self, self._lock, self._inputs, self._outputs,
+                                   self._pacer.wake)
+        self._pacer.control = self._control
+        self._configure_control()
         self._inputs.wait_for_input = float(self.get_parameter('wait_for_input').value)
         self._pub_diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
                                                OUTPUT_QOS)
@@ -120,10 +129,12 @@ class SimNode(Node):
                 self._start(cfg, writer, first=True)
             ros_parameters.watch_parameters(self, SPECS, self._check_parameters,
                                             self._apply_parameters)
+            # on a steady clock: with use_sim_time and no /clock they would never fire
+            steady = Clock(clock_type=ClockType.STEADY_TIME)
             self._diag_timer = self.create_timer(
-                DIAGNOSTICS_PERIOD, shutdown_safe(self, self._publish_diagnostics))
+                DIAGNOSTICS_PERIOD, shutdown_safe(self, self._publish_diagnostics), clock=steady)
             self._scan_timer = self.create_timer(
-                GRAPH_SCAN_PERIOD, shutdown_safe(self, self._inputs.scan_graph))
+                GRAPH_SCAN_PERIOD, shutdown_safe(self, self._inputs.scan_graph), clock=steady)
         except BaseException:
             if writer is not None:       # a failed start leaves no bag behind
                 self._outputs.take_writer()
@@ -132,6 +143,17 @@ class SimNode(Node):
         self._pacer.start_thread()
 
     # -- parameters ------------------------------------------------------------------------
+    def _configure_control(self) -> None:
+        """Hand the run-control parameters to their parts (simulation lock held or unstarted)."""
+        value = self.get_parameter
+        sync_mode = value('sync_mode').value
+        self._control.configure(sync_mode, value('lockstep_timeout').value,
+                                value('lockstep_on_timeout').value, value('step_periods').value)
+        self._inputs.by_stamp = value('input_timing').value == 'stamp'
+        # wake the simulation thread on each input only where it waits for them
+        self._inputs.on_input = (self._pacer.wake if sync_mode == 'lockstep'
+                                 or self._inputs.by_stamp else None)
+
     def _parameter_values(self) -> dict[str, Any]:
         return ros_parameters.parameter_values(self, PARAMETERS)
 
@@ -173,6 +195,8 @@ class SimNode(Node):
                 self._pacer.set_duration(changes['duration'])
             if 'wait_for_input' in changes:
                 self._inputs.wait_for_input = changes['wait_for_input']
+            if CONTROL_PARAMETERS & set(changes):
+                self._configure_control()
         if 'record_flush_period' in changes:
             self._flush_period = changes['record_flush_period']
         structural = [n for n in changes if not SPECS[n].dynamic]
@@ -204,6 +228,7 @@ class SimNode(Node):
                             has_reservoirs(cfg), forces=cfg.external_forces,
                             metrics=RunMetrics.for_run(cfg, sim))
         self._inputs.start(cfg, sim.n, recording=writer is not None)
+        self._control.start(sim)
         self._pacer.start(sim, cfg.real_time_factor)
         rtf, duration = cfg.real_time_factor, self._pacer.duration
         where = f'; recording to {writer.path.resolve()}' if writer else ''
@@ -269,6 +294,8 @@ class SimNode(Node):
             self._pub_diag.publish(msg)
         except Exception:  # noqa: BLE001 - shutting down
             return
+        if self._control.lockstep:
+            return   # not in the bag: a lock-step bag holds only what the loop determines
         with self._lock.held():
             self._outputs.record(topics.DIAGNOSTICS_TOPIC, topics.DIAGNOSTIC_ARRAY,
                                  time_ns(self._pacer.sim.t), serialize_message(msg))
@@ -284,7 +311,8 @@ class SimNode(Node):
             lag_events=pacer.lag_events, model_type=cfg.model_type,
             scale_factor=cfg.scale_factor, h=sim.h, rate=self._outputs.rate,
             duration=pacer.duration, behind_warn=BEHIND_WARN, pending=pending,
-            integration=sim.integration_stats)
+            integration=sim.integration_stats, control=self._control.report(),
+            waiting=self._control.waiting(now))
         if writer is not None:
             report.recording, report.recorded = str(writer.path), writer.written
             report.backlog, report.record_error = writer.backlog, writer.error
@@ -299,7 +327,8 @@ class SimNode(Node):
             max_age=inputs.max_age(now), stale=inputs.stale, emergency=inputs.emergency,
             stale_names=', '.join(inputs.stale_names), accepted=inputs.accepted,
             rejected=dict(inputs.rejected), last_rejected=inputs.last_rejected,
-            wrong_type={k: list(v) for k, v in inputs.wrong_type.items()})
+            wrong_type={k: list(v) for k, v in inputs.wrong_type.items()},
+            multiple_publishers=dict(inputs.multiple_publishers), late=inputs.late)
 
     # -- public, read-only -----------------------------------------------------------------
     @property
