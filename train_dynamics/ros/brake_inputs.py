@@ -482,7 +482,7 @@ class BrakeInputs:
             return min(e[0] for e in pending) if pending else None
 
     def answered(self, t_ns: int) -> bool:
-        """Lock-step: return True if the simulator holds an input stamped ``t_ns`` in every slot."""
+        """Lock-step: return True if every input the simulator holds is stamped ``t_ns``."""
         stamps = self._applied_stamp
         return bool(stamps.size) and bool(np.all(stamps == t_ns))
 

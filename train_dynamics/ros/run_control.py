@@ -28,7 +28,6 @@ the simulation lock.
 """
 from __future__ import annotations
 
-import time
 from typing import Any, Callable
 
 from std_srvs.srv import Trigger

@@ -67,9 +67,9 @@ from train_dynamics.ros.diagnostics import diagnostic_array, InputReport, Simula
 from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
 from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
 from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
-from train_dynamics.ros.run_control import RunControl
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
                                          open_bag, reset_bag_path)
+from train_dynamics.ros.run_control import RunControl
 
 __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
            'MAX_ABSOLUTE_PRESSURE', 'MAX_RECORD_BACKLOG', 'REJECT_REASONS']

@@ -9,6 +9,6 @@ pytest fixture ``train_loop`` (:mod:`train_dynamics.testing.fixture`) does the s
 test's temporary directory. See docs/controller_testing.md.
 """
 from train_dynamics.testing.criteria import Criterion, CriterionResult
-from train_dynamics.testing.harness import RunResult, run_scenario, Scenario
+from train_dynamics.testing.harness import run_scenario, RunResult, Scenario
 
 __all__ = ['Criterion', 'CriterionResult', 'RunResult', 'run_scenario', 'Scenario']

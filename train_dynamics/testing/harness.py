@@ -31,11 +31,10 @@ import subprocess
 import sys
 from typing import Any, Mapping, Sequence
 
-import yaml
-
 from train_dynamics import topics
 from train_dynamics.physics.config import ConfigError
 from train_dynamics.testing.criteria import Criterion, CriterionResult, parse_criteria
+import yaml
 
 BAG = 'bag'                  # the bag's name in the run directory
 PARAMS = 'scenario_params.yaml'

@@ -289,7 +289,7 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
     ParamSpec('sync_mode', 'free', STRING,
               'free: the simulation runs at real_time_factor whatever the controller does; '
               'lockstep: after each output the node waits until every active brake input has '
-              'answered with a message stamped with that output\'s stamp, then advances one '
+              "answered with a message stamped with that output's stamp, then advances one "
               'output period (and starts only when the controller is connected both ways).',
               choices=('free', 'lockstep'), dynamic=True),
     ParamSpec('input_timing', 'arrival', STRING,
