@@ -105,6 +105,7 @@ def test_input_timing_stamp_applies_a_command_at_its_stamp(harness, tmp_path):
     pub = harness.publisher('brake_pipe/pressure')
     node = harness.start(input_timing='stamp', real_time_factor=1.0, record_bag=str(bag))
     assert harness.wait_for_subscriber(pub)
+    assert harness.wait(lambda: node.sim_time > 0.2, 10.0)
     msg = fluid(3.5e5 + ATM)
     msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 700_000_000   # t = 0.7 s
     pub.publish(msg)

@@ -68,6 +68,8 @@ class SimulationReport:
     control: dict[str, str] = field(default_factory=dict)
     #: lock-step: why the simulation waits ('' when it does not)
     waiting: str = ''
+    #: parameter files with no section for the node (WARN), '' when none
+    parameter_file_warning: str = ''
 
 
 def integration_values(stats: dict | None) -> dict[str, str]:
@@ -127,6 +129,8 @@ def _level_message(r: SimulationReport) -> tuple[bytes, str]:
         return DiagnosticStatus.OK, 'finished (duration reached)'
     if r.waiting:
         return DiagnosticStatus.WARN, r.waiting
+    if r.parameter_file_warning:
+        return DiagnosticStatus.WARN, r.parameter_file_warning
     if rtf > 0 and r.behind > r.behind_warn:
         return DiagnosticStatus.WARN, (f'behind real time by {r.behind:.3f} s (rtf {rtf:g}, '
                                        f'achieved {achieved:.3g})')
@@ -153,6 +157,7 @@ def simulation_status(r: SimulationReport, hardware_id: str) -> DiagnosticStatus
     }
     kv.update(integration_values(r.integration))
     kv.update(r.control)
+    kv['parameter_file_warning'] = r.parameter_file_warning
     return DiagnosticStatus(level=level, name=status_name(hardware_id, 'simulation'),
                             message=message,
                             hardware_id=hardware_id,

@@ -51,6 +51,7 @@ from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 import rclpy.logging
 from rclpy.node import Node
+from rclpy.qos import ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from std_srvs.srv import Trigger
 
@@ -58,7 +59,7 @@ from train_dynamics import topics
 from train_dynamics.physics.config import ConfigError, PARAMETERS, SIM_NODE_PARAMETERS, SimConfig
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
-from train_dynamics.recording.bags import BagError
+from train_dynamics.recording.bags import BagError, offered_qos
 from train_dynamics.recording.outputs import has_reservoirs, time_ns
 from train_dynamics.ros import parameters as ros_parameters
 from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INPUT_QOS,
@@ -98,6 +99,8 @@ class SimNode(Node):
         super().__init__(NODE_NAME, **kwargs)
         self._destroyed = False
         self._resets = 0                 # executor thread only
+        #: parameter files with no section for this node (``main`` fills it; /diagnostics)
+        self.parameter_file_warnings: list[str] = []
         ros_parameters.declare_parameters(self, SPECS)
         cfg = SimConfig.from_dict(self._parameter_values())   # raises ConfigError (main: 2)
         #: the configuration of the node's current parameter values (the running one plus
@@ -250,7 +253,15 @@ class SimNode(Node):
             return None
         path = cfg.record_bag if first else reset_bag_path(cfg.record_bag, self._resets)
         return open_bag(path, cfg, self.get_fully_qualified_name(), self.get_logger(),
-                        self._flush_period)
+                        self._flush_period, self.resolve_topic_name, self._offered())
+
+    @staticmethod
+    def _offered() -> dict[str, Any]:
+        """Return topic -> the QoS the node offers on it (what a bag records)."""
+        qos = offered_qos(OUTPUT_QOS.reliability == ReliabilityPolicy.RELIABLE, OUTPUT_QOS.depth)
+        return dict.fromkeys(topics.OUTPUT_TOPICS + (
+            topics.BRAKE_RESERVOIRS_TOPIC, topics.VEHICLE_FORCES_TOPIC, topics.CLOCK_TOPIC,
+            topics.DIAGNOSTICS_TOPIC), qos)
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response):
         """``reset``: restart from t = 0 with the current (incl. pending) parameter values."""
@@ -312,7 +323,8 @@ class SimNode(Node):
             scale_factor=cfg.scale_factor, h=sim.h, rate=self._outputs.rate,
             duration=pacer.duration, behind_warn=BEHIND_WARN, pending=pending,
             integration=sim.integration_stats, control=self._control.report(),
-            waiting=self._control.waiting(now))
+            waiting=self._control.waiting(now),
+            parameter_file_warning='; '.join(self.parameter_file_warnings))
         if writer is not None:
             report.recording, report.recorded = str(writer.path), writer.written
             report.backlog, report.record_error = writer.backlog, writer.error
