@@ -379,5 +379,6 @@ class Pacer:
             return
         self.finished = True
         self.exit_code = code
+        figures = self.control.summary() if self.control is not None else ''
         self._log.info(f'{why} at t = {self.sim.t:.3f} s ({self.sim.steps} steps); '
-                       'simulation stopped')
+                       'simulation stopped' + (f'; {figures}' if figures else ''))

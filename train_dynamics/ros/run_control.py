@@ -169,6 +169,14 @@ class RunControl:
                 else f'the answer stamped t = {self.sim.t:.6f} s')
         return f'lockstep: waiting {now - self._waiting_since:.1f} s for {what}'
 
+    def summary(self) -> str:
+        """Return the lock-step figures of the run ('' in free mode): periods, round trip."""
+        if not self.lockstep:
+            return ''
+        mean = self.round_trip_sum / self.periods if self.periods else 0.0
+        return (f'lockstep: {self.periods} periods answered, round trip mean '
+                f'{mean * 1e3:.3f} ms, max {self.round_trip_max * 1e3:.3f} ms')
+
     def report(self) -> dict[str, str]:
         """Return the ``/diagnostics`` values of the run control."""
         mean = self.round_trip_sum / self.periods if self.periods else 0.0
