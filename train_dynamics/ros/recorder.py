@@ -157,7 +157,11 @@ class BagWriter:
         name = self._names.get(topic)
         if name is None:
             name = self._names[topic] = self._resolve(topic)
-            self.recorder.add_topic(name, msgtype, self._offered.get(topic))
+            qos = self._offered.get(topic)
+            if qos is None:
+                self.recorder.add_topic(name, msgtype)
+            else:
+                self.recorder.add_topic(name, msgtype, qos)
         self.recorder.write(name, t_ns, data)
         self.written += 1
 
