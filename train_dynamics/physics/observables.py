@@ -31,6 +31,12 @@ class TrainOutputs:
         return self.coach[COACH.V].copy()
 
     @property
+    def track_position(self) -> np.ndarray:
+        """Return the track position of each vehicle's front [m]: its front at t = 0 + x_i."""
+        self._sync()
+        return self.coach[COACH.FRONT0] + self.coach[COACH.X]
+
+    @property
     def held(self) -> np.ndarray:
         """Coaches at rest, held by their brakes."""
         self._sync()

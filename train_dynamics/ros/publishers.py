@@ -9,6 +9,8 @@ simulation time, at the integration steps nearest to k / publish_rate
 - ``coaches``: JointState ``coach_1..N``: position x [m], velocity v [m/s], effort Fb [N];
 - ``brake_cylinders``: JointState ``coach_1..N``: position = brake-cylinder gauge pressure [Pa],
   effort = local brake-pipe gauge pressure [Pa] (as the offline command writes);
+- ``vehicle_motion``: JointState ``coach_1..N`` (``frame_id`` ``track``): position = track
+  position [m], velocity v [m/s], effort = acceleration [m/s^2] over the last output period;
 - ``vehicle_forces`` (a train with resistance, track or traction): JointState ``coach_1..N``:
   position = traction / dynamic-brake force, velocity = running + curve resistance, effort =
   gradient force [N, on the vehicle, forward > 0];
@@ -66,6 +68,8 @@ class Outputs:
         self._pubs = [node.create_publisher(JointState, topic, OUTPUT_QOS)
                       for topic in topics.OUTPUT_TOPICS + (topics.BRAKE_RESERVOIRS_TOPIC,)]
         self._pub_clock = node.create_publisher(Clock, topics.CLOCK_TOPIC, OUTPUT_QOS)
+        self._pub_motion = node.create_publisher(JointState, topics.VEHICLE_MOTION_TOPIC,
+                                                 OUTPUT_QOS)
         self._node = node
         self._pub_forces = None         # vehicle_forces, created for a train that has them
         self._forces = False
@@ -139,6 +143,8 @@ class Outputs:
         encoded = self._encoder.encode(t_ns, sim)
         for pub, data in zip(self._pubs, encoded):
             pub.publish(data)
+        motion = self._encoder.encode_motion(t_ns, sim)
+        self._pub_motion.publish(motion)
         forces = self._encoder.encode_forces(t_ns, sim) if self._forces else None
         if forces is not None:
             self._pub_forces.publish(forces)
@@ -151,6 +157,7 @@ class Outputs:
         if w is not None:
             for topic, data in zip(self._encoder.topics, encoded):
                 w.write(topic, topics.JOINT_STATE, t_ns, data)
+            w.write(topics.VEHICLE_MOTION_TOPIC, topics.JOINT_STATE, t_ns, motion)
             if forces is not None:
                 w.write(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE, t_ns, forces)
             if clock is not None:

@@ -260,7 +260,8 @@ class SimNode(Node):
         """Return topic -> the QoS the node offers on it (what a bag records)."""
         qos = offered_qos(OUTPUT_QOS.reliability == ReliabilityPolicy.RELIABLE, OUTPUT_QOS.depth)
         return dict.fromkeys(topics.OUTPUT_TOPICS + (
-            topics.BRAKE_RESERVOIRS_TOPIC, topics.VEHICLE_FORCES_TOPIC, topics.CLOCK_TOPIC,
+            topics.BRAKE_RESERVOIRS_TOPIC, topics.VEHICLE_FORCES_TOPIC,
+            topics.VEHICLE_MOTION_TOPIC, topics.CLOCK_TOPIC,
             topics.DIAGNOSTICS_TOPIC), qos)
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response):
