@@ -9,7 +9,13 @@ both connect:
 - ``coach_<i>/brake_pipe/pressure`` (``pipe_per_coach``), ``coach_<i>/brake_cylinder/pressure``
   (``cylinder_per_coach``), i = 1..N.
 
-A message takes effect at the next integration step (zero-order hold). Rejected and counted per
+A message takes effect at the next integration step (zero-order hold); with ``input_timing``
+``stamp`` it is held until the simulation reaches its header stamp and takes effect at the
+first integration step at or after it (one a whole step or more in the past: at once, counted
+in :attr:`BrakeInputs.late`). The header stamps of the values the simulator holds tell the
+lock-step whether every input has answered an output (:meth:`BrakeInputs.answered`). Active
+input topics with more than one publisher are found by the graph scan and warned about
+(:attr:`BrakeInputs.multiple_publishers`). Rejected and counted per
 reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning naming the topic):
 ``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute
 pressure > :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of another

@@ -14,7 +14,10 @@ behaviour and owns its state:
 - :mod:`train_dynamics.ros.recorder`: ``record_bag`` (inputs and outputs, a rosbag2 MCAP
   written on its own thread);
 - :mod:`train_dynamics.ros.diagnostics`: ``/diagnostics`` (~1 Hz wall);
-- :mod:`train_dynamics.ros.parameters`: descriptors and the set callbacks.
+- :mod:`train_dynamics.ros.parameters`: descriptors and the set callbacks;
+- :mod:`train_dynamics.ros.run_control`: the ``~/pause``, ``~/resume`` and ``~/step``
+  services and the lock-step with a controller (``sync_mode``, ``lockstep_timeout``);
+  ``input_timing`` is the brake inputs'.
 
 Threads and locks: the executor thread runs the subscription callbacks, the timers, the
 parameter callbacks and the ``reset`` service; the simulation thread (:class:`Pacer`) runs the
@@ -38,6 +41,7 @@ with the current parameter values and says in its response (and the log) what ch
 recording continues in a new bag ``<record_bag>_reset<k>``.
 
 Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``duration``);
+4 lock-step timeout (``lockstep_on_timeout`` stop);
 1 other errors (e.g. the bag cannot be created).
 """
 from __future__ import annotations
@@ -351,7 +355,7 @@ class SimNode(Node):
 
     @property
     def exit_code(self) -> int:
-        """Return the exit status ``main`` ends with (0, or 3 after a numerical fault)."""
+        """Return the exit status ``main`` ends with (0; 3 numerical fault; 4 lock-step timeout)."""
         return self._pacer.exit_code
 
     @property
@@ -394,7 +398,8 @@ def main(args: list[str] | None = None) -> int:
     """
     Run ``ros2 run train_dynamics sim_node``; SIGINT/SIGTERM stop it with the bag closed.
 
-    Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 1 other
+    Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 4 lock-step
+    timeout (``lockstep_on_timeout`` stop), 1 other
     errors.
     """
     return run_node('sim_node', SimNode, args, node_name=NODE_NAME, specs=SPECS, exits=(
