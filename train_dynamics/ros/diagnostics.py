@@ -178,13 +178,13 @@ def input_status(r: InputReport, hardware_id: str) -> DiagnosticStatus:
         level = DiagnosticStatus.WARN
         message = (f'{_wrong_type_count(r)} publisher(s) of the wrong type on input topics: '
                    f'{_wrong_type_list(r)}')
+    elif rejected:
+        level = DiagnosticStatus.WARN
+        message = f'{rejected} input message(s) rejected (last: {r.last_rejected})'
     elif r.multiple_publishers:
         level = DiagnosticStatus.WARN
         message = ('more than one publisher on an active input (their values mix): '
                    + _publishers_list(r))
-    elif rejected:
-        level = DiagnosticStatus.WARN
-        message = f'{rejected} input message(s) rejected (last: {r.last_rejected})'
     else:
         level, message = DiagnosticStatus.OK, 'ok'
     kv = {'brake_input': r.mode, 'input_timeout': f'{r.timeout:g}',

@@ -355,7 +355,7 @@ class SimNode(Node):
 
     @property
     def exit_code(self) -> int:
-        """Return the exit status ``main`` ends with (0; 3 numerical fault; 4 lock-step timeout)."""
+        """Return the exit status ``main`` ends with: 0, 3 numerical fault, 4 lock-step timeout."""
         return self._pacer.exit_code
 
     @property
