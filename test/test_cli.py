@@ -419,7 +419,9 @@ def test_sigterm_cleans_up_and_stale_partials_are_removed(tmp_path):
             proc.kill()
             proc.wait()
     assert 'terminated' in proc.stderr.read()
-    assert sorted(p.name for p in tmp_path.iterdir()) == ['p.yaml']
+    # the samples so far are kept, as a closed bag; no partial directory is left
+    assert sorted(p.name for p in tmp_path.iterdir()) == ['out', 'p.yaml']
+    assert bag_info(tmp_path / 'out').custom_data['interrupted'].startswith('SIGTERM')
 
 
 def test_simulation_fault_keeps_the_valid_bag_and_exits_3(tmp_path, monkeypatch, capsys):

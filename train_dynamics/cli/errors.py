@@ -7,7 +7,12 @@ kept), 130 Ctrl-C, 143 SIGTERM.
 """
 from __future__ import annotations
 
+from collections.abc import Iterator
+import contextlib
+import reprlib
+import signal
 import sys
+import threading
 
 PROG = 'train-dynamics'
 EXIT_OK = 0
@@ -30,6 +35,55 @@ class Terminated(BaseException):
     """SIGTERM, raised like KeyboardInterrupt so that partial output is cleaned up."""
 
 
+class Interrupted(Exception):
+    """SIGINT or SIGTERM, taken at a safe point of a run (:func:`deferred_signals`)."""
+
+    def __init__(self, signum: int) -> None:
+        super().__init__(signal.Signals(signum).name)
+        self.signum = signum
+        self.code = EXIT_INTERRUPT if signum == signal.SIGINT else EXIT_TERMINATED
+
+
+class SignalFlag:
+    """The first SIGINT / SIGTERM of a :func:`deferred_signals` block (None: none yet)."""
+
+    def __init__(self) -> None:
+        self.signum: int | None = None
+
+    def check(self) -> None:
+        """Raise :class:`Interrupted` if a signal came: call it where stopping is safe."""
+        if self.signum is not None:
+            raise Interrupted(self.signum)
+
+
+@contextlib.contextmanager
+def deferred_signals() -> Iterator[SignalFlag]:
+    """
+    Take SIGINT and SIGTERM at safe points: in the block a signal only sets the flag.
+
+    The run calls :meth:`SignalFlag.check` between two samples, so that what it recorded
+    ends on a whole sample. A second signal raises at once (KeyboardInterrupt or
+    :class:`Terminated`), for a run that does not reach a safe point. Outside the main thread
+    (no signal handlers there) the flag stays None.
+    """
+    flag = SignalFlag()
+    if threading.current_thread() is not threading.main_thread():
+        yield flag
+        return
+
+    def handler(signum, frame):
+        if flag.signum is not None:
+            raise KeyboardInterrupt() if signum == signal.SIGINT else Terminated()
+        flag.signum = signum
+
+    previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        yield flag
+    finally:
+        for s, h in previous.items():
+            signal.signal(s, h)
+
+
 def warn(text: str) -> None:
     """Print ``train-dynamics: warning: <text>`` on stderr."""
     print(f'{PROG}: warning: {text}', file=sys.stderr)
@@ -38,3 +92,28 @@ def warn(text: str) -> None:
 def error(text: str) -> None:
     """Print ``train-dynamics: error: <text>`` on stderr."""
     print(f'{PROG}: error: {text}', file=sys.stderr)
+
+
+#: the most characters of a value an error message quotes
+QUOTE_CHARS = 60
+_QUOTE = reprlib.Repr()           # (Python 3.11 has no keyword arguments for these)
+_QUOTE.maxlevel = 2
+for _name in ('maxtuple', 'maxlist', 'maxarray', 'maxdict', 'maxset', 'maxfrozenset',
+              'maxdeque'):
+    setattr(_QUOTE, _name, 4)
+_QUOTE.maxstring = _QUOTE.maxlong = _QUOTE.maxother = QUOTE_CHARS
+
+
+def quote(value: object) -> str:
+    """
+    Return a bounded repr of ``value`` for a message: at most :data:`QUOTE_CHARS` characters.
+
+    Never the full repr: a value read from a file may be a YAML alias bomb (a few hundred
+    bytes that stand for gigabytes of nested lists); :mod:`reprlib` looks at a bounded part.
+    """
+    return clip(_QUOTE.repr(value), QUOTE_CHARS)
+
+
+def clip(text: str, limit: int = 300) -> str:
+    """Return ``text`` cut to ``limit`` characters (an error message of another module)."""
+    return text if len(text) <= limit else text[:limit - 3] + '...'

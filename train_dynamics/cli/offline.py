@@ -31,7 +31,8 @@ the machine allows, through :func:`train_dynamics.simulation.runner.run_simulati
 Errors print one line ``train-dynamics: error: ...`` and exit with 2 (bad input: parameter
 file, bag, duration, existing output) or 1 (anything else); a simulation fault (diverged
 state) keeps the bag up to the fault and exits 3; Ctrl-C exits 130, SIGTERM 143
-(:mod:`.errors`). Nothing is left under the output path unless the command wrote a complete
+(:mod:`.errors`; ``simulate`` keeps the bag of the samples so far, ``sweep`` its finished
+cases). Nothing else is left under the output path unless the command wrote a complete
 bag.
 """
 from __future__ import annotations
@@ -89,7 +90,22 @@ def command_of(argv: Sequence[str]) -> str | None:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Run the command line; return the exit status."""
+    """
+    Run the command line; return the exit status.
+
+    Run as the command (``argv`` None), a run stopped by SIGINT or SIGTERM exits at once
+    once its outputs are closed, without the interpreter's teardown (the finalisers of
+    numba, scipy, dask... take 0.5-1 s): a stopped command is gone within a second.
+    """
+    status = _main(argv)
+    if argv is None and status in (EXIT_INTERRUPT, EXIT_TERMINATED):
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
+    return status
+
+
+def _main(argv: Sequence[str] | None) -> int:
     if argv is None:
         argv = sys.argv[1:]
     parser = build_parser(command_of(argv))

@@ -16,10 +16,14 @@ from __future__ import annotations
 import argparse
 from collections.abc import Callable
 import json
+import os
 from pathlib import Path
+import shutil
 from typing import Any
 
-from train_dynamics.cli.errors import CliError, EXIT_ERROR, EXIT_OK
+from train_dynamics import topics
+from train_dynamics.cli.errors import CliError, clip, EXIT_ERROR, EXIT_OK
+from train_dynamics.cli.output import output_dir, remove_created
 from train_dynamics.cli.scenario import load_config
 from train_dynamics.physics.config import ConfigError, SimConfig
 from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
@@ -58,8 +62,8 @@ def run_config(args: argparse.Namespace, info: dict[str, str]
         try:
             return SimConfig.from_dict(json.loads(text), ignore_unknown=True), 'bag custom_data'
         except (ValueError, ConfigError) as exc:
-            raise CliError(f'{args.bag}: recorded parameters unusable ({exc}); give '
-                           '--params') from None
+            raise CliError(f'{args.bag}: recorded parameters unusable ({clip(str(exc))}); '
+                           'give --params') from None
     return None, 'none (limits off; give --params for limits and dissipated energy)'
 
 
@@ -101,6 +105,49 @@ def read_run(args: argparse.Namespace, overrides: dict[str, Any]
     return hist, feed.finish(), origin
 
 
+def refuse_non_finite(bag: str, hist: History) -> None:
+    """
+    Refuse a run whose ``couplers`` or ``coaches`` hold a NaN or an infinite value.
+
+    The metrics of such a run would be wrong (a NaN speed read as 0 m/s gives a deceleration
+    of hundreds of m/s^2) or not representable in JSON (an infinite speed): no report is
+    written; the message names the first such value (topic, field, joint, time).
+    """
+    bad = [hist.non_finite[k] for k in (topics.COUPLERS_TOPIC, topics.COACHES_TOPIC)
+           if k in hist.non_finite]
+    if bad:
+        raise CliError(f'{bag}: {"; ".join(bad)}: the run metrics would be wrong, no report '
+                       'written (the bag holds a diverged or corrupt run)')
+
+
+def write_whole_report(result: dict[str, Any], hist: History, out: Path,
+                       source: dict[str, Any]) -> list[Path]:
+    """
+    Write the report into ``out``: every file or none (e.g. on a full disk).
+
+    The files are written into a hidden folder in ``out`` and moved into place (renames,
+    which need no space) once all are written; on a failure that folder, and the folders
+    created for ``out``, are removed.
+    """
+    created = output_dir(out)
+    staging = out / f'.report.partial-{os.getpid()}'
+    try:
+        written = write_report(result, hist, staging, source=source)
+        paths = []
+        for p in written:
+            final = out / p.relative_to(staging)
+            final.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(p, final)
+            paths.append(final)
+    except OSError as exc:
+        raise CliError(f'cannot write the report to {out}: {exc.strerror or exc} (nothing '
+                       'written)', EXIT_ERROR) from None
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
+        remove_created(created)                  # only those left empty
+    return paths
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     """Run ``report``; return the exit status."""
     if not Path(args.bag).exists():
@@ -116,16 +163,13 @@ def cmd_report(args: argparse.Namespace) -> int:
     if hist.couplers is None or hist.coaches is None or not len(hist.coaches) \
             or metrics is None:
         raise CliError(f'{args.bag}: needs the couplers and coaches topics (JointState)')
+    refuse_non_finite(args.bag, hist)
     result = metrics.result()
     keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
     model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
     source = {'bag': str(args.bag), 'parameters': origin, 'model': model,
               'notes': list(hist.notes)}
-    try:
-        paths = write_report(result, hist, args.output, source=source)
-    except OSError as exc:
-        raise CliError(f'cannot write the report to {args.output}: {exc.strerror or exc}',
-                       EXIT_ERROR) from None
+    paths = write_whole_report(result, hist, Path(args.output), source)
     if not args.quiet:
         tr = result['train']
         print(f"max tension {tr['max_tension'] * 1e-3:.2f} kN (coupler "

@@ -8,7 +8,10 @@ and the brake input it used (``brake_pipe/pressure`` absolute, or the input bag'
 re-stamped with their simulation time); :class:`train_dynamics.recording.sinks.BagSink`
 writes them. Its ``metadata.yaml`` ``custom_data`` records the model, step and input. Same
 inputs -> byte-identical bag. Nothing is left under the output path unless the command wrote
-a complete bag (it writes a hidden sibling directory and renames it at the end). The bag's size
+a complete bag (it writes a hidden sibling directory and renames it at the end), or was
+stopped by SIGINT / SIGTERM: then the bag holds the whole samples up to there (its
+``custom_data`` ``interrupted`` says when) and the command exits 130 / 143 with one line; a
+second signal aborts at once, leaving nothing. The bag's size
 is estimated before the run (:func:`train_dynamics.physics.config.output_disk`): more
 than the free space is refused, more than :data:`LARGE_BAG` needs ``--allow-large``. Memory
 does not grow with the duration (the samples stream to the bag).
@@ -20,7 +23,8 @@ from pathlib import Path
 import shutil
 
 from train_dynamics import topics
-from train_dynamics.cli.errors import CliError, error, EXIT_FAULT, EXIT_OK, PROG
+from train_dynamics.cli.errors import (CliError, deferred_signals, error, EXIT_FAULT,
+                                       EXIT_INTERRUPT, EXIT_OK, Interrupted, PROG)
 from train_dynamics.cli.output import remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
@@ -70,6 +74,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     inputs = brake_inputs(args, cfg)
     _check_disk(cfg, duration, inputs, parent, args.allow_large)
     created, rec = _open_recorder(out, parent)
+    last = [0.0]                                         # [s] of the last sample written
     try:
         rec.update_custom_data(_model_info(cfg, inputs, duration))
         sink = BagSink(rec, cfg)
@@ -79,9 +84,18 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             rec.add_topic(topic, topics.FLUID_PRESSURE)
         for topic in dict.fromkeys(e.topic for e in inputs.traction):
             rec.add_topic(topic, topics.FLOAT64)
-        sim = run_simulation(cfg, duration, inputs, on_sample=sink.sample, on_input=sink.input,
-                             progress=progress_bar('simulate', duration, args.quiet))
+        with deferred_signals() as signals:
+            def on_sample(s):
+                sink.sample(s)
+                last[0] = s.t
+                signals.check()                          # stop between two whole samples
+
+            sim = run_simulation(cfg, duration, inputs, on_sample=on_sample,
+                                 on_input=sink.input,
+                                 progress=progress_bar('simulate', duration, args.quiet))
         rec.close()
+    except Interrupted as stop:
+        _keep_interrupted(rec, out, created, stop, last[0])
     except BaseException:
         rec.abort()
         remove_created(created)
@@ -93,6 +107,21 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         print(f'wrote {out} ({cfg.n_coaches} coaches, {cfg.model_type}, {duration:g} s, '
               f'input: {inputs.source})')
     return EXIT_OK
+
+
+def _keep_interrupted(rec: BagRecorder, out: Path, created: list[Path], stop: Interrupted,
+                      t: float) -> None:
+    """Close the bag of a run stopped by a signal (its samples up to ``t`` [s]); raise."""
+    try:
+        rec.set_custom_data('interrupted', f'{stop} at t = {t!r} s')
+        rec.close()
+    except BaseException:
+        rec.abort()
+        remove_created(created)
+        raise
+    what = 'interrupted' if stop.code == EXIT_INTERRUPT else 'terminated'
+    raise CliError(f'{what} ({stop}) at t = {t:.3f} s; {out} holds the run up to there',
+                   stop.code)
 
 
 def _check_disk(cfg: SimConfig, duration: float, inputs: InputSchedule, parent: Path,

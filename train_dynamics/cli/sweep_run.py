@@ -12,6 +12,15 @@ Output directory::
 Resume: a rerun with the same output directory and the same plan runs only the cases that
 have no file in ``DIR/cases``; a different plan is refused. Dask reschedules the cases of a
 worker that dies (a case that kills workers repeatedly ends as a row with the error).
+
+Exit status: 0 when at least one case gave its metrics, 1 when every case failed (the table
+is written all the same), 2 for a bad sweep file, ``--workers`` or ``--scheduler``; Ctrl-C
+130 and SIGTERM 143, the finished cases kept for a resume. ``--workers`` is at most
+:data:`WORKERS_PER_CORE` per core and what the available memory holds at
+:data:`WORKER_MEMORY` each. ``--scheduler`` is checked (its form, its port, a TCP
+connection within :data:`CONNECT_TIMEOUT`) before the client is made. The LocalCluster
+serves no dashboard and no HTTP route (distributed always opens an HTTP listener: it is on a
+free port of 127.0.0.1, never 8787).
 """
 from __future__ import annotations
 
@@ -22,18 +31,24 @@ import json
 import logging
 import os
 from pathlib import Path
+import signal
+import socket
 import sys
 from typing import Any
 import uuid
 
+import dask
 from distributed import as_completed, Client, LocalCluster
+from distributed.comm.addressing import get_address_host_port, parse_address
 import numpy as np
 import pandas as pd
+import psutil
 from tqdm import tqdm
 
-from train_dynamics.cli.errors import CliError, EXIT_OK
+from train_dynamics.cli.errors import CliError, clip, error, EXIT_ERROR, EXIT_OK, quote
 from train_dynamics.cli.sweep_case import failed_row, run_case
 from train_dynamics.cli.sweep_plan import make_plan, Plan
+from train_dynamics.physics.config import fmt_bytes
 from train_dynamics.physics.metrics import FLAT_KEYS
 from train_dynamics.recording.metrics_report import sweep_figures
 
@@ -44,12 +59,20 @@ FIGURE_METRICS = ('max_tension', 'max_compression', 'stopping_distance', 'stoppi
 _INT_KEYS = ('max_tension_coupler', 'max_compression_coupler', 'max_deceleration_vehicle',
              'max_jerk_vehicle', 'blocking_count', 'impact_count', 'limit_crossings',
              'samples')
+#: LocalCluster workers per core at most (a case is CPU-bound: more only take memory)
+WORKERS_PER_CORE = 4
+#: [bytes] memory of a LocalCluster worker running a case (the model, its kernels, a case)
+WORKER_MEMORY = 250 * 2 ** 20
+#: [s] to open a TCP connection to ``--scheduler`` (a dead one is refused at once)
+CONNECT_TIMEOUT = 5.0
 
 
 def run_sweep(args: argparse.Namespace) -> int:
     """Run ``sweep``: plan, cases on Dask (only the missing ones), table, figures."""
-    if args.workers is not None and args.workers < 1:
-        raise CliError(f'--workers must be >= 1, got {args.workers}')
+    if args.workers is not None:
+        check_workers(args.workers)
+    if args.scheduler:
+        check_scheduler(args.scheduler)
     plan = make_plan(args.params, args.sweep)          # every check before any case runs
     out = Path(args.output)
     done = prepare_output(out, plan)
@@ -66,11 +89,54 @@ def run_sweep(args: argparse.Namespace) -> int:
         {c: table[c].to_numpy() for c in table.columns}, plan.swept,
         [m for m in FIGURE_METRICS if m in table], out / 'figures',
         failed=table['error'].astype(bool).to_numpy())
+    failed = int(table['error'].astype(bool).sum())
     if not args.quiet:
-        failed = int(table['error'].astype(bool).sum())
         print(f'{len(table)} cases ({len(to_run)} run now, {len(done)} done before, '
               f'{failed} with errors): {out / RESULTS}, {len(figures)} figures')
+    if failed == len(table):
+        first = str(table['error'].iloc[0])
+        error(f'every case failed ({failed}), the first: {first[:200]}; see {out / RESULTS}')
+        return EXIT_ERROR
     return EXIT_OK
+
+
+def max_workers() -> tuple[int, str]:
+    """Return the most LocalCluster workers of this machine, and why (for the message)."""
+    cores = os.cpu_count() or 1
+    available = psutil.virtual_memory().available
+    n = max(1, min(WORKERS_PER_CORE * cores, available // WORKER_MEMORY))
+    return n, (f'{WORKERS_PER_CORE} per core on {cores} cores, {fmt_bytes(WORKER_MEMORY)} '
+               f'each of {fmt_bytes(available)} available')
+
+
+def check_workers(workers: int) -> None:
+    """Raise :class:`CliError` unless 1 <= ``workers`` <= :func:`max_workers`."""
+    if workers < 1:
+        raise CliError(f'--workers must be >= 1, got {workers}')
+    n, why = max_workers()
+    if workers > n:
+        raise CliError(f'--workers {workers}: at most {n} on this machine ({why})')
+
+
+def check_scheduler(address: str) -> None:
+    """Raise :class:`CliError` for a malformed ``--scheduler`` or one nothing answers at."""
+    try:
+        protocol, _ = parse_address(address)
+        host, port = get_address_host_port(address)
+    except (ValueError, TypeError) as exc:
+        raise CliError(f'--scheduler {quote(address)}: not a Dask scheduler address '
+                       f'({clip(str(exc), 120)}); expected e.g. tcp://HOST:8786') from None
+    if not 0 < port < 65536:
+        raise CliError(f'--scheduler {quote(address)}: bad address, port {port} is not in '
+                       '1..65535')
+    if protocol not in ('tcp', 'tls'):
+        return
+    try:
+        socket.create_connection((host, port), timeout=CONNECT_TIMEOUT).close()
+    except OSError as exc:
+        why = 'timed out' if isinstance(exc, TimeoutError) else (exc.strerror or str(exc))
+        raise CliError(f'cannot reach the Dask scheduler at {quote(address)}: {why}'
+                       ) from None
 
 
 def prepare_output(out: Path, plan: Plan) -> set[int]:
@@ -114,20 +180,40 @@ def cluster_client(args: argparse.Namespace) -> Iterator[Client]:
             try:
                 client = Client(args.scheduler, timeout='20s')
             except (OSError, TimeoutError, ValueError) as exc:
-                raise CliError(f'cannot reach the Dask scheduler at {args.scheduler}: '
+                raise CliError(f'cannot reach the Dask scheduler at {quote(args.scheduler)}: '
                                f'{exc}') from None
         else:
-            cluster = LocalCluster(n_workers=args.workers or os.cpu_count() or 1,
-                                   threads_per_worker=1, processes=True,
-                                   dashboard_address=None, silence_logs=logging.ERROR)
+            # no dashboard and no HTTP route; the listener distributed always opens is on a
+            # free port of 127.0.0.1 (dashboard_address=None alone still serves :8787)
+            with dask.config.set({'distributed.scheduler.http.routes': []}):
+                cluster = LocalCluster(
+                    n_workers=args.workers or os.cpu_count() or 1, threads_per_worker=1,
+                    processes=True, host='127.0.0.1', dashboard_address=None,
+                    scheduler_kwargs={'dashboard': False, 'dashboard_address': '127.0.0.1:0'},
+                    silence_logs=logging.ERROR)
             client = Client(cluster)
         try:
             yield client
+        except BaseException:
+            # stopped (Ctrl-C, SIGTERM, an error): a busy worker would hold a graceful close
+            # for ~4 s; the finished cases are on disk, the running ones are lost anyway
+            if cluster is not None:
+                _kill_workers(cluster)
+            raise
         finally:
             client.close()
     finally:
         if cluster is not None:
             cluster.close()
+
+
+def _kill_workers(cluster: LocalCluster) -> None:
+    """SIGKILL the worker processes of our LocalCluster (its nannies' children)."""
+    for nanny in list(cluster.workers.values()):
+        pid = getattr(nanny, 'pid', None)
+        if pid:
+            with contextlib.suppress(OSError):
+                os.kill(pid, signal.SIGKILL)
 
 
 def execute(client: Client, plan: Plan, cases: list, out: Path,

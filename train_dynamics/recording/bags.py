@@ -172,6 +172,12 @@ class BagRecorder:
     def closed(self) -> bool:
         return self._closed
 
+    @property
+    def saved(self) -> int:
+        """Return the messages in finished MCAP files: what the bag holds if it stops now."""
+        with self._lock:
+            return sum(s.count for s in self._segments)
+
     def add_topic(self, topic: str, msgtype: str, qos: Qos | None = None) -> None:
         """
         Register ``topic`` with ``msgtype`` (e.g. ``sensor_msgs/msg/JointState``).

@@ -68,6 +68,7 @@ class History:
     info: dict[str, str] = field(default_factory=dict)   # model description (custom_data)
     notes: list[str] = field(default_factory=list)        # warnings met while loading
     decimated: list[str] = field(default_factory=list)    # topics drawn as min/max bins
+    non_finite: dict[str, str] = field(default_factory=dict)  # topic -> its NaN / inf values
 
 
 def natural_key(name: str) -> list:
@@ -217,6 +218,10 @@ class Envelope:
         return JointSeries(t.copy(), names, q[:, 0], q[:, 1], q[:, 2]), self.decimated
 
 
+#: the fields of :func:`_joint_values`, in order
+_FIELD_NAMES = ('position', 'velocity', 'effort')
+
+
 def _joint_values(msg) -> tuple[Sequence[str], tuple[Sequence[float], ...]]:
     return msg.name, (msg.position, msg.velocity, msg.effort)
 
@@ -251,6 +256,8 @@ class TopicStream:
         self._names_cache: tuple[tuple, list[int]] = ((), [])
         self._block: list[tuple[float, list[int], tuple]] = []
         self.envelope = self._new_envelope()
+        self.non_finite = 0                          # NaN / inf values given by a message
+        self.first_non_finite: tuple[float, int, int, float] | None = None  # t, field, col, v
 
     def _new_envelope(self) -> Envelope:
         return Envelope(len(self.index), fields=self.fields, limit=self.limit,
@@ -295,6 +302,7 @@ class TopicStream:
         self._block = []
         self.kept = 0
         self.envelope = self._new_envelope()
+        self.non_finite, self.first_non_finite = 0, None
         if self.on_reset is not None:
             self.on_reset(self.topic)
 
@@ -307,14 +315,38 @@ class TopicStream:
         self.envelope.widen(m - self.envelope.m)
         t = np.array([row[0] for row in block])
         q = np.full((len(block), self.fields, m), np.nan)
+        given = np.zeros(q.shape, dtype=bool)        # NaN in q is also "no value given"
         for k, (_, idx, vals) in enumerate(block):
             for f, v in enumerate(vals):
                 v = np.asarray(v, dtype=float)
                 if v.shape == (len(idx),):
                     q[k, f, idx] = v
+                    given[k, f, idx] = True
+        self._count_non_finite(t, q, given)
         self.envelope.add(t, q)
         if self.on_block is not None:
             self.on_block(self.topic, t, q, list(self.index))
+
+    def _count_non_finite(self, t: np.ndarray, q: np.ndarray, given: np.ndarray) -> None:
+        """Count the NaN / inf values the messages gave; keep the first (time order)."""
+        bad = given & ~np.isfinite(q)
+        n = int(np.count_nonzero(bad))
+        if not n:
+            return
+        self.non_finite += n
+        if self.first_non_finite is None:
+            k, f, j = (int(a[0]) for a in np.nonzero(bad))
+            self.first_non_finite = (float(t[k]), f, j, float(q[k, f, j]))
+
+    def non_finite_note(self) -> str | None:
+        """Return one line on the NaN / inf values the messages gave (None: all finite)."""
+        if self.first_non_finite is None:
+            return None
+        t, f, j, v = self.first_non_finite
+        names = {j: n for n, j in self.index.items()}
+        field_name = _FIELD_NAMES[f] if self.fields == len(_FIELD_NAMES) else 'value'
+        return (f'{self.topic}: {self.non_finite} non-finite value(s), the first {field_name} '
+                f'of {names.get(j, "?")} = {v} at t = {t:.6g} s')
 
     def curves(self) -> tuple[np.ndarray, np.ndarray, list[str]]:
         """Return t (K,), q (K, fields, M) and the M names of the last run, natural order."""
@@ -391,6 +423,11 @@ def stream_history(bag: str | os.PathLike, *, namespace: str = '',
         if short in by_short:
             setattr(hist, attr, by_short[short].series())
             hist.notes.extend(by_short[short].notes())
+    for s in streams.values():
+        note = s.non_finite_note()
+        if note is not None:
+            hist.non_finite[s.topic] = note
+            hist.notes.append(note)
     head = by_short.get(topics.HEAD_PIPE_TOPIC)
     if head is not None and head.total:
         t, q, _ = head.curves()

@@ -21,14 +21,16 @@ reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning na
 pressure > :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of another
 ``brake_input``), ``unknown_coach`` (``coach_<i>`` with i outside 1..N), ``out_of_range`` (a
 traction command outside [-1, 1], :mod:`train_dynamics.ros.traction_inputs`), ``malformed`` (not
-deserialisable); the first three by the rule the offline replay applies too
+deserialisable), ``not_locomotive`` (a traction command for a vehicle without traction or
+dynamic brake; one for a vehicle outside 1..N is ``unknown_coach``: the offline replay warns
+and ignores both); the first three by the rule the offline replay applies too
 (:func:`train_dynamics.physics.config.input_rejection`). Publishers of another message type
 on an input topic (never received: DDS does not match them) are found by the graph scan and
 reported as ``wrong_type`` in ``/diagnostics``. The head topic and the per-coach topics of the
 active mode are subscribed from the start; topics of the other modes and of coaches that do not
-exist are found by a graph scan every :data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to
-count and reject their messages: keeping 2N idle subscriptions would slow rclpy's executor for
-long trains).
+exist, and traction-command topics of vehicles that take none, are found by a graph scan every
+:data:`GRAPH_SCAN_PERIOD` s and subscribed then (only to count and reject their messages:
+keeping 2N idle subscriptions would slow rclpy's executor for long trains).
 
 Stale inputs: ``input_timeout`` > 0 s (wall) without a brake input (any coach of a per-coach mode)
 is reported in ``/diagnostics``; ``on_input_timeout`` ``hold`` keeps the last values, ``emergency``
@@ -51,6 +53,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import FluidPressure
+from std_msgs.msg import Float64
 
 from train_dynamics import topics
 from train_dynamics.physics.config import input_rejection, SimConfig
@@ -65,7 +68,7 @@ PER_COACH = (topics.PIPE_PER_COACH, topics.CYLINDER_PER_COACH)
 MAX_ABSOLUTE_PRESSURE = topics.MAX_ABSOLUTE_PRESSURE
 #: Reasons an input message is rejected (keys of the counts in /diagnostics).
 REJECT_REASONS = ('non_finite', 'negative', 'too_high', 'wrong_mode', 'unknown_coach',
-                  'malformed', 'out_of_range')
+                  'malformed', 'out_of_range', 'not_locomotive')
 GRAPH_SCAN_PERIOD = 2.0  # [s wall] search for input topics of other modes / unknown coaches
 MAX_EXTRA_SUBSCRIPTIONS = 256   # cap on the subscriptions made by the graph scan
 INPUT_SETTLE = 0.3       # [s wall] wait_for_input: pause after the inputs are connected
@@ -296,10 +299,17 @@ class BrakeInputs:
         self.wrong_type = self._wrong_type(found, ns)
         self._check_publishers()
         for name, types in found:
-            if name in self._subs or not name.startswith(ns) or \
-                    topics.FLUID_PRESSURE not in types:
+            if name in self._subs or not name.startswith(ns):
                 continue
             rel = name[len(ns):]
+            if topics.FLOAT64 in types:
+                m = topics.TRACTION_TOPIC_PATTERN.fullmatch(rel)
+                if m is not None and not self.traction.subscribed(name):
+                    if len(self._subs) - self._n_base_subs >= MAX_EXTRA_SUBSCRIPTIONS:
+                        return
+                    self._subscribe_traction(name, int(m.group(1)), n)
+            if topics.FLUID_PRESSURE not in types:
+                continue
             for family in PER_COACH:
                 m = topics.INPUT_TOPIC_PATTERNS[family].fullmatch(rel)
                 if m is None:
@@ -322,6 +332,21 @@ class BrakeInputs:
                         f'{count} publishers on the active brake input {sub.topic_name}: '
                         'their values mix, the latest message of either wins')
         self.multiple_publishers = multiple
+
+    def _subscribe_traction(self, resolved: str, vehicle: int, n: int) -> None:
+        """Count and reject the commands of a traction topic no locomotive of ours has."""
+        if 1 <= vehicle <= n:
+            why = Rejected('not_locomotive', f'vehicle {vehicle} has no traction or dynamic '
+                           'brake')
+        else:
+            why = Rejected('unknown_coach', f'coach index outside 1..{n}')
+
+        def reject(data: bytes) -> None:
+            self._reject(resolved, why)
+
+        self._subs[resolved] = self._node.create_subscription(Float64, resolved, reject,
+                                                              INPUT_QOS, raw=True)
+        self._sub_info[resolved] = (resolved, 'traction', None)
 
     def _wrong_type(self, found: list[tuple[str, list[str]]], ns: str) -> dict[str, list[str]]:
         """Return input topic -> the types of its publishers that are not FluidPressure."""

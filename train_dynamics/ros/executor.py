@@ -277,6 +277,8 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
         finally:
             for signum, handler in previous.items():
                 signal.signal(signum, handler)
+    if not code and node is not None:
+        code = getattr(node, 'exit_code', 0)      # e.g. the bag failed as it was finished
     return code
 
 

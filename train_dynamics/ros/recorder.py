@@ -7,7 +7,10 @@ received, bag time = simulation time of the step at which the message took
 effect, so ``train-dynamics simulate --input BAG`` replays the run) and outputs (bag time =
 header stamp) go to a rosbag2 (MCAP) written by :class:`BagWriter` on its own thread: bag I/O
 never delays the simulation. The MCAP file is finished every ``record_flush_period`` s (wall):
-a SIGKILL loses at most that much; SIGINT and SIGTERM close the bag completely. A ``reset``
+a SIGKILL loses at most that much; SIGINT and SIGTERM close the bag completely. When writing
+fails (a full disk), nothing more is recorded; the bag keeps its finished files, the node
+reports how many messages it holds (:meth:`BagWriter.closed_message`, never more than what
+is on disk) and exits with status 1. A ``reset``
 continues in a new bag ``<record_bag>_reset<k>`` (:func:`reset_bag_path`; each bag is one run
 from t = 0).
 """
@@ -148,9 +151,22 @@ class BagWriter:
         self.close()
         shutil.rmtree(self.path, ignore_errors=True)
 
+    @property
+    def saved(self) -> int:
+        """Return the messages the bag holds (in finished files; all of them once closed)."""
+        return self.recorder.saved
+
+    def closed_message(self) -> str:
+        """Return the line that reports the closed bag: its messages, or the failure."""
+        saved = self.saved
+        if self.error is None:
+            return f'bag closed: {self.path} ({saved} messages)'
+        return (f'recording to {self.path} failed ({self.error[:200]}): the bag holds {saved} '
+                f'of the {self.written} messages recorded')
+
     def _fail(self, exc: Exception, more: str = '') -> None:
         self.error = f'{type(exc).__name__}: {exc}'.splitlines()[0]
-        self._logger.error(f'recording to {self.path} failed: {self.error}{more}')
+        self._logger.error(f'recording to {self.path} failed: {self.error[:200]}{more}')
 
     def _store(self, item: tuple[str, str, int, bytes]) -> None:
         topic, msgtype, t_ns, data = item
@@ -204,5 +220,6 @@ class BagWriter:
                     self.recorder.abort()
                 else:
                     self.recorder.close()
-            except Exception as exc:  # noqa: BLE001
-                self._logger.error(f'closing the bag {self.path} failed: {exc}')
+            except Exception as exc:  # noqa: BLE001 - e.g. ENOSPC finishing the last file
+                if self.error is None:
+                    self._fail(exc)

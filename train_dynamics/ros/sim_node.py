@@ -42,7 +42,7 @@ recording continues in a new bag ``<record_bag>_reset<k>``.
 
 Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``duration``);
 4 lock-step timeout (``lockstep_on_timeout`` stop);
-1 other errors (e.g. the bag cannot be created).
+1 other errors (e.g. the bag cannot be created, or writing it failed: a full disk).
 """
 from __future__ import annotations
 
@@ -81,6 +81,8 @@ __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
 
 NODE_NAME = topics.NODE_NAME
 DIAGNOSTICS_PERIOD = 1.0  # [s wall]
+#: exit status after a recording that failed (a full disk): the bag holds less than the run
+EXIT_RECORD_FAILED = 1
 #: every parameter the node declares: the simulator's and its own
 SPECS = {**PARAMETERS, **SIM_NODE_PARAMETERS}
 #: the node parameters of the run control (pause/step, lock-step, input timing)
@@ -102,6 +104,7 @@ class SimNode(Node):
     def __init__(self, **kwargs: Any) -> None:
         super().__init__(NODE_NAME, **kwargs)
         self._destroyed = False
+        self._record_failed = False      # a bag closed after a write failure (exit 1)
         self._resets = 0                 # executor thread only
         #: parameter files with no section for this node (``main`` fills it; /diagnostics)
         self.parameter_file_warnings: list[str] = []
@@ -287,8 +290,7 @@ class SimNode(Node):
             self._start(cfg, writer)
         self._params_cfg = cfg
         if old is not None:
-            old.close()
-            log.info(f'bag closed: {old.path} ({old.written} messages)')
+            self._closed_bag(old, log)
         rec = f'; recording to {writer.path}' if writer else ''
         response.success = True
         response.message = ('restarted from t = 0 ' + (f'with the pending changes {pending}'
@@ -355,7 +357,11 @@ class SimNode(Node):
 
     @property
     def exit_code(self) -> int:
-        """Return the exit status ``main`` ends with: 0, 3 numerical fault, 4 lock-step timeout."""
+        """Return the exit status: 0; 3 numerical fault; 4 lock-step timeout; 1 failed record."""
+        writer = self._outputs.writer if hasattr(self, '_outputs') else None
+        if self._pacer.exit_code == 0 and (self._record_failed or (
+                writer is not None and writer.error is not None)):
+            return EXIT_RECORD_FAILED
         return self._pacer.exit_code
 
     @property
@@ -386,12 +392,20 @@ class SimNode(Node):
             self._pacer.stop_thread()
             writer = self._outputs.take_writer()
             if writer is not None:
-                writer.close()
                 # After SIGINT/SIGTERM the context is gone: log without /rosout.
                 log = self.get_logger() if self.context.ok() else rclpy.logging.get_logger(
                     f'{self.get_name()}.shutdown')
-                log.info(f'bag closed: {writer.path} ({writer.written} messages)')
+                self._closed_bag(writer, log)
         super().destroy_node()
+
+    def _closed_bag(self, writer: BagWriter, log: Any) -> None:
+        """Close a bag; report what it holds, or its failure (then the exit status is 1)."""
+        writer.close()
+        if writer.error is None:
+            log.info(writer.closed_message())
+        else:
+            self._record_failed = True
+            log.error(writer.closed_message())
 
 
 def main(args: list[str] | None = None) -> int:
@@ -399,8 +413,7 @@ def main(args: list[str] | None = None) -> int:
     Run ``ros2 run train_dynamics sim_node``; SIGINT/SIGTERM stop it with the bag closed.
 
     Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 4 lock-step
-    timeout (``lockstep_on_timeout`` stop), 1 other
-    errors.
+    timeout (``lockstep_on_timeout`` stop), 1 other errors (a recording that failed included).
     """
     return run_node('sim_node', SimNode, args, node_name=NODE_NAME, specs=SPECS, exits=(
         ExitOn((ConfigError, ParameterException, FileExistsError, ValueError),

@@ -6,7 +6,9 @@ The traction inputs of ``sim_node``: ``coach_<i>/traction/command`` of each loco
 of the consist (vehicles with ``max_tractive_force`` or ``max_dynamic_brake_force`` > 0). A
 command takes effect at the next integration step (zero-order hold) and is recorded as
 received. Rejected and counted (in the brake inputs' counts of ``/diagnostics``):
-``non_finite``, ``out_of_range`` (|c| > 1), ``malformed``.
+``non_finite``, ``out_of_range`` (|c| > 1), ``malformed``; commands for a vehicle that is not
+a locomotive (``not_locomotive``) or not in the train (``unknown_coach``) are found and
+counted by the brake inputs' graph scan.
 
 Staleness: with ``input_timeout`` > 0 a locomotive that has received a command and then
 nothing for ``input_timeout`` wall seconds is stale; with ``on_input_timeout`` ``emergency``
@@ -87,6 +89,10 @@ class TractionInputs:
                 cb = functools.partial(self._on_command, name, i)
                 self._subs[name] = self._node.create_subscription(Float64, name, cb, self._qos,
                                                                   raw=True)
+
+    def subscribed(self, resolved: str) -> bool:
+        """Return True if ``resolved`` is the command topic of one of our locomotives."""
+        return resolved in self._subs
 
     def _on_command(self, resolved: str, index: int, data: bytes) -> None:
         try:

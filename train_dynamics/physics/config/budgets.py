@@ -10,7 +10,7 @@ from __future__ import annotations
 import math
 from typing import Any
 
-from train_dynamics.physics import layout
+from train_dynamics.physics.kernel import layout
 
 #: [bytes] largest simulator state a configuration may need (delay line + per-coach arrays)
 MAX_SIMULATOR_MEMORY = 1 << 30

@@ -1,0 +1,96 @@
+"""
+SIGINT / SIGTERM stop an offline ``simulate`` or ``sweep`` within a second.
+
+What was recorded is kept: ``simulate`` closes a readable bag of the whole samples so far
+(exit 130 / 143, one line), ``sweep`` keeps its finished cases for a resume. A long ordinary
+run, no pathological tolerance.
+"""
+from __future__ import annotations
+
+import json
+from pathlib import Path
+import signal
+import subprocess
+import sys
+import time
+
+import pytest
+from train_dynamics.recording.bags import bag_info
+from train_dynamics.recording.history import load_history
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+PAPER = str(ROOT / 'config' / 'paper_3coach.yaml')
+
+
+def offline(*args) -> subprocess.Popen:
+    return subprocess.Popen([sys.executable, '-m', 'train_dynamics.cli.offline', *map(str, args)],
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
+
+
+def wait_for(predicate, timeout: float, what: str) -> None:
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        assert time.monotonic() < deadline, f'timed out waiting for {what}'
+        time.sleep(0.05)
+
+
+def staged_bytes(parent: Path, name: str) -> int:
+    return sum(f.stat().st_size for d in parent.glob(f'.{name}.partial-*')
+               for f in d.rglob('*') if f.is_file())
+
+
+@pytest.mark.parametrize('signum, code', [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_simulate_signal_stops_within_a_second_and_keeps_the_bag(tmp_path, signum, code):
+    out = tmp_path / 'run'
+    proc = offline('simulate', '--params', PAPER, '--duration', 100000, '--output', out, '-q')
+    try:
+        # running: the staged bag grows (past the kernels' loading or compiling)
+        wait_for(lambda: staged_bytes(tmp_path, 'run') > 2_000_000, 600, 'a growing bag')
+        t0 = time.monotonic()
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=60)
+        took = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == code, err
+    assert took < 1.0, took
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and 'holds the run up to there' in lines[0], err
+    assert signal.Signals(signum).name in lines[0]
+    info = bag_info(out)                        # closed and readable
+    assert info.custom_data['interrupted'].startswith(signal.Signals(signum).name)
+    hist = load_history(out)
+    n = len(hist.couplers)
+    assert n > 100 and len(hist.coaches) == n       # whole samples: every topic, same count
+    assert hist.couplers.t[-1] == pytest.approx((n - 1) / 100.0)
+    assert not list(tmp_path.glob('.run.partial-*'))
+
+
+SLOW = {'duration': 30.0, 'grid': {'integration_step': [1e-4]},
+        'lhs': {'samples': 4, 'seed': 5, 'ranges': {'brake_propagation_speed': [150.0, 300.0]}}}
+
+
+def test_sweep_signal_stops_within_a_second_and_keeps_finished_cases(tmp_path):
+    sweep = tmp_path / 's.yaml'
+    sweep.write_text(yaml.safe_dump(SLOW))
+    out = tmp_path / 'out'
+    proc = offline('sweep', '--params', PAPER, '--sweep', sweep, '--output', out,
+                   '--workers', 1, '--no-figures', '-q')
+    try:
+        wait_for(lambda: len(list((out / 'cases').glob('case_*.json'))) >= 1
+                 if (out / 'cases').exists() else False, 600, 'a finished case')
+        t0 = time.monotonic()
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=60)
+        took = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 143, err
+    assert took < 1.5, took
+    assert len(err.strip().splitlines()) == 1, err
+    done = list((out / 'cases').glob('case_*.json'))
+    assert 1 <= len(done) < 4
+    assert all(json.loads(p.read_text())['row']['error'] == '' for p in done)
