@@ -374,9 +374,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         """
         Do the next step of h in pieces that end at the scheduled inputs inside it.
 
-        Each piece is one step of the fixed-step driver with its length in PARAM.H (the
-        couplers' stage rows are evaluated again for it); error control: the chain is brought
-        to the present tick first, and the tick is booked as done by the chain.
+        Each piece is one step of the driver with its length in PARAM.H: fixed step, one
+        ROS2 step (the couplers' stage rows evaluated again for it); error control, one
+        brake-system tick of the piece's length and the chain under error control to its
+        end. The tick counters then count the whole step once.
         """
         self._sync()
         if self.fault is not None:
@@ -385,11 +386,12 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         t_end = (self.steps + 1) * h
         eps = _INSTANT * h
         pending = self._pending
+        tick0 = int(self.iv[CLOCK.TICK])
         while True:
             t_piece = pending[0][0] if pending and pending[0][0] < t_end - eps else t_end
             dt = t_piece - self.t
             if dt > eps:
-                status = self._piece(dt)
+                status = self._piece(dt, tick0)
                 if status != OK:
                     self.fault = STATUS_TEXT[status].format(t=self.t)
                     return
@@ -401,20 +403,24 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self._within = 0.0
         self.steps += 1
         if self.adaptive:
-            iv = self.iv
-            iv[CLOCK.TICK] += 1
-            iv[CLOCK.CHAIN_TICK] = iv[CLOCK.TICK]
-            iv[CACHE.WS_VALID] = 0      # the tick ring restarts from the state at the tick
+            self.iv[CLOCK.TICK] = self.iv[CLOCK.CHAIN_TICK] = tick0 + 1
+            self.iv[CACHE.WS_VALID] = 0     # the tick ring restarts from the state here
 
-    def _piece(self, dt: float) -> int:
-        """Run one fixed-step driver step of length ``dt`` [s] (< h); return the status."""
+    def _piece(self, dt: float, tick0: int) -> int:
+        """Run one driver step of length ``dt`` [s] (< h) from tick ``tick0``; the status."""
         sc, iv = self.sc, self.iv
         sc[PARAM.H] = dt
-        iv[CACHE.WS_VALID] = 0           # the couplers' rows with this step's weights
+        iv[CACHE.WS_VALID] = 0           # the couplers' rows (and tick ring) for this length
         try:
-            _, status = fixed_step.advance_chain(1, self.coach, self.cpl, sc, iv, self.fill,
-                                                 self.rel, self.ring, self.ws, self.gprof,
-                                                 self.cprof)
+            if self.adaptive:
+                iv[CLOCK.TICK] = iv[CLOCK.CHAIN_TICK] = tick0
+                _, status = adaptive.advance_adaptive(
+                    1, True, self.coach, self.cpl, sc, iv, self.fill, self.rel, self.ring,
+                    self.ws, self.gprof, self.cprof, self.tick_fb, self.tick_te)
+            else:
+                _, status = fixed_step.advance_chain(1, self.coach, self.cpl, sc, iv,
+                                                     self.fill, self.rel, self.ring, self.ws,
+                                                     self.gprof, self.cprof)
         finally:
             sc[PARAM.H] = self.h
             iv[CACHE.WS_VALID] = 0
