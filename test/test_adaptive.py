@@ -80,11 +80,11 @@ def test_controller_meets_its_tolerance_on_a_smooth_problem():
     """
     t_end = 10.0
     cfg = SimConfig.from_dict({'masses': MASSES[:3], 'scale_factor': 100.0})
-    h = cfg.integration_step
     full = cfg.adhesion_coefficient * np.array(MASSES[:3]) * cfg.gravity
 
     def brake(t):      # the input set at t_j = j 10 ms holds until t_j+1 (zero-order hold)
-        return full * _smooth_pressure(np.floor(t / 0.01 + 1e-9) * 0.01) / cfg.max_cylinder_pressure
+        t_set = np.floor(t / 0.01 + 1e-9) * 0.01
+        return full * _smooth_pressure(t_set) / cfg.max_cylinder_pressure
 
     t_eval = np.round(np.arange(1, int(round(t_end / 0.01)) + 1) * 0.01, 10)
     sol = reference_solution(MASSES[:3], cfg.buffer_stiffness, cfg.buffer_friction,

@@ -99,7 +99,7 @@ def _replay(times, levels, t_eval, **overrides):
 
 def test_error_control_converges_on_khz_replayed_cylinders():
     """
-    kHz cylinder edges (half of them between the 2 ms ticks): tighter tolerance, smaller error.
+    Cylinder edges at 1 kHz (half between the 2 ms ticks): tighter tolerance, smaller error.
 
     Every coupler-force sample against the independent reference fed the same staircase:
     within 2 % of its peak at tolerance 1e-3, and the error never grows as the tolerance

@@ -7,9 +7,9 @@ input timing (:func:`step_of`). Simulation time advances in integration steps of
 an output t_j = j / rate is taken at the nearest step. An input at bag time t acts from t
 itself (zero-order hold; the step that spans t is split there, ``TrainSimulator.schedule``)
 when the simulator takes inputs at their instants (``exact_inputs``: ``cylinder_per_coach``,
-``pipe_per_coach``), else from the first step k with k h >= t. No ROS, no bag I/O: the input events come
-from :mod:`train_dynamics.recording.inputs` or a brake-valve model, the samples go to the
-sinks of :mod:`train_dynamics.recording.sinks`.
+``pipe_per_coach``), else from the first step k with k h >= t. No ROS, no bag I/O: the input
+events come from :mod:`train_dynamics.recording.inputs` or a brake-valve model, the samples go
+to the sinks of :mod:`train_dynamics.recording.sinks`.
 """
 from __future__ import annotations
 
