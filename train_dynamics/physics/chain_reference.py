@@ -91,14 +91,15 @@ class ChainSolution:
 
 
 def solve_chain(inertia, law: ChainLaw, v0, brake_steps, t_eval, *, external=None,
-                rtol: float = 1e-9, atol: float = 1e-12) -> ChainSolution:
+                brake_of_t=None, rtol: float = 1e-9, atol: float = 1e-12) -> ChainSolution:
     """
     Integrate the chain from rest deformation (x = 0, v = v0) to t_eval[-1] [s].
 
     ``inertia`` (N,) [kg]; ``brake_steps``: (times (K,) [s] ascending, forces (K, N) [N]):
     from times[k] on, the braking forces are forces[k] (positive retarding; zero before
-    times[0]); ``external`` (N,) [N] a constant force, forward > 0. Returns the samples at
-    ``t_eval`` (ascending, > 0).
+    times[0]); ``brake_of_t(t) -> (N,)`` [N] an optional continuous braking force added to
+    them (give its kinks as further ``times``, with the same forces); ``external`` (N,) [N] a
+    constant force, forward > 0. Returns the samples at ``t_eval`` (ascending, > 0).
     """
     from scipy.integrate import solve_ivp     # tests and benchmarks only
 
@@ -118,7 +119,8 @@ def solve_chain(inertia, law: ChainLaw, v0, brake_steps, t_eval, *, external=Non
             net = np.zeros(n)
             net[1:] += F
             net[:-1] -= F
-            return np.concatenate([v, (net - fb + ext) / m])
+            brake = fb if brake_of_t is None else fb + brake_of_t(t)
+            return np.concatenate([v, (net - brake + ext) / m])
         return rhs
 
     def jac(t, z):
