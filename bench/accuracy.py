@@ -16,7 +16,7 @@ coupler law's breakpoints, restarted at every input instant) fed the same inputs
 Figures: every coupler-force sample (every 2 ms) and displacement sample: max |ours - ref| /
 max |ref| [%]; the peak force's error [%]; chain steps; wall time of the run [s]
 (in-process, 2 ms read-out; shared machine: compare within a table only).
-``python bench/accuracy.py [--markdown]``; the table is kept in ``bench/accuracy_results.md``.
+``python bench/accuracy.py [--case NAME]``; the table is kept in ``bench/accuracy_results.md``.
 """
 from __future__ import annotations
 
