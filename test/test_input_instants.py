@@ -158,7 +158,7 @@ def test_chain_reference_locates_free_play_and_blocking():
 
 
 def _mixed_consist(**overrides):
-    """A 90 t locomotive and 5 loaded/empty wagons, 4-12 mm free play, 20-30 mm strokes."""
+    """Return a 90 t locomotive and 5 wagons (4-12 mm free play, 20-30 mm strokes); inputs."""
     masses = [90000.0, 80000.0, 22000.0, 80000.0, 22000.0, 22000.0]
     sim = TrainSimulator(SimConfig.from_dict({'masses': masses, 'brake_input':
                                               'cylinder_per_coach', 'initial_speed': 20.0,
