@@ -199,6 +199,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self._order = itertools.count()
         #: [s] time past ``steps`` h reached inside a split step (0 between steps)
         self._within = 0.0
+        #: cylinder inputs were set since the last step (:meth:`_hold_cylinders` due)
+        self._cylinders_set = False
         c = self.coach
         c[len(VEHICLE):] = 0.0          # state, inputs, outputs; the constants stay
         c[STATE.V] = float(cfg.initial_speed)
@@ -271,7 +273,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         else:
             self.coach[INPUT.CYL, index] = float(arr)
         if self.pneu is None and self.mode == brakes.CYLINDER_PER_COACH:
-            self._hold_cylinders()
+            self._cylinders_set = True       # held from now: _hold_cylinders, next step
 
     def _hold_cylinders(self) -> None:
         """
@@ -280,8 +282,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         The step's braking force is the mean of eq. (13) at its two ends; an input that steps
         here sets the start value too, so a staircase input gives a staircase force (not a
         ramp over the next step). Error control: the chain is brought to the present tick
-        first and the tick's force row restarts at the new value.
+        first and the tick's force row restarts at the new value. Done once for all the inputs
+        set at an instant, before the next step (the chain has not moved since they were set).
         """
+        self._cylinders_set = False
         self._sync()
         c = self.coach
         c[STATE.PCYL] = c[INPUT.CYL]
@@ -408,6 +412,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
 
     def _piece(self, dt: float, tick0: int) -> int:
         """Run one driver step of length ``dt`` [s] (< h) from tick ``tick0``; the status."""
+        if self._cylinders_set:
+            self._hold_cylinders()
         sc, iv = self.sc, self.iv
         sc[PARAM.H] = dt
         iv[CACHE.WS_VALID] = 0           # the couplers' rows (and tick ring) for this length
@@ -430,6 +436,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         """Integrate ``n_steps`` whole steps of h; return the steps done."""
         if n_steps <= 0:
             return 0
+        if self._cylinders_set:
+            self._hold_cylinders()
         if self.pneu is not None:
             return self._advance_pneumatic(int(n_steps))
         done, status = self._kernel(int(n_steps))
