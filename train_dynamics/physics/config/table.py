@@ -270,8 +270,9 @@ _PARAMS = [
               low=0.0, high=0.1),
     ParamSpec('integration_max_steps', 100, INTEGER,
               'Work budget of the error-controlled integration: steps per output period; '
-              'beyond it the rest of the period runs at the fixed integration_step (counted '
-              'in /diagnostics fallback_periods).', low=1, high=1000000),
+              'beyond it the rest of the period takes at most as many equal steps without '
+              'error control (counted in /diagnostics fallback_periods).', low=1,
+              high=1000000),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
