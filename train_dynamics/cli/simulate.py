@@ -127,8 +127,9 @@ def _keep_interrupted(rec: BagRecorder, out: Path, created: list[Path], stop: In
 def _check_disk(cfg: SimConfig, duration: float, inputs: InputSchedule, parent: Path,
                 allow_large: bool) -> None:
     """Refuse a run whose bag would not fit, or exceed :data:`LARGE_BAG` unconfirmed."""
-    need = output_disk(cfg, duration) + sum(len(e.msg.header.frame_id) + 80
-                                            for e in inputs.events)
+    need = output_disk(cfg, duration, head_input=inputs.valve is not None,
+                       traction_commands=len(inputs.traction)) + sum(
+        len(e.msg.header.frame_id) + 80 for e in inputs.events)
     where = parent
     while not where.exists():
         where = where.parent
