@@ -103,8 +103,8 @@ def _text(doc: dict, bomb_at: int | None) -> str:
 @settings(max_examples=150, deadline=None, derandomize=True,
           suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow])
 @given(doc=DOC, bomb_at=st.one_of(st.none(), st.none(), st.integers(0, 3)))
-def test_consist_files_run_one_second_or_are_refused_in_one_line(doc, bomb_at, tmp_path,
-                                                                capsys):
+def test_consist_files_run_one_second_or_are_refused_in_one_line(
+        doc, bomb_at, tmp_path, capsys):
     path = tmp_path / 'consist.yaml'
     path.write_text(_text(doc, bomb_at))
     tracemalloc.start()
