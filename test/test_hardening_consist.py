@@ -8,6 +8,7 @@ line naming the value and the limit (exit 2 offline), quickly and in little memo
 """
 from __future__ import annotations
 
+import errno
 from pathlib import Path
 import time
 import tracemalloc
@@ -16,6 +17,7 @@ import numpy as np
 import pytest
 from test_hardening_params import assert_one_line_error, params_file, run_cli
 
+from train_dynamics.cli import simulate as simulate_cmd
 from train_dynamics.physics.config import (ConfigError, MAX_SIMULATOR_MEMORY, PARAMETERS,
                                            SimConfig, validate_value)
 from train_dynamics.physics.config import consist, spec
@@ -24,6 +26,7 @@ from train_dynamics.physics.config.budgets import (config_memory, output_disk, s
 from train_dynamics.physics.config.table import MAX_VEHICLES
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.quoting import QUOTE_CHARS
+from train_dynamics.recording.bags import bag_info, BagRecorder, read_topics
 import yaml
 
 #: an alias bomb: a list whose last element holds 9 levels of 9 references (~387 million
@@ -255,3 +258,34 @@ def test_item8_disk_estimate_counts_forces_reservoirs_and_traction_inputs(tmp_pa
     assert set(sample_topics(cfg)) >= {'vehicle_forces', 'brake_reservoirs'}
     estimate = output_disk(cfg, 2.0, traction_commands=4)
     assert 0.8 * real <= estimate <= 1.3 * real, (estimate, real)
+
+
+def test_item8_simulate_on_a_full_disk_keeps_the_finished_files_closed_and_readable(
+        tmp_path, capsys, monkeypatch):
+    monkeypatch.setattr(simulate_cmd, 'FILE_BYTES', 40_000)     # ~10 files for this run
+    finish = BagRecorder._finish_segment
+
+    def full_after_three(self):
+        if len(self._segments) >= 3:
+            raise OSError(errno.ENOSPC, 'No space left on device')
+        finish(self)
+    monkeypatch.setattr(BagRecorder, '_finish_segment', full_after_three)
+    p = params_file(tmp_path / 'p.yaml')
+    out = tmp_path / 'bag'
+    code, err = run_cli(capsys, 'simulate', '--params', p, '--duration', 5, '--output', out,
+                        '-q')
+    assert code == 1 and len(err) == 1 and 'No space left' in err[0], err
+    info = bag_info(out)
+    held = sum(1 for _ in read_topics(out))
+    assert held == info.message_count > 0 and f'({held} messages)' in err[0]
+    assert 0.0 < info.duration < 5.0
+    assert 'No space left' in info.custom_data['incomplete']
+    assert not list(tmp_path.glob('.bag.partial-*'))
+
+
+def test_item8_a_bag_estimated_small_stays_one_file(tmp_path, capsys):
+    p = params_file(tmp_path / 'p.yaml')
+    out = tmp_path / 'bag'
+    assert run_cli(capsys, 'simulate', '--params', p, '--duration', 2, '--output', out,
+                   '-q')[0] == 0
+    assert [f.name for f in out.glob('*.mcap')] == ['bag_0.mcap']
