@@ -45,9 +45,10 @@ $(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml
 	fi
 	$(VPY) -m pip install -r requirements.txt
 	$(VPY) -m pip install --no-deps --no-build-isolation --use-pep517 -e .
-	# compile the numba kernels now into the user cache (~/.cache/train_dynamics/numba-<code
-	# version>, keyed by the sources' content): the first run starts in about a second
-	$(VPY) -m train_dynamics.cli.prebuild
+	# compile the numba kernels that `make run` needs now into the user cache
+	# (~/.cache/train_dynamics/numba-<code version>, keyed by the sources' content), the other
+	# variants (error-controlled, pneumatic) in a detached background process
+	$(VPY) -m train_dynamics.cli.prebuild --variants paper --rest-in-background
 	@touch "$@"
 
 test: venv

@@ -2,8 +2,9 @@
 ament_python build of train_dynamics (colcon build) and pip editable install (make venv).
 
 ``build`` also compiles the numba kernels into the built package
-(``train_dynamics/physics/_prebuilt/numba-<code version>``, see ``physics/_jit.py``) so the
-first ``ros2 run`` after ``colcon build`` loads machine code instead of compiling for 10-60 s.
+(``train_dynamics/physics/kernel/_prebuilt/numba-<code version>``, see
+``physics/kernel/compiler.py``) so the first ``ros2 run`` after ``colcon build`` loads machine
+code instead of compiling for 10-60 s.
 ``develop`` (``colcon build --symlink-install``, which runs the sources) compiles them into
 the user cache instead, as ``make venv`` does (``python -m train_dynamics.cli.prebuild``).
 ``TRAIN_DYNAMICS_PREBUILD=0`` skips that; without numba, or when it fails, the build goes on
@@ -44,11 +45,11 @@ class BuildPyPrebuild(build_py):
     """build_py that then compiles the kernels of the built copy into it."""
 
     def run(self):
-        """Build the package, then compile its kernels into ``physics/_prebuilt``."""
+        """Build the package, then compile its kernels into ``physics/kernel/_prebuilt``."""
         super().run()
         if not (getattr(self, 'editable_mode', False) or self.dry_run):
             lib = os.path.abspath(self.build_lib)
-            prebuild(lib, os.path.join(lib, package_name, 'physics', '_prebuilt'))
+            prebuild(lib, os.path.join(lib, package_name, 'physics', 'kernel', '_prebuilt'))
 
 
 class InstallLibPrebuilt(install_lib):
@@ -57,7 +58,7 @@ class InstallLibPrebuilt(install_lib):
     def run(self):
         """Install the built package, then keep only the ``_prebuilt`` versions just built."""
         super().run()
-        sub = os.path.join(package_name, 'physics', '_prebuilt')
+        sub = os.path.join(package_name, 'physics', 'kernel', '_prebuilt')
         built, installed = (os.path.join(d, sub) for d in (self.build_dir, self.install_dir))
         if os.path.isdir(built) and os.path.isdir(installed) and not self.dry_run:
             keep = set(os.listdir(built))

@@ -1,14 +1,18 @@
 """
 Where the error-controlled steps go: a traced copy of the adaptive chain driver.
 
-:func:`trace_adaptive` is :func:`train_dynamics.physics.adaptive.advance_adaptive` with
+:func:`trace_adaptive` is :func:`train_dynamics.physics.kernel.adaptive.advance_adaptive` with
 its ``_chain_to`` written out here, logging every attempted step (chain time, step, error
 norm, accepted, the limiting coupler, whether its relative velocity is inside the 1/u band,
 the position and velocity parts of its error) and taking the controller's constants and the
 error norm's variant from an array (``ctl``), so variants can be tried without editing the
-kernel. Norm variants (``ctl[MODE]``):
+kernel. ``test/test_adaptive_trace.py`` runs both with the kernel's constants on short cases
+and requires the same state bit for bit: the copy cannot drift from the driver. Norm variants
+(``ctl[MODE]``):
 
 0. the kernel's: the embedded estimate weighted into coupler forces (stage-matrix slopes);
+   with the kernel's constants (no ``--set``) the step decisions use the kernel's own
+   functions (``ctl[EXACT]``), so the run is the driver's to the last bit;
 1. the estimate filtered through the stage matrix, (I - g h J)^-1 e (Shampine), then 0;
 2. filtered, then the force difference F(y, ydot) - F(y - e_y, ydot - e_ydot) (the law);
 3. unfiltered force difference.
@@ -31,12 +35,16 @@ if REPO not in sys.path:
 
 import numpy as np  # noqa: E402
 
-from train_dynamics.physics import adaptive as ad  # noqa: E402
-from train_dynamics.physics import brakes, couplers, integrators as it  # noqa: E402
-from train_dynamics.physics._jit import jit  # noqa: E402
-from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK  # noqa: E402
+from train_dynamics.physics.kernel import active_set, brakes, couplers  # noqa: E402
+from train_dynamics.physics.kernel import adaptive as ad  # noqa: E402
+from train_dynamics.physics.kernel import coupler_rows as rows, ros2, step as it  # noqa: E402
+from train_dynamics.physics.kernel.compiler import jit  # noqa: E402
+from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, CONTROL,  # noqa: E402
+                                                  COUNT, COUPLER, OPTION, PARAM, STATE, TOTAL,
+                                                  VEHICLE, WORK)
 
-MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP, FLOOR = range(7)
+#: ctl slots; EXACT = 1: the kernel's own norm and controller (mode 0, no --set)
+MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP, FLOOR, EXACT = range(8)
 #: log columns (BAND: u |ydot| of the limiting coupler, < 1 inside the tanh band)
 T, H, ERR, ACC, JMAX, BAND, EPOS, EVEL, FALLBACK = range(9)
 
@@ -49,7 +57,7 @@ def _err(h, coach, cpl, model, u, held, ws, tol, f_floor, mode, scr, info):
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
     F0 = ws[WORK.F]
-    gh = it.GAMMA * h
+    gh = ros2.GAMMA * h
     cx = h - gh
     n = b1.shape[0]
     m = n - 1
@@ -59,7 +67,7 @@ def _err(h, coach, cpl, model, u, held, ws, tol, f_floor, mode, scr, info):
         ex[i] = 0.5 * h * (cx * b1[i] + gh * b2[i])
         ev[i] = 0.5 * h * (b1[i] + b2[i])
     if mode == 1 or mode == 2:
-        masses = coach[COACH.MASS]
+        masses = coach[VEHICLE.MASS]
         winv = ws[WORK.WINV]
         lower = ws[WORK.LOWER]
         c = ws[WORK.C]
@@ -140,17 +148,18 @@ def _log(log, cnt, t, hs, err, acc, info, fallback):
 @jit
 def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, log, cnt):
     """:func:`adaptive._chain_to` with ``ctl`` constants and the step log."""
-    h_tick = sc[SCALAR.H]
-    ka = iv[FLAG.CHAIN_TICK]
-    kb = iv[FLAG.TICK]
+    h_tick = sc[PARAM.H]
+    ka = iv[CLOCK.CHAIN_TICK]
+    kb = iv[CLOCK.TICK]
     total = (kb - ka) * h_tick
     t0 = ka * h_tick
-    h_max = iv[FLAG.LAND] * h_tick
-    model = iv[FLAG.MODEL]
-    u = sc[SCALAR.U]
-    tol = sc[SCALAR.TOL]
-    ext = iv[FLAG.EXT]
+    h_max = iv[OPTION.LAND] * h_tick
+    model = iv[OPTION.MODEL]
+    u = sc[PARAM.U]
+    tol = sc[PARAM.TOL]
+    ext = iv[OPTION.EXT]
     mode = int(ctl[MODE])
+    exact = ctl[EXACT] == 1.0
     ki = ctl[KI]
     kp = ctl[KP]
     info = np.zeros(4)
@@ -158,62 +167,71 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
     steps = 0
     int_hmin = h_max
     fallback = False
-    h = min(sc[SCALAR.HPROP], h_max)
+    h = min(sc[CONTROL.HPROP], h_max)
     while s < total:
         rem = total - s
-        if steps >= iv[FLAG.BUDGET] and not fallback:
+        if steps >= iv[OPTION.BUDGET] and not fallback:
             fallback = True
-            sc[SCALAR.NFALLBACK] += 1.0
+            iv[COUNT.NFALLBACK] += 1
         if fallback:
             h = h_tick
         hs = ad._landing_step(h, rem)
-        if hs != sc[SCALAR.HEVAL]:
-            it._eval_couplers(coach[COACH.X], coach[COACH.V], cpl, model, u, it.GAMMA * hs, ws)
-            sc[SCALAR.HEVAL] = hs
+        if hs != sc[CONTROL.HEVAL]:
+            rows.eval_couplers(coach[STATE.X], coach[STATE.V], cpl, model, u, ros2.GAMMA * hs, ws)
+            sc[CONTROL.HEVAL] = hs
         ad._tick_means(fbt, tet, ka, s / h_tick, (s + hs) / h_tick, ws)
         if ext:
-            it._static_resistance(coach, iv, gprof, cprof, ws)
-        pext = sc[SCALAR.PEXT]
-        extra_work = it._active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
-        err = _err(hs, coach, cpl, model, u, held, ws, tol, sc[SCALAR.FFLOOR], mode, scr, info)
+            it.static_resistance(coach, iv, gprof, cprof, ws)
+        pext = sc[TOTAL.PEXT]
+        extra_work = active_set.active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
+        err = _err(hs, coach, cpl, model, u, held, ws, tol, sc[PARAM.FFLOOR], mode, scr, info)
+        if exact:       # the kernel's own expression (the same value, to the last bit)
+            err = ad._error_norm(hs, ws, tol, sc[PARAM.FFLOOR])
         if err > 1.0 and not fallback and hs > ad.H_MIN:
             _log(log, cnt, t0 + s, hs, err, 0.0, info, fallback)
-            sc[SCALAR.PEXT] = pext
-            sc[SCALAR.NREJ] += 1.0
-            sc[SCALAR.HEVAL] = -1.0
-            h = max(hs * max(ctl[FAC_MIN], ctl[SAFETY] * err ** -0.5), ad.H_MIN)
+            sc[TOTAL.PEXT] = pext
+            iv[COUNT.NREJ] += 1
+            sc[CONTROL.HEVAL] = -1.0
+            if exact:
+                h = max(hs * max(ad.FAC_MIN, ad.SAFETY * err ** -0.5), ad.H_MIN)
+            else:
+                h = max(hs * max(ctl[FAC_MIN], ctl[SAFETY] * err ** -0.5), ad.H_MIN)
             continue
         _log(log, cnt, t0 + s, hs, err, 1.0, info, fallback)
-        status = it._fault_check(ws, sc[SCALAR.YLIM])
+        status = it.fault_check(ws, sc[PARAM.YLIM])
         if status != it.OK:
             return status
         if ext:
-            sc[SCALAR.WB] += it._accept_external(hs, coach, sc, held, ws)
-        sc[SCALAR.WB] += it._accept_step(coach, held, extra_work, ws, ext)
+            sc[TOTAL.WB] += it.accept_external(hs, coach, sc, held, ws)
+        sc[TOTAL.WB] += it.accept_step(coach, held, extra_work, ws, ext)
         steps += 1
         if hs < rem:
             int_hmin = min(int_hmin, hs)
-            sc[SCALAR.HMIN] = min(sc[SCALAR.HMIN], hs)
+            sc[CONTROL.HMIN] = min(sc[CONTROL.HMIN], hs)
         s = total if hs >= rem else s + hs
         e = max(err, 1e-4)
-        fac = ctl[SAFETY] * e ** -ki * sc[SCALAR.ERRPREV] ** kp
-        fac = min(ctl[FAC_MAX], max(ctl[FAC_MIN], fac))
-        sc[SCALAR.ERRPREV] = e
+        if exact:
+            fac = ad.SAFETY * e ** -ad.PI_KI * sc[CONTROL.ERRPREV] ** ad.PI_KP
+            fac = min(ad.FAC_MAX, max(ad.FAC_MIN, fac))
+        else:
+            fac = ctl[SAFETY] * e ** -ki * sc[CONTROL.ERRPREV] ** kp
+            fac = min(ctl[FAC_MAX], max(ctl[FAC_MIN], fac))
+        sc[CONTROL.ERRPREV] = e
         if not fallback:
             if hs < rem or fac < 1.0:
                 h = hs * fac
             else:
                 h = max(h, hs * fac)
             h = max(min(h, h_max), ad.H_MIN)
-            sc[SCALAR.HPROP] = h
+            sc[CONTROL.HPROP] = h
         hn = ad._landing_step(h, total - s) if s < total else h
-        sc[SCALAR.WC] += it._eval_couplers_work(coach, cpl, model, u, it.GAMMA * hn, ws)
-        sc[SCALAR.HEVAL] = hn
-    iv[FLAG.CHAIN_TICK] = kb
-    sc[SCALAR.NSTEPS] += steps
-    sc[SCALAR.INT_STEPS] = steps
-    sc[SCALAR.INT_STEPS_MAX] = max(sc[SCALAR.INT_STEPS_MAX], steps)
-    sc[SCALAR.INT_HMIN] = int_hmin
+        sc[TOTAL.WC] += rows.eval_couplers_work(coach, cpl, model, u, ros2.GAMMA * hn, ws)
+        sc[CONTROL.HEVAL] = hn
+    iv[CLOCK.CHAIN_TICK] = kb
+    iv[COUNT.NSTEPS] += steps
+    iv[COUNT.INT_STEPS] = steps
+    iv[COUNT.INT_STEPS_MAX] = max(iv[COUNT.INT_STEPS_MAX], steps)
+    sc[CONTROL.INT_HMIN] = int_hmin
     return it.OK
 
 
@@ -224,26 +242,26 @@ def trace_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gprof
     held = np.empty(coach.shape[1], dtype=np.bool_)
     tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
                                    rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
-    if iv[FLAG.WS_VALID] == 0:
-        brakes.delay_split(coach[COACH.DELAY], ws[WORK.K0], ws[WORK.FRAC])
-        r = iv[FLAG.TICK] % fbt.shape[0]
+    if iv[CACHE.WS_VALID] == 0:
+        brakes.delay_split(coach[VEHICLE.DELAY], ws[WORK.K0], ws[WORK.FRAC])
+        r = iv[CLOCK.TICK] % fbt.shape[0]
         for i in range(coach.shape[1]):
-            fbt[r, i] = coach[COACH.FB_AVAIL, i]
-            tet[r, i] = coach[COACH.T_EFF, i]
-        sc[SCALAR.HEVAL] = -1.0
-        if iv[FLAG.TICK] == 0:
-            it._eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U],
-                              it.GAMMA * sc[SCALAR.H], ws)
-        iv[FLAG.WS_VALID] = 1
-    land = iv[FLAG.LAND]
+            fbt[r, i] = coach[STATE.FB_AVAIL, i]
+            tet[r, i] = coach[STATE.T_EFF, i]
+        sc[CONTROL.HEVAL] = -1.0
+        if iv[CLOCK.TICK] == 0:
+            rows.eval_couplers(coach[STATE.X], coach[STATE.V], cpl, iv[OPTION.MODEL],
+                               sc[PARAM.U], ros2.GAMMA * sc[PARAM.H], ws)
+        iv[CACHE.WS_VALID] = 1
+    land = iv[OPTION.LAND]
     for k in range(n_ticks):
         ad._brake_tick(coach, sc, iv, ring, tables, ws, fbt, tet)
-        if iv[FLAG.TICK] % land == 0:
+        if iv[CLOCK.TICK] % land == 0:
             status = _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr,
                                log, cnt)
             if status != it.OK:
                 return k + 1, status
-    if sync and iv[FLAG.CHAIN_TICK] < iv[FLAG.TICK]:
+    if sync and iv[CLOCK.CHAIN_TICK] < iv[CLOCK.TICK]:
         status = _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr,
                            log, cnt)
         if status != it.OK:
@@ -266,10 +284,11 @@ def traced(sim, ctl, max_log: int = 4_000_000):
 
 
 def default_ctl(mode: int = 0) -> np.ndarray:
-    """Return the kernel's controller constants with norm variant ``mode``."""
-    ctl = np.zeros(7)
+    """Return the kernel's controller constants with norm variant ``mode`` (0: EXACT)."""
+    ctl = np.zeros(8)
     ctl[[MODE, SAFETY, FAC_MIN, FAC_MAX, KI, KP]] = [mode, ad.SAFETY, ad.FAC_MIN, ad.FAC_MAX,
                                                      ad.PI_KI, ad.PI_KP]
+    ctl[EXACT] = 1.0 if mode == 0 else 0.0
     return ctl
 
 
@@ -331,6 +350,7 @@ def main(argv=None) -> int:
     for item in args.set:
         name, value = item.split('=')
         ctl[globals()[name]] = float(value)
+        ctl[EXACT] = 0.0        # the constants come from ctl
     row, log = run(args.case, args.tol, ctl, args.budget, args.cache)
     if args.save_log:
         np.save(args.save_log, log)

@@ -26,7 +26,7 @@ warm-up, memory and timing of one case do not leak into the next:
   handful of N-element arrays per ``advance`` call). The process's peak RSS (VmHWM) is
   reported too, for context;
 - accuracy (same untimed run): the envelope max_j |F_j(t)| on the 10 ms grid, compared with
-  the tight-tolerance reference :func:`train_dynamics.physics.integrators.reference_solution`
+  the tight-tolerance reference :func:`train_dynamics.physics.reference.reference_solution`
   (Radau, rtol 1e-9, atol 1e-11, analytical Jacobian) driven by the brake forces as a
   function of time, Fb_i(t) = mu_a m_i g fill(t - t_e - d_i) (d_i the pipe delay of coach
   i). The run checks that this formula is what the simulator applies (it applies the mean
@@ -136,7 +136,7 @@ def make_config(n: int, model: str, u: float, h: float = DEFAULT_H, **extra):
 def brake_formula(cfg):
     """(Fb(t) -> (N,) [N], delays (N,) [s]) for the pipe_head emergency at T_EMERGENCY."""
     import numpy as np
-    from train_dynamics.physics.brakes import pipe_delays
+    from train_dynamics.physics.kernel.brakes import pipe_delays
     ft, ff = (np.asarray(a, float) for a in cfg.fill_table())
     delays = pipe_delays(cfg.n_coaches, cfg.coach_length, cfg.brake_propagation_speed)
     full = cfg.adhesion_coefficient * np.asarray(cfg.mass_array) * cfg.gravity
@@ -264,13 +264,14 @@ def _physics_fingerprint(u: float) -> str:
     cache) and the reference solver's default tolerances and method.
     """
     import numpy as np
-    from train_dynamics.physics import couplers, integrators
+    from train_dynamics.physics import reference
+    from train_dynamics.physics.kernel import couplers
     y, yd = np.meshgrid(np.linspace(-0.3, 0.3, 13), np.linspace(-0.02, 0.02, 17))
     y, yd = y.ravel(), yd.ravel()
     one = np.ones(y.size)
     F = couplers.coupler_force(y, yd, 2.8e6 * one, 1.4e6 * one, 5.46e6 * one, 2.43e6 * one,
                                couplers.TANH, float(u))
-    sig = inspect.signature(integrators.reference_solution)
+    sig = inspect.signature(reference.reference_solution)
     defaults = {k: p.default for k, p in sig.parameters.items()
                 if p.default is not inspect.Parameter.empty}
     text = ' '.join(f'{f:.9e}' for f in F) + json.dumps(defaults, sort_keys=True, default=str)
@@ -328,8 +329,8 @@ def compute_reference(n: int, u: float) -> dict:
     stopped (v <= 0), where it stops being valid.
     """
     import numpy as np
-    from train_dynamics.physics import couplers
-    from train_dynamics.physics.integrators import reference_solution
+    from train_dynamics.physics.kernel import couplers
+    from train_dynamics.physics.reference import reference_solution
     cfg = make_config(n, 'tanh', u)
     fb_of_t, _ = brake_formula(cfg)
     grid = _grid(T_END)
@@ -441,7 +442,7 @@ def startup_probe() -> dict:
 def measure_startup() -> dict:
     out = {}
     with tempfile.TemporaryDirectory(prefix='td_numba_cold_') as tmp:
-        # an empty kernel cache (physics/_jit.py): every kernel the start needs compiles
+        # an empty kernel cache (physics/kernel/compiler.py): every kernel the start needs compiles
         env = dict(os.environ, TRAIN_DYNAMICS_CACHE_DIR=tmp)
         out['cold'] = _run_sub(['--startup'], env=env)
     out['warm'] = _run_sub(['--startup'])

@@ -279,7 +279,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
             'simulated. Timed: `sim.advance_to` in 10 ms chunks and `sim.coupler_force` after '
             "each (the node's 100 Hz read-out); numba warm-up excluded (see start-up). "
             '"peak abs(F)" = max over couplers and 10 ms samples. Reference: '
-            '`integrators.reference_solution` (Radau, rtol 1e-9, atol 1e-11) with the brake '
+            '`reference.reference_solution` (Radau, rtol 1e-9, atol 1e-11) with the brake '
             'forces Fb_i(t) = mu_a m_i g fill(t - t_e - d_i) (checked against '
             '`sim.brake_force`: largest mismatch '
             f"{max(r['brake_mismatch'] for r in core_res['cases'] + core_res['steps']):.1e} "
@@ -316,7 +316,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
             'and its first 10 ms. Cold = empty kernel cache (a source change, or an install '
             'without the build-time kernels: every kernel compiles); warm = kernels loaded from '
             'the cache (`~/.cache/train_dynamics/numba-<code version>`, see '
-            '`physics/_jit.py`).',
+            '`physics/kernel/compiler.py`).',
             '', startup_table(core_res['startup']), '']
     if node_res:
         p = node_res['params']

@@ -3,7 +3,7 @@ Start-up of ``sim_node`` to its first output: cold, warm and first start after a
 
 Each start is a fresh process (300 coaches, 100 Hz, real time); timed from ``Popen`` to the
 first ``couplers`` message arriving in this process (DDS discovery included), then stopped
-with SIGINT. The compiled-kernel cache (``physics/_jit.py``) decides the cases:
+with SIGINT. The compiled-kernel cache (``physics/kernel/compiler.py``) decides the cases:
 
 - ``cold``: the venv's package with an empty user cache (``TRAIN_DYNAMICS_CACHE_DIR``):
   every kernel the start needs compiles (what a first start cost before kernels were built

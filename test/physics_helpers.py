@@ -2,8 +2,8 @@
 import numpy as np
 
 from train_dynamics.physics.config import SimConfig
-from train_dynamics.physics.couplers import coupler_force, TANH
-from train_dynamics.physics.integrators import reference_solution
+from train_dynamics.physics.kernel.couplers import coupler_force, TANH
+from train_dynamics.physics.reference import reference_solution
 from train_dynamics.physics.train import TrainSimulator
 
 T_EMERGENCY = 1.0   # the brake valve vents the pipe at t = 1 s

@@ -3,9 +3,9 @@ import numpy as np
 from physics_helpers import paper_reference, paper_sim, record
 import pytest
 
-from train_dynamics.physics import couplers
 from train_dynamics.physics.config import PARAMETERS, SimConfig
-from train_dynamics.physics.integrators import reference_solution
+from train_dynamics.physics.kernel import couplers
+from train_dynamics.physics.reference import reference_solution
 from train_dynamics.physics.train import TrainSimulator
 
 #: the tolerance the tests and config/paper_3coach_adaptive.yaml use

@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from train_dynamics.physics import brakes
 from train_dynamics.physics.config import SimConfig
+from train_dynamics.physics.kernel import brakes
 from train_dynamics.physics.train import TrainSimulator
 
 P_MAX = 380000.0

@@ -11,7 +11,7 @@ test sees ``couplers`` and ``brake_pipe/pressure`` messages, then stops both wit
 SIGTERM and expects a clean exit.
 
 The build compiles the numba kernels into the installed package (``setup.py build``, see
-``physics/_jit.py``): the installed executables start with an empty user cache
+``physics/kernel/compiler.py``): the installed executables start with an empty user cache
 (``TRAIN_DYNAMICS_CACHE_DIR``) and must not compile anything, i.e. write nothing there.
 """
 from __future__ import annotations
@@ -128,15 +128,15 @@ def test_build_prebuilds_the_kernels_of_the_installed_sources(workspace):
     ws, env = workspace
     probe = subprocess.run(
         [sys.executable, '-c',
-         'from train_dynamics.physics import _jit\n'
-         'print(_jit.prebuilt_dir())'],
+         'from train_dynamics.physics.kernel import compiler\n'
+         'print(compiler.prebuilt_dir())'],
         cwd=ws, env=env, capture_output=True, text=True, timeout=60)
     assert probe.returncode == 0, probe.stderr
     prebuilt = Path(probe.stdout.strip())
     assert prebuilt.resolve().is_relative_to((ws / 'install').resolve()), prebuilt
     # the folder named after the installed sources' digest holds the chain kernel
-    assert list(prebuilt.glob('integrators.advance_chain-*.nbi')), prebuilt
-    assert list(prebuilt.glob('integrators.advance_chain-*.nbc')), prebuilt
+    assert list(prebuilt.glob('fixed_step.advance_chain-*.nbi')), prebuilt
+    assert list(prebuilt.glob('fixed_step.advance_chain-*.nbc')), prebuilt
 
 
 def test_installed_offline_command_starts_warm(workspace, tmp_path):

@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from train_dynamics.physics import couplers
+from train_dynamics.physics.kernel import couplers as kernel_couplers
 
 # k_e, k_f, k_ec, k_fc [N/m]; g_t, g_c [m]; S_t, S_c [m]; K_b [N/m]
 K = {'ke': 2.0e6, 'kf': 1.0e6, 'kec': 4.0e6, 'kfc': 2.0e6, 'gt': 0.02, 'gc': 0.01, 'st': 0.05,
@@ -14,9 +15,9 @@ K = {'ke': 2.0e6, 'kf': 1.0e6, 'kec': 4.0e6, 'kfc': 2.0e6, 'gt': 0.02, 'gc': 0.0
 def law(y, ydot, model='sign', u=1000.0, **over):
     """Return (F, dF/dy, dF/dydot) of one coupler with the constants K."""
     c = {**K, **over}
-    return couplers.coupler_force_travel_scalar(
+    return kernel_couplers.coupler_force_travel_scalar(
         y, ydot, c['ke'], c['kf'], c['kec'], c['kfc'], c['gt'], c['gc'], c['st'], c['sc'],
-        c['kb'], couplers.MODEL_CODES[model], u)
+        c['kb'], kernel_couplers.MODEL_CODES[model], u)
 
 
 @pytest.mark.parametrize('model', ['sign', 'tanh'])
@@ -69,11 +70,13 @@ def test_tight_unblocked_coupling_is_the_papers_law_bit_for_bit(model):
     rng = np.random.default_rng(1)
     y = np.concatenate([rng.normal(0.0, 0.01, 200), [0.0, -0.0]])
     ydot = rng.normal(0.0, 0.01, y.size)
-    code = couplers.MODEL_CODES[model]
+    code = kernel_couplers.MODEL_CODES[model]
     for a, b in zip(y, ydot):
-        ref = couplers.coupler_force_scalar(a, b, 2.8e6, 1.4e6, 5.46e6, 2.43e6, code, 1000.0)
-        new = couplers.coupler_force_travel_scalar(a, b, 2.8e6, 1.4e6, 5.46e6, 2.43e6,
-                                                   0.0, 0.0, 0.06, 0.105, 1.0e8, code, 1000.0)
+        ref = kernel_couplers.coupler_force_scalar(a, b, 2.8e6, 1.4e6, 5.46e6, 2.43e6, code,
+                                                   1000.0)
+        new = kernel_couplers.coupler_force_travel_scalar(a, b, 2.8e6, 1.4e6, 5.46e6, 2.43e6,
+                                                          0.0, 0.0, 0.06, 0.105, 1.0e8, code,
+                                                          1000.0)
         assert ref[0] == new[0] and ref[1] == new[1] and ref[2] == new[2]
 
 

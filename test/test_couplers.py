@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from train_dynamics.physics import couplers
 from train_dynamics.physics.couplers import force_law
+from train_dynamics.physics.kernel import couplers
 
 KE, KF, KEC, KFC = 2.8e6, 1.4e6, 5.46e6, 2.43e6   # the paper's constants [N/m]
 

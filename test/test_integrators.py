@@ -1,13 +1,10 @@
 """Fixed-step ROS2 against the tight-tolerance reference; convergence; the sign model."""
-import ast
-from pathlib import Path
-
 import numpy as np
 from physics_helpers import paper_reference, paper_sim, record
 import pytest
 
-from train_dynamics.physics import _jit, couplers, integrators
-from train_dynamics.physics.layout import COACH, WORK
+from train_dynamics.physics.kernel import couplers, ros2, step
+from train_dynamics.physics.kernel.layout import COACH, VEHICLE, WORK
 
 T_END = 12.0   # the brake wave, the buffer shock and the oscillations after it
 
@@ -29,22 +26,22 @@ def test_stage_solve_matches_dense_solve_with_held_coaches():
     rng = np.random.default_rng(3)
     n, h = 9, 2e-3
     m = n - 1
-    gh = integrators.GAMMA * h
+    gh = ros2.GAMMA * h
     masses = rng.uniform(3e4, 6e4, n)
     F, dfdy, kk = rng.normal(0, 1e5, m), rng.uniform(1e6, 8e6, m), rng.uniform(0, 1e5, m)
     v, brake = rng.uniform(10.0, 11.0, n), rng.uniform(0.0, 4e4, n)
     held = np.zeros(n, dtype=bool)
     held[[0, 4, 5]] = True
     coach = np.zeros((len(COACH), n))
-    coach[COACH.MASS] = masses
+    coach[VEHICLE.MASS] = masses
     # k_e, k_f, k_ec, k_fc, no slack, strokes never reached, K_b
     cpl = np.tile(np.array([[2.8e6], [1.4e6], [5.46e6], [2.43e6], [0.0], [0.0], [1.0], [1.0],
                             [1e8]]), (1, m))
-    ws = integrators.make_workspace(n)
+    ws = step.make_workspace(n)
     ws[WORK.F, :m], ws[WORK.DFDY, :m], ws[WORK.KK, :m] = F, dfdy, kk
     ws[WORK.VSTART], ws[WORK.SIGNED] = v, brake
-    integrators._ros2_step(h, coach, cpl, couplers.TANH, 1000.0, held, ws, 0, 0,
-                           np.zeros((3, 0)))
+    ros2.ros2_step(h, coach, cpl, couplers.TANH, 1000.0, held, ws, 0, 0,
+                   np.zeros((3, 0)))
     D = np.eye(n)[:-1] - np.eye(n, k=1)[:-1]          # y = D x
     A = np.diag(masses) + D.T @ np.diag(kk) @ D
     rhs = -D.T @ F - gh * D.T @ (dfdy * (D @ v))
@@ -55,41 +52,6 @@ def test_stage_solve_matches_dense_solve_with_held_coaches():
     np.testing.assert_allclose(ws[WORK.B1], b1, rtol=1e-10, atol=1e-12 * np.abs(b1).max())
     np.testing.assert_allclose(ws[WORK.DIAG], np.diag(A), rtol=1e-15)
     np.testing.assert_allclose(ws[WORK.RHS1], rhs, rtol=1e-12, atol=1e-9 * np.abs(rhs).max())
-
-
-def _physics_imports(path: Path) -> set:
-    """Return the file names of the physics modules that the module at ``path`` imports."""
-    names = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
-        if not isinstance(node, ast.ImportFrom) or node.module is None:
-            continue
-        if node.module == 'train_dynamics.physics':
-            names.update(f'{alias.name}.py' for alias in node.names)
-        elif node.module.startswith('train_dynamics.physics.'):
-            names.add(node.module.rsplit('.', 1)[1] + '.py')
-    return names
-
-
-def test_kernel_cache_key_covers_every_kernel_source():
-    """
-    Check that the numba cache is keyed on every file the compiled kernels depend on.
-
-    A kernel inlines the compiled functions and freezes the constants of the modules it
-    imports, and numba's own cache only watches the kernel's file: every physics module
-    with compiled functions, and every physics module those import (transitively), must be
-    in KERNEL_SOURCES, or a stale kernel runs after an edit.
-    """
-    folder = Path(integrators.__file__).parent
-    kernels = {p.name for p in folder.glob('*.py') if '_jit.py' in _physics_imports(p)}
-    assert {'brakes.py', 'couplers.py', 'integrators.py', 'standstill.py'} <= kernels
-    needed, todo = set(), list(kernels)
-    while todo:
-        name = todo.pop()
-        if name not in needed:
-            needed.add(name)
-            todo.extend(_physics_imports(folder / name))
-    assert needed <= set(_jit.KERNEL_SOURCES), needed - set(_jit.KERNEL_SOURCES)
-    assert all((folder / name).is_file() for name in _jit.KERNEL_SOURCES)
 
 
 def test_fixed_step_matches_reference_u1000(reference_u1000):

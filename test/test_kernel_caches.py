@@ -3,7 +3,7 @@ The fixed-step kernel's shortcuts change no result: caches and the standstill sk
 
 The kernel keeps the couplers' law where (y, ydot) did not change, the static resistance and
 gradient force of a vehicle that has not moved, and skips the active-set step at a
-standstill whose inputs did not change (integrators._repeats_standstill). A twin simulator
+standstill whose inputs did not change (fixed_step._repeats_standstill). A twin simulator
 that forgets all of it before every step must give the same numbers, bit for bit.
 """
 import os
@@ -11,9 +11,9 @@ import os
 import numpy as np
 import pytest
 
-from train_dynamics.physics import integrators
 from train_dynamics.physics.config import load_param_file, SimConfig
-from train_dynamics.physics.layout import COACH, FLAG, WORK
+from train_dynamics.physics.kernel import coupler_rows
+from train_dynamics.physics.kernel.layout import CACHE, COUNT, OUTPUT, STATE, WORK
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.simulation.runner import traction_schedule
 
@@ -22,15 +22,15 @@ CONFIG = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))
 
 def _forget(sim):
     """Clear every cache and the standstill flag: the next step is computed in full."""
-    sim.iv[FLAG.STEADY] = 0
-    integrators.invalidate_caches(sim.ws)
+    sim.iv[CACHE.STEADY] = 0
+    coupler_rows.invalidate_caches(sim.ws)
     sim.ws[WORK.YKEY] = np.nan
 
 
 def _state(sim):
-    return np.concatenate([sim.x, sim.v, sim.coupler_force, sim.coach[COACH.FB_APPLIED],
-                           sim.coach[COACH.F_RES], sim.coach[COACH.F_GRADE],
-                           sim.coach[COACH.HELD], sim.sc])
+    return np.concatenate([sim.x, sim.v, sim.coupler_force, sim.coach[OUTPUT.FB_APPLIED],
+                           sim.coach[OUTPUT.F_RES], sim.coach[OUTPUT.F_GRADE],
+                           sim.coach[STATE.HELD], sim.sc, sim.iv[list(COUNT)]])
 
 
 def _twins(cfg, phases):
@@ -56,7 +56,7 @@ def _twins(cfg, phases):
                 _forget(b)
                 b.advance(1)
             np.testing.assert_array_equal(_state(a), _state(b))
-            skipped += int(a.iv[FLAG.STEADY])
+            skipped += int(a.iv[CACHE.STEADY])
     assert a.fault is None
     return a, skipped
 
@@ -85,4 +85,4 @@ def test_standstill_flag_needs_every_vehicle_held():
     sim = TrainSimulator(SimConfig.from_dict({'num_coaches': 4, 'initial_speed': 5.0}))
     sim.advance(100)
     assert not sim.held.any()
-    assert sim.iv[FLAG.STEADY] == 0
+    assert sim.iv[CACHE.STEADY] == 0

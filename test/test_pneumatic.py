@@ -16,6 +16,7 @@ import pytest
 
 from train_dynamics.physics import pneumatic as pn
 from train_dynamics.physics.brake_valve import BrakeValveModel
+from train_dynamics.physics.kernel import pneumatic as pk
 
 H = 0.002
 BAR = 1.0e5
@@ -50,16 +51,16 @@ def first_time(samples, predicate):
 
 
 def test_orifice_law():
-    rt = pn.R_AIR * 293.15
-    assert pn.orifice_flow(5e5, 5e5, 1e-5, rt) == 0.0
-    assert pn.orifice_flow(4e5, 5e5, 1e-5, rt) == 0.0
-    choked = pn.orifice_flow(6e5, 1e5, 1e-5, rt)
-    assert choked == pytest.approx(1e-5 * 6e5 * pn.PSI_CHOKED / np.sqrt(rt))
+    rt = pk.R_AIR * 293.15
+    assert pk.orifice_flow(5e5, 5e5, 1e-5, rt) == 0.0
+    assert pk.orifice_flow(4e5, 5e5, 1e-5, rt) == 0.0
+    choked = pk.orifice_flow(6e5, 1e5, 1e-5, rt)
+    assert choked == pytest.approx(1e-5 * 6e5 * pk.PSI_CHOKED / np.sqrt(rt))
     # continuous at the critical ratio, and the flow falls toward equal pressures
-    below = pn.orifice_flow(1e5, pn.R_CRIT * 1e5 * (1 - 1e-9), 1e-5, rt)
-    above = pn.orifice_flow(1e5, pn.R_CRIT * 1e5 * (1 + 1e-9), 1e-5, rt)
+    below = pk.orifice_flow(1e5, pk.R_CRIT * 1e5 * (1 - 1e-9), 1e-5, rt)
+    above = pk.orifice_flow(1e5, pk.R_CRIT * 1e5 * (1 + 1e-9), 1e-5, rt)
     assert above == pytest.approx(below, rel=1e-4)
-    assert pn.orifice_flow(1e5, 0.9e5, 1e-5, rt) > pn.orifice_flow(1e5, 0.99e5, 1e-5, rt)
+    assert pk.orifice_flow(1e5, 0.9e5, 1e-5, rt) > pk.orifice_flow(1e5, 0.99e5, 1e-5, rt)
 
 
 @pytest.mark.parametrize('regime, fill_range, release_range, t_release', [
@@ -172,7 +173,7 @@ def test_air_mass_conserved_in_a_closed_pipe():
     brake.set_lap()
     # overcharge the front half by 0.5 bar: a wave runs, reservoirs charge, nothing vents
     nc = brake.cells.shape[1]
-    brake.cells[pn.C_M, :nc // 2] *= 1.08
+    brake.cells[pk.C_M, :nc // 2] *= 1.08
     before = brake.total_air_mass
     samples = run(brake, 20.0)
     assert brake.total_air_mass == pytest.approx(before, rel=1e-13, abs=0.0)
@@ -181,15 +182,15 @@ def test_air_mass_conserved_in_a_closed_pipe():
     assert not np.any(samples[-1][3])
     # the pipe alone, without distributors: exact telescoping of the face flows
     cells = brake.cells.copy()
-    cells[pn.C_M, :nc // 3] *= 0.9
+    cells[pk.C_M, :nc // 3] *= 0.9
     faces = np.zeros_like(brake.faces)
-    faces[pn.F_OPEN, 1:nc] = 1.0
-    faces[pn.F_LEN] = brake.faces[pn.F_LEN]
-    m0 = cells[pn.C_M].sum()
+    faces[pk.F_OPEN, 1:nc] = 1.0
+    faces[pk.F_LEN] = brake.faces[pk.F_LEN]
+    m0 = cells[pk.C_M].sum()
     for _ in range(5000):
-        pn._pipe_transport(cells, faces, brake.sc, H)
-    assert cells[pn.C_M].sum() == pytest.approx(m0, rel=1e-13, abs=0.0)
-    rho = cells[pn.C_M] / cells[pn.C_VOL]
+        pk._pipe_transport(cells, faces, brake.sc, H)
+    assert cells[pk.C_M].sum() == pytest.approx(m0, rel=1e-13, abs=0.0)
+    rho = cells[pk.C_M] / cells[pk.C_VOL]
     assert np.ptp(rho) < 0.01 * rho.mean()      # the 10 % step has rung down (friction)
 
 

@@ -4,7 +4,7 @@ import pytest
 
 from train_dynamics.physics import couplers
 from train_dynamics.physics.config import SimConfig
-from train_dynamics.physics.layout import COUPLER
+from train_dynamics.physics.kernel.layout import COUPLER
 from train_dynamics.physics.resistance import coast_down_speed
 from train_dynamics.physics.train import TrainSimulator
 

@@ -279,8 +279,8 @@ def test_live_model_switches_take_effect_with_continuous_state(harness):
     """
     from sensor_msgs.msg import JointState
 
-    from train_dynamics.physics import couplers as C
     from train_dynamics.physics.config import PARAMETERS
+    from train_dynamics.physics.kernel import couplers as C
 
     node = harness.start(brake_input='cylinder_per_coach', real_time_factor=2.0, duration=4.0)
     couplers = harness.collect(JointState, 'couplers')

@@ -4,10 +4,10 @@ import itertools
 import numpy as np
 import pytest
 
-from train_dynamics.physics import standstill
 from train_dynamics.physics.config import SimConfig
-from train_dynamics.physics.integrators import make_workspace
-from train_dynamics.physics.layout import WORK
+from train_dynamics.physics.kernel import standstill
+from train_dynamics.physics.kernel.layout import WORK
+from train_dynamics.physics.kernel.step import make_workspace
 from train_dynamics.physics.train import TrainSimulator
 
 G = 9.81

@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 from scipy.integrate import solve_ivp
 
-from train_dynamics.physics import resistance, traction
+from train_dynamics.physics import resistance
+from train_dynamics.physics.kernel import resistance as kernel_resistance, traction
 
 W = 84000.0 * 9.81    # weight of an 84 t locomotive [N]
 
@@ -48,10 +49,10 @@ def test_force_build_up_is_a_rate_limit():
 
 
 def test_davis_by_hand():
-    assert resistance.davis(-20.0, 1000.0, 40.0, 5.0) == pytest.approx(1000 + 800 + 2000)
-    out = resistance.running_resistance(np.array([0.0, 10.0]), np.array([100.0, 100.0]),
-                                        np.array([1.0, 1.0]), np.array([0.5, 0.5]),
-                                        np.empty(2))
+    assert kernel_resistance.davis(-20.0, 1000.0, 40.0, 5.0) == pytest.approx(1000 + 800 + 2000)
+    out = kernel_resistance.running_resistance(np.array([0.0, 10.0]), np.array([100.0, 100.0]),
+                                               np.array([1.0, 1.0]), np.array([0.5, 0.5]),
+                                               np.empty(2))
     assert list(out) == [100.0, 160.0]
     assert resistance.equivalent_mass(1000.0, 0.1) == pytest.approx(1100.0)
 

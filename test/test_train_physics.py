@@ -4,7 +4,7 @@ from physics_helpers import paper_sim
 import pytest
 
 from train_dynamics.physics.config import SimConfig
-from train_dynamics.physics.layout import COACH
+from train_dynamics.physics.kernel.layout import STATE
 from train_dynamics.physics.train import TrainSimulator
 
 G = 9.81
@@ -48,7 +48,7 @@ def test_energy_balance_buffer_impact():
     """
     sim = TrainSimulator(SimConfig.from_dict({'num_coaches': 2, 'initial_speed': 10.0,
                                               'integration_step': 5e-4}))
-    sim.coach[COACH.V, 1] = 11.0
+    sim.coach[STATE.V, 1] = 11.0
     ke0 = sim.kinetic_energy
     p0 = sim.momentum
     sim.advance_to(3.0)
@@ -136,7 +136,7 @@ def test_mixed_vehicles_per_coupler_constants():
     ke = [2.8e6, 8.0e6, 2.8e6]
     sim = TrainSimulator(SimConfig.from_dict({'num_coaches': 4, 'initial_speed': 10.0}),
                          coupler_constants={'buffer_stiffness': ke})
-    sim.coach[COACH.V, 3] = 10.5          # the last coach runs into the train
+    sim.coach[STATE.V, 3] = 10.5          # the last coach runs into the train
     sim.advance_to(0.3)
     y, yd = sim.y, sim.ydot
     s = np.tanh(1000.0 * yd)

@@ -1,25 +1,54 @@
 """
 Compile the numba kernels before the first start: ``python -m train_dynamics.cli.prebuild``.
 
-``make venv`` runs it to fill the user cache; ``setup.py build`` (so ``colcon build`` and
-``pip install``) runs it with ``--into <build>/train_dynamics/physics/_prebuilt`` so the
-installed package carries the compiled kernels of its own code version (see ``_jit.py``).
-It runs :func:`train_dynamics.physics.train.warmup` (the simulator's kernel variants) and
-the run metrics as ``sim_node`` and the offline command feed them (their compiled elastic
-energy), which loads from or compiles into the user cache, then copies this version's folder.
+A kernel variant is one compiled signature of a kernel function (the drivers and the
+functions they call). Variants are grouped by what runs them (:data:`VARIANTS`):
+
+- ``paper``: the fixed-step chain with the brake pipe (every scenario without the options
+  below: the paper's, freight, passenger) and the run metrics as ``sim_node`` and the offline
+  command feed them: what ``make run`` needs;
+- ``adaptive``: the error-controlled driver (``integration_tolerance`` > 0);
+- ``pneumatic``: the pneumatic brake (``brake_model: pneumatic``).
+
+``make venv`` compiles ``paper`` now and the rest in a detached background process
+(``--rest-in-background``), so that the first ``make run`` waits only for what it runs; a
+variant not yet compiled compiles at its first use. ``setup.py build`` (so ``colcon build``
+and ``pip install``) compiles all of them with ``--into
+<build>/train_dynamics/physics/kernel/_prebuilt`` so the installed package carries the
+compiled kernels of its own code version (see ``physics/kernel/compiler.py``). Kernels are
+loaded from or compiled into the user cache, then this version's folder is copied.
 """
 from __future__ import annotations
 
 import argparse
 import os
 import shutil
+import subprocess
 import sys
 import time
 
-from train_dynamics.physics import _jit
 from train_dynamics.physics.config import SimConfig
+from train_dynamics.physics.kernel import compiler
 from train_dynamics.physics.metrics import RunMetrics
-from train_dynamics.physics.train import TrainSimulator, warmup
+from train_dynamics.physics.train import TrainSimulator
+
+#: variant group -> the configurations (parameter overrides) whose runs compile it
+VARIANTS = {
+    'paper': ({},),
+    'adaptive': ({'integration_tolerance': 1e-3},),
+    'pneumatic': ({'brake_model': 'pneumatic'},),
+}
+
+
+def warm(groups) -> None:
+    """Run a small train of each configuration of ``groups`` (and the metrics with ``paper``)."""
+    for group in groups:
+        for overrides in VARIANTS[group]:
+            sim = TrainSimulator(SimConfig.from_dict(dict(overrides)))
+            sim.advance(10)
+            _ = sim.coupler_force
+        if group == 'paper':
+            warm_metrics()
 
 
 def warm_metrics() -> None:
@@ -36,7 +65,7 @@ def warm_metrics() -> None:
 
 def copy_version(dest_root: str) -> str:
     """Copy this code version's cache folder into ``dest_root``; drop other versions there."""
-    src = _jit.kernel_cache_dir()
+    src = compiler.kernel_cache_dir()
     if not src:
         raise OSError('no writable kernel cache: nothing compiled to copy')
     dest = os.path.join(dest_root, os.path.basename(src))
@@ -49,24 +78,56 @@ def copy_version(dest_root: str) -> str:
     return dest
 
 
+def start_in_background(groups) -> str:
+    """Compile ``groups`` in a detached process (its output: prebuild.log in the cache)."""
+    log_path = os.path.join(compiler.kernel_cache_dir() or os.devnull, 'prebuild.log')
+    if not compiler.kernel_cache_dir():
+        log_path = os.devnull
+    with open(log_path, 'ab') as log:
+        subprocess.Popen([sys.executable, '-m', 'train_dynamics.cli.prebuild',
+                          '--variants', ','.join(groups)],
+                         stdin=subprocess.DEVNULL, stdout=log, stderr=subprocess.STDOUT,
+                         start_new_session=True, close_fds=True)
+    return log_path
+
+
+def _groups(text: str) -> list[str]:
+    names = list(VARIANTS) if text == 'all' else [g for g in text.split(',') if g]
+    unknown = [g for g in names if g not in VARIANTS]
+    if unknown:
+        raise argparse.ArgumentTypeError(
+            f'unknown variant group(s) {", ".join(unknown)}; one of: all, {", ".join(VARIANTS)}')
+    return names
+
+
 def main(argv: list[str] | None = None) -> int:
-    """Compile (or load) every kernel variant; with ``--into`` copy them there."""
+    """Compile (or load) the kernel variants asked for; with ``--into`` copy them there."""
     parser = argparse.ArgumentParser(description=__doc__.strip().splitlines()[0])
+    parser.add_argument('--variants', type=_groups, default=list(VARIANTS), metavar='GROUPS',
+                        help='all (default) or a comma-separated list of: '
+                             + ', '.join(VARIANTS))
+    parser.add_argument('--rest-in-background', action='store_true',
+                        help='then compile the other groups in a detached background process')
     parser.add_argument('--into', metavar='DIR',
                         help='also copy the compiled kernels to DIR/numba-<code version>')
     args = parser.parse_args(argv)
-    if not _jit.HAVE_NUMBA:
+    if not compiler.HAVE_NUMBA:
         print('train_dynamics: numba is not installed: nothing to compile')
         return 0
     t0 = time.perf_counter()
-    warmup()
-    warm_metrics()
-    stats = _jit.cache_stats()
-    print(f'train_dynamics: kernels ready in {time.perf_counter() - t0:.1f} s '
-          f'({stats["compiled"]} compiled, {stats["loaded"]} loaded from the cache '
-          f'{_jit.kernel_cache_dir() or "(none: not writable)"})')
+    warm(args.variants)
+    stats = compiler.cache_stats()
+    print(f'train_dynamics: kernels ({", ".join(args.variants)}) ready in '
+          f'{time.perf_counter() - t0:.1f} s ({stats["compiled"]} compiled, '
+          f'{stats["loaded"]} loaded from the cache '
+          f'{compiler.kernel_cache_dir() or "(none: not writable)"})', flush=True)
     if args.into:
         print(f'train_dynamics: compiled kernels copied to {copy_version(args.into)}')
+    rest = [g for g in VARIANTS if g not in args.variants]
+    if args.rest_in_background and rest:
+        log_path = start_in_background(rest)
+        print(f'train_dynamics: compiling {", ".join(rest)} in the background '
+              f'(log: {log_path}); until then they compile at their first use')
     return 0
 
 

@@ -60,7 +60,7 @@ from typing import Any
 import numpy as np
 
 from train_dynamics import topics
-from train_dynamics.physics import couplers
+from train_dynamics.physics.kernel import couplers
 
 #: comfort window W [s] of the mean deceleration and of the jerk (EN 12299 practice)
 COMFORT_WINDOW = 1.0

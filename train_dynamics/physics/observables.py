@@ -6,15 +6,16 @@ forces, brake pressures, the vehicles' external forces) and :class:`TrainBalance
 of the balances the tests check (eq. 8: momentum and impulse; kinetic + potential energy lost =
 brake + resistance work + coupler dissipation - traction work). Both are mixins of
 :class:`train_dynamics.physics.train.TrainSimulator`: they read its packed arrays (``coach``,
-``cpl``, ``sc``, ``ws``; :mod:`train_dynamics.physics.layout`) after ``_sync()`` brings the
-error-controlled chain to the present tick, and copy what they return. They change nothing.
+``cpl``, ``sc``, ``iv``, ``ws``; :mod:`train_dynamics.physics.kernel.layout`) after
+``_sync()`` brings the error-controlled chain to the present tick, and copy what they return.
+They change nothing.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from train_dynamics.physics import couplers
-from train_dynamics.physics.layout import COACH, COUPLER, SCALAR, WORK
+from train_dynamics.physics.kernel.layout import COUPLER, OUTPUT, STATE, TOTAL, WORK
 
 
 class TrainOutputs:
@@ -23,29 +24,29 @@ class TrainOutputs:
     @property
     def x(self) -> np.ndarray:
         self._sync()
-        return self.coach[COACH.X].copy()
+        return self.coach[STATE.X].copy()
 
     @property
     def v(self) -> np.ndarray:
         self._sync()
-        return self.coach[COACH.V].copy()
+        return self.coach[STATE.V].copy()
 
     @property
     def held(self) -> np.ndarray:
         """Coaches at rest, held by their brakes."""
         self._sync()
-        return self.coach[COACH.HELD] > 0.5
+        return self.coach[STATE.HELD] > 0.5
 
     @property
     def y(self) -> np.ndarray:
         self._sync()
-        x = self.coach[COACH.X]
+        x = self.coach[STATE.X]
         return x[:-1] - x[1:]
 
     @property
     def ydot(self) -> np.ndarray:
         self._sync()
-        v = self.coach[COACH.V]
+        v = self.coach[STATE.V]
         return v[:-1] - v[1:]
 
     @property
@@ -72,11 +73,11 @@ class TrainOutputs:
     @property
     def brake_force(self) -> np.ndarray:
         self._sync()
-        return self.coach[COACH.FB_APPLIED].copy()
+        return self.coach[OUTPUT.FB_APPLIED].copy()
 
     @property
     def cylinder_pressure(self) -> np.ndarray:
-        p = self.coach[COACH.PCYL].copy()
+        p = self.coach[STATE.PCYL].copy()
         if np.any(self.pmax_ratio != 1.0):
             p *= self.pmax_ratio
         return p
@@ -105,23 +106,23 @@ class TrainOutputs:
     def traction_force(self) -> np.ndarray:
         """Return each vehicle's traction / dynamic-brake force [N, forward > 0]."""
         self._sync()
-        return self.coach[COACH.F_TRAC].copy()
+        return self.coach[OUTPUT.F_TRAC].copy()
 
     @property
     def resistance_force(self) -> np.ndarray:
         """Return each vehicle's running + curve resistance [N, on the vehicle, forward > 0]."""
         self._sync()
-        return self.coach[COACH.F_RES].copy()
+        return self.coach[OUTPUT.F_RES].copy()
 
     @property
     def gradient_force(self) -> np.ndarray:
         """Return each vehicle's gradient force [N, forward > 0]."""
         self._sync()
-        return self.coach[COACH.F_GRADE].copy()
+        return self.coach[OUTPUT.F_GRADE].copy()
 
     @property
     def pipe_pressure(self) -> np.ndarray:
-        return self.coach[COACH.PPIPE].copy()
+        return self.coach[STATE.PPIPE].copy()
 
     @property
     def auxiliary_pressure(self) -> np.ndarray | None:
@@ -141,50 +142,50 @@ class TrainBalances:
     def work_resistance(self) -> float:
         """Return the work done by running and curve resistance since t = 0 [J]."""
         self._sync()
-        return float(self.sc[SCALAR.WR])
+        return float(self.sc[TOTAL.WR])
 
     @property
     def work_traction(self) -> float:
         """Return the work of traction and dynamic braking on the train since t = 0 [J]."""
         self._sync()
-        return float(self.sc[SCALAR.WT])
+        return float(self.sc[TOTAL.WT])
 
     @property
     def work_gravity(self) -> float:
         """Return the work of gravity since t = 0 [J] (the potential energy lost)."""
         self._sync()
-        return float(self.sc[SCALAR.WG])
+        return float(self.sc[TOTAL.WG])
 
     @property
     def external_impulse(self) -> float:
         """Return the impulse of every external force since t = 0 [N s]."""
         self._sync()
-        return float(self.sc[SCALAR.PEXT])
+        return float(self.sc[TOTAL.PEXT])
 
     @property
     def potential_energy(self) -> float:
         """Return the potential energy on the line's gradients [J] (0 at the lowest start)."""
         self._sync()
-        return self.track.potential_energy(self.coach[COACH.X], self.consist['length'],
+        return self.track.potential_energy(self.coach[STATE.X], self.consist['length'],
                                            self.masses, float(self.cfg.gravity))
 
     @property
     def work_brake(self) -> float:
         """Work done by the brakes since t = 0 [J]."""
         self._sync()
-        return float(self.sc[SCALAR.WB])
+        return float(self.sc[TOTAL.WB])
 
     @property
     def work_coupler(self) -> float:
         """Work done on the couplers since t = 0 [J] (stored elastic + dissipated)."""
         self._sync()
-        return float(self.sc[SCALAR.WC])
+        return float(self.sc[TOTAL.WC])
 
     @property
     def kinetic_energy(self) -> float:
         """Return the kinetic energy [J], rotating masses included."""
         self._sync()
-        return float(0.5 * np.sum(self.inertia * self.coach[COACH.V] ** 2))
+        return float(0.5 * np.sum(self.inertia * self.coach[STATE.V] ** 2))
 
     @property
     def elastic_energy(self) -> float:
@@ -199,4 +200,4 @@ class TrainBalances:
     def momentum(self) -> float:
         """Return the momentum [N s], rotating masses included."""
         self._sync()
-        return float(np.sum(self.inertia * self.coach[COACH.V]))
+        return float(np.sum(self.inertia * self.coach[STATE.V]))

@@ -1,14 +1,14 @@
 """
 Pneumatic brake: the brake pipe as 1-D compressible flow, relay valve, UIC distributors.
 
-The ``pneumatic`` brake model (issue 12). It does not depend on the train's motion, so it
+The ``pneumatic`` brake model. It does not depend on the train's motion, so it
 advances on its own fixed step and hands each vehicle's cylinder pressure to the coach chain
 (:meth:`PneumaticBrake.advance` fills a per-step trace). All pressures in the interface are
 GAUGE [Pa]; inside, absolute pressures and air masses [kg]. Air is an ideal gas at a
 constant temperature (isothermal: p V = m R T), a good model for the slow processes and
 within the accuracy of the fast ones in a 32 mm pipe.
 
-**Brake pipe** (:func:`_pipe_transport`). The pipe of every vehicle is cut into cells of
+**Brake pipe** (``_pipe_transport``). The pipe of every vehicle is cut into cells of
 about ``cell_length`` [m]; a staggered finite-volume grid keeps the air MASS of each cell
 (centres) and the mass FLOW w [kg/s] through each face between two cells. Per cell
 dm/dt = w_in - w_out (exactly conservative: the faces' flows telescope, a closed pipe keeps
@@ -26,7 +26,7 @@ sqrt(R T), about 290 m/s: h <= 21 ms for 6 m cells; the step is sub-divided auto
 when h is larger); the implicit friction is unconditionally stable and damps. The closed
 end faces and a closed angle cock are faces with w = 0.
 
-**Valves and chokes** (:func:`orifice_flow`): the isentropic nozzle law with the choked limit
+**Valves and chokes** (``orifice_flow``): the isentropic nozzle law with the choked limit
 (ISO 6358 style, the discharge coefficient folded into the effective area). Every exchange
 between two volumes is limited to the mass that equalises them (or reaches a regulated
 pressure) within the step, so no exchange can overshoot or chatter, whatever the step.
@@ -48,6 +48,10 @@ relay part regulates BC to p_max * (p_CR - p_pipe) / (p_nominal - p_full_service
 p_max: filling from AR through the application choke (P or G), venting through the release
 choke (graduated release as the pipe rises); back in release once the gap is below
 ``release_threshold``. AR charges from the pipe through a check valve and choke.
+
+The compiled part (the functions named above, the rows of the packed arrays) is
+:mod:`train_dynamics.physics.kernel.pneumatic`; here the specification, the packing and the
+brake object the simulator drives.
 """
 from __future__ import annotations
 
@@ -56,27 +60,7 @@ import math
 
 import numpy as np
 
-from train_dynamics.physics._jit import jit
-
-#: specific gas constant of air [J/(kg K)]
-R_AIR = 287.05
-#: nozzle law for air (kappa = 1.4): critical pressure ratio and the choked flow function
-R_CRIT = 0.5283
-PSI_CHOKED = 0.6847
-
-# Rows of the cell array, the face array and the vehicle array; slots of the scalars.
-C_M, C_VOL, C_LEAK = range(3)
-N_CELL_ROWS = 3
-F_W, F_OPEN, F_LEN, F_K = range(4)
-N_FACE_ROWS = 4
-(V_MCR, V_MAUX, V_MCYL, V_MQS, V_APPLIED, V_VCR, V_VAUX, V_VCYL, V_VQS, V_PMAX, V_AAPP,
- V_AREL, V_CELL, V_PEXT) = range(14)
-N_VEH_ROWS = 14
-(S_H, S_RT, S_AREA, S_DIAM, S_MU, S_PATM, S_CMD, S_PMR, S_ACHG, S_AVENT, S_AEM, S_BAND,
- S_EMTH, S_GCR, S_APPTH, S_RELTH, S_SPAN, S_AAUX, S_AQS, S_LAP, S_DBAND) = range(21)
-N_SCALARS = 21
-I_SUB, I_EXTERNAL, I_LAP = range(3)
-N_INT = 3
+from train_dynamics.physics.kernel import pneumatic as pk
 
 
 @dataclass(frozen=True)
@@ -128,199 +112,6 @@ class PneumaticSpec:
         return PneumaticSpec(**values)
 
 
-@jit
-def orifice_flow(p_up: float, p_dn: float, area: float, rt: float) -> float:
-    """Mass flow [kg/s] through an orifice of effective area [m^2], p_up >= p_dn absolute."""
-    if p_up <= p_dn or area <= 0.0:
-        return 0.0
-    r = p_dn / p_up
-    if r <= R_CRIT:
-        psi = PSI_CHOKED
-    else:
-        psi = math.sqrt(7.0 * (r ** (2.0 / 1.4) - r ** (2.4 / 1.4)))
-    return area * p_up * psi / math.sqrt(rt)
-
-
-@jit
-def _exchange(p1, v1, p2, v2, area, h, rt):
-    """Mass [kg] moving from volume 1 to 2 in h (negative: 2 to 1), never past equality."""
-    if p1 >= p2:
-        dm = orifice_flow(p1, p2, area, rt) * h
-        eq = (p1 - p2) / (rt * (1.0 / v1 + 1.0 / v2))
-        return min(dm, eq)
-    dm = orifice_flow(p2, p1, area, rt) * h
-    eq = (p2 - p1) / (rt * (1.0 / v1 + 1.0 / v2))
-    return -min(dm, eq)
-
-
-@jit
-def _pipe_transport(cells, faces, sc, h):
-    """One forward-backward Euler step of the pipe flow (module docstring)."""
-    nc = cells.shape[1]
-    rt = sc[S_RT]
-    area = sc[S_AREA]
-    diam = sc[S_DIAM]
-    mu = sc[S_MU]
-    m = cells[C_M]
-    vol = cells[C_VOL]
-    w = faces[F_W]
-    for j in range(1, nc):
-        if faces[F_OPEN, j] == 0.0:
-            w[j] = 0.0
-            continue
-        rho_l = m[j - 1] / vol[j - 1]
-        rho_r = m[j] / vol[j]
-        rho = 0.5 * (rho_l + rho_r)
-        dx = faces[F_LEN, j]
-        aw = abs(w[j])
-        re = aw * diam / (area * mu)
-        # resistance r [1/s] in dw/dt = ... - r w
-        r_lam = 32.0 * mu / (rho * diam * diam)
-        r = r_lam
-        if re > 1.0:
-            f_turb = 0.3164 * re ** -0.25
-            r_turb = f_turb * aw / (2.0 * rho * area * diam)
-            if r_turb > r:
-                r = r_turb
-        r += faces[F_K, j] * aw / (2.0 * rho * area * dx)
-        drive = area * (rho_l - rho_r) * rt / dx
-        w[j] = (w[j] + h * drive) / (1.0 + h * r)
-    for j in range(nc):
-        m[j] += h * (w[j] - w[j + 1])
-
-
-@jit
-def _relay_valve(cells, sc, h):
-    """Driver's brake valve at the head: regulate cell 0 to the command (module docstring)."""
-    rt = sc[S_RT]
-    patm = sc[S_PATM]
-    vol = cells[C_VOL, 0]
-    p = cells[C_M, 0] * rt / vol
-    cmd = sc[S_CMD]
-    if cmd < sc[S_EMTH]:
-        # open to atmosphere (both ways: the column's inertia may overshoot below it)
-        cells[C_M, 0] -= _exchange(p, vol, patm, 1.0e9, sc[S_AEM], h, rt)
-        return
-    target = cmd + patm
-    err = target - p
-    if err > 0.0:
-        s = min(err / sc[S_BAND], 1.0)
-        dm = min(orifice_flow(sc[S_PMR] + patm, p, sc[S_ACHG] * s, rt) * h, err * vol / rt)
-        cells[C_M, 0] += dm
-    elif err < 0.0:
-        s = min(-err / sc[S_BAND], 1.0)
-        dm = min(orifice_flow(p, patm, sc[S_AVENT] * s, rt) * h, -err * vol / rt)
-        cells[C_M, 0] -= dm
-
-
-@jit
-def _distributors(cells, veh, sc, external, h):
-    """Every vehicle's distributor, reservoirs and cylinder over one step."""
-    rt = sc[S_RT]
-    patm = sc[S_PATM]
-    for i in range(veh.shape[1]):
-        c = int(veh[V_CELL, i])
-        if external:
-            p_l = veh[V_PEXT, i] + patm
-            v_l = 1.0e9
-        else:
-            v_l = cells[C_VOL, c]
-            p_l = cells[C_M, c] * rt / v_l
-        v_cr = veh[V_VCR, i]
-        v_aux = veh[V_VAUX, i]
-        v_cyl = veh[V_VCYL, i]
-        p_cr = veh[V_MCR, i] * rt / v_cr
-        p_aux = veh[V_MAUX, i] * rt / v_aux
-        p_cyl = veh[V_MCYL, i] * rt / v_cyl
-        dm_pipe = 0.0
-        gap = p_cr - p_l
-        applied = veh[V_APPLIED, i] > 0.5
-        if not applied and gap > sc[S_APPTH]:
-            applied = True
-        elif applied and gap < sc[S_RELTH]:
-            applied = False
-            veh[V_MQS, i] = patm * veh[V_VQS, i] / rt     # quick-service bulb vented
-        veh[V_APPLIED, i] = 1.0 if applied else 0.0
-        if not applied:
-            # CR follows the pipe through its nozzle (linear, time constant 1/g)
-            dm = sc[S_GCR] * h * (p_l - p_cr) * v_cr / rt
-            eq = (p_l - p_cr) / (rt * (1.0 / v_l + 1.0 / v_cr))
-            dm = min(dm, eq) if dm > 0.0 else max(dm, eq)
-            veh[V_MCR, i] += dm
-            dm_pipe -= dm
-            target = patm
-        else:
-            # quick-service bulb fills from the pipe (first stage)
-            v_qs = veh[V_VQS, i]
-            p_qs = veh[V_MQS, i] * rt / v_qs
-            if p_l > p_qs:
-                dm = _exchange(p_l, v_l, p_qs, v_qs, sc[S_AQS], h, rt)
-                veh[V_MQS, i] += dm
-                dm_pipe -= dm
-            frac = min(gap / sc[S_SPAN], 1.0)
-            target = patm + veh[V_PMAX, i] * frac
-        # AR charges from the pipe through its check valve
-        if p_l > p_aux:
-            dm = _exchange(p_l, v_l, p_aux, v_aux, sc[S_AAUX], h, rt)
-            veh[V_MAUX, i] += dm
-            dm_pipe -= dm
-            p_aux += dm * rt / v_aux
-        # relay part: fill BC from AR, or vent BC, toward the target
-        # (valve openings in proportion to the error, full at S_DBAND)
-        err = target - p_cyl
-        if err > sc[S_LAP]:
-            if p_aux > p_cyl:
-                s = min(err / sc[S_DBAND], 1.0)
-                dm = _exchange(p_aux, v_aux, p_cyl, v_cyl, s * veh[V_AAPP, i], h, rt)
-                dm = min(dm, (target - p_cyl) * v_cyl / rt)
-                veh[V_MAUX, i] -= dm
-                veh[V_MCYL, i] += dm
-        elif err < -sc[S_LAP] or (not applied and p_cyl > patm):
-            s = min(-err / sc[S_DBAND], 1.0)
-            if not applied:
-                s = 1.0
-            dm = orifice_flow(p_cyl, patm, s * veh[V_AREL, i], rt) * h
-            dm = min(dm, (p_cyl - target) * v_cyl / rt)
-            veh[V_MCYL, i] -= dm
-        if not external:
-            cells[C_M, c] += dm_pipe
-
-
-@jit
-def advance(n_steps, cells, faces, veh, sc, iv, trace):
-    """
-    Advance the brake system ``n_steps`` steps of sc[S_H] seconds, in place.
-
-    cells (3, n_cells), faces (4, n_cells + 1), veh (14, N): the layouts C_*, F_*, V_*;
-    sc, iv: scalars S_*, I_*. ``trace`` (n_steps, N) or (0, N): when it has rows, row k
-    receives each vehicle's cylinder pressure, gauge [Pa], at the end of step k.
-    """
-    h = sc[S_H]
-    nsub = iv[I_SUB]
-    hs = h / nsub
-    external = iv[I_EXTERNAL] != 0
-    rt = sc[S_RT]
-    patm = sc[S_PATM]
-    m = cells[C_M]
-    vol = cells[C_VOL]
-    leak = cells[C_LEAK]
-    record = trace.shape[0] > 0
-    for k in range(n_steps):
-        if not external:
-            for _ in range(nsub):
-                _pipe_transport(cells, faces, sc, hs)
-            for j in range(m.shape[0]):
-                if leak[j] > 0.0:
-                    m_atm = patm * vol[j] / rt
-                    m[j] = m_atm + (m[j] - m_atm) / (1.0 + h * leak[j])
-            if iv[I_LAP] == 0:
-                _relay_valve(cells, sc, h)
-        _distributors(cells, veh, sc, external, h)
-        if record:
-            for i in range(veh.shape[1]):
-                trace[k, i] = veh[V_MCYL, i] * rt / veh[V_VCYL, i] - patm
-
-
 class PneumaticBrake:
     """
     The pneumatic brake of a train of N vehicles (module docstring); gauge pressures [Pa].
@@ -342,39 +133,40 @@ class PneumaticBrake:
         nc = int(self.start[-1])
         area = math.pi * spec.pipe_diameter ** 2 / 4.0
         dx = np.repeat(lengths / per, per)
-        self.cells = np.zeros((N_CELL_ROWS, nc))
-        self.cells[C_VOL] = area * dx
-        self.faces = np.zeros((N_FACE_ROWS, nc + 1))
-        self.faces[F_OPEN, 1:nc] = 1.0
-        self.faces[F_LEN, 1:nc] = 0.5 * (dx[:-1] + dx[1:])
-        self.faces[F_LEN, 0] = dx[0]
-        self.faces[F_LEN, nc] = dx[-1]
-        self.faces[F_K, self.start[1:n]] = spec.hose_loss
+        self.cells = np.zeros((pk.N_CELL_ROWS, nc))
+        self.cells[pk.C_VOL] = area * dx
+        self.faces = np.zeros((pk.N_FACE_ROWS, nc + 1))
+        self.faces[pk.F_OPEN, 1:nc] = 1.0
+        self.faces[pk.F_LEN, 1:nc] = 0.5 * (dx[:-1] + dx[1:])
+        self.faces[pk.F_LEN, 0] = dx[0]
+        self.faces[pk.F_LEN, nc] = dx[-1]
+        self.faces[pk.F_K, self.start[1:n]] = spec.hose_loss
         if spec.angle_cock_closed:
             k = int(spec.angle_cock_closed)
             if not 1 <= k <= n - 1:
                 raise ValueError(f'angle_cock_closed must be 0 or a coupling 1..{n - 1}')
-            self.faces[F_OPEN, self.start[k]] = 0.0
-        self.cells[C_LEAK] = spec.leakage / (spec.nominal_pressure)
-        self.rt = rt = R_AIR * spec.temperature
+            self.faces[pk.F_OPEN, self.start[k]] = 0.0
+        self.cells[pk.C_LEAK] = spec.leakage / (spec.nominal_pressure)
+        self.rt = rt = pk.R_AIR * spec.temperature
         # sub-steps for the pipe's CFL condition c h / dx <= 0.8
         self.substeps = max(1, int(math.ceil(math.sqrt(rt) * self.h / (0.8 * dx.min()))))
-        veh = self.veh = np.zeros((N_VEH_ROWS, n))
-        veh[V_VCR] = spec.cr_volume
-        veh[V_VAUX] = spec.aux_volume
-        veh[V_VCYL] = spec.cylinder_volume
-        veh[V_VQS] = spec.qs_volume
-        veh[V_PMAX] = np.broadcast_to(np.asarray(p_max, dtype=float), (n,))
+        veh = self.veh = np.zeros((pk.N_VEH_ROWS, n))
+        veh[pk.V_VCR] = spec.cr_volume
+        veh[pk.V_VAUX] = spec.aux_volume
+        veh[pk.V_VCYL] = spec.cylinder_volume
+        veh[pk.V_VQS] = spec.qs_volume
+        veh[pk.V_PMAX] = np.broadcast_to(np.asarray(p_max, dtype=float), (n,))
         regimes = [str(r).upper() for r in np.broadcast_to(np.asarray(regimes), (n,))]
         if any(r not in ('P', 'G') for r in regimes):
             raise ValueError(f'brake regimes must be P or G, got {sorted(set(regimes))}')
         goods = np.array([r == 'G' for r in regimes])
-        veh[V_AAPP] = np.where(goods, spec.app_area_g, spec.app_area_p)
-        veh[V_AREL] = np.where(goods, spec.rel_area_g, spec.rel_area_p)
-        veh[V_CELL] = self.start[:-1] + per // 2
-        sc = self.sc = np.zeros(N_SCALARS)
-        sc[[S_H, S_RT, S_AREA, S_DIAM, S_MU, S_PATM, S_PMR, S_ACHG, S_AVENT, S_AEM, S_BAND,
-            S_EMTH, S_GCR, S_APPTH, S_RELTH, S_SPAN, S_AAUX, S_AQS, S_LAP, S_DBAND]] = [
+        veh[pk.V_AAPP] = np.where(goods, spec.app_area_g, spec.app_area_p)
+        veh[pk.V_AREL] = np.where(goods, spec.rel_area_g, spec.rel_area_p)
+        veh[pk.V_CELL] = self.start[:-1] + per // 2
+        sc = self.sc = np.zeros(pk.N_SCALARS)
+        sc[[pk.S_H, pk.S_RT, pk.S_AREA, pk.S_DIAM, pk.S_MU, pk.S_PATM, pk.S_PMR, pk.S_ACHG,
+            pk.S_AVENT, pk.S_AEM, pk.S_BAND, pk.S_EMTH, pk.S_GCR, pk.S_APPTH, pk.S_RELTH,
+            pk.S_SPAN, pk.S_AAUX, pk.S_AQS, pk.S_LAP, pk.S_DBAND]] = [
             self.h, rt, area, spec.pipe_diameter, spec.viscosity, spec.atmospheric_pressure,
             spec.main_reservoir_pressure, spec.charge_area, spec.vent_area,
             spec.emergency_area, spec.relay_band, spec.emergency_threshold,
@@ -390,40 +182,40 @@ class PneumaticBrake:
         spec = self.spec
         patm = spec.atmospheric_pressure
         p0 = spec.nominal_pressure + patm
-        self.cells[C_M] = p0 * self.cells[C_VOL] / self.rt
-        self.faces[F_W] = 0.0
+        self.cells[pk.C_M] = p0 * self.cells[pk.C_VOL] / self.rt
+        self.faces[pk.F_W] = 0.0
         veh = self.veh
-        veh[V_MCR] = p0 * veh[V_VCR] / self.rt
-        veh[V_MAUX] = p0 * veh[V_VAUX] / self.rt
-        veh[V_MCYL] = patm * veh[V_VCYL] / self.rt
-        veh[V_MQS] = patm * veh[V_VQS] / self.rt
-        veh[V_APPLIED] = 0.0
-        veh[V_PEXT] = spec.nominal_pressure
-        self.sc[S_CMD] = spec.nominal_pressure
+        veh[pk.V_MCR] = p0 * veh[pk.V_VCR] / self.rt
+        veh[pk.V_MAUX] = p0 * veh[pk.V_VAUX] / self.rt
+        veh[pk.V_MCYL] = patm * veh[pk.V_VCYL] / self.rt
+        veh[pk.V_MQS] = patm * veh[pk.V_VQS] / self.rt
+        veh[pk.V_APPLIED] = 0.0
+        veh[pk.V_PEXT] = spec.nominal_pressure
+        self.sc[pk.S_CMD] = spec.nominal_pressure
         self.steps = 0
 
     # -- inputs -----------------------------------------------------------------------------
     def set_command(self, p: float) -> None:
         """Pressure [Pa gauge] the driver's brake valve regulates the pipe head to."""
-        self.sc[S_CMD] = float(p)
-        self.iv[I_LAP] = 0
+        self.sc[pk.S_CMD] = float(p)
+        self.iv[pk.I_LAP] = 0
 
     def set_lap(self, lap: bool = True) -> None:
         """Lap position: the driver's brake valve neither charges nor vents the pipe."""
-        self.iv[I_LAP] = int(bool(lap))
+        self.iv[pk.I_LAP] = int(bool(lap))
 
     def set_pipe_pressure(self, p, index: int | None = None) -> None:
         """Local pipe pressures [Pa gauge] when the pipe is external (``pipe_per_coach``)."""
         if index is None:
-            self.veh[V_PEXT] = np.asarray(p, dtype=float)
+            self.veh[pk.V_PEXT] = np.asarray(p, dtype=float)
         else:
-            self.veh[V_PEXT, index] = float(p)
+            self.veh[pk.V_PEXT, index] = float(p)
 
     # -- stepping ---------------------------------------------------------------------------
     def advance(self, n_steps: int, trace: np.ndarray | None = None) -> None:
         """Advance ``n_steps`` steps; ``trace`` (n_steps, N) receives the cylinder pressures."""
-        advance(int(n_steps), self.cells, self.faces, self.veh, self.sc, self.iv,
-                self._empty if trace is None else trace)
+        pk.advance(int(n_steps), self.cells, self.faces, self.veh, self.sc, self.iv,
+                   self._empty if trace is None else trace)
         self.steps += int(n_steps)
 
     @property
@@ -438,46 +230,46 @@ class PneumaticBrake:
     @property
     def cell_pressure(self) -> np.ndarray:
         """Pressure of every pipe cell, gauge [Pa]."""
-        return self.cells[C_M] * self.rt / self.cells[C_VOL] - self.spec.atmospheric_pressure
+        return self.cells[pk.C_M] * self.rt / self.cells[pk.C_VOL] - self.spec.atmospheric_pressure
 
     @property
     def pipe_pressure(self) -> np.ndarray:
         """Brake-pipe pressure at each vehicle's distributor, gauge [Pa]."""
-        if self.iv[I_EXTERNAL]:
-            return self.veh[V_PEXT].copy()
-        return self.cell_pressure[self.veh[V_CELL].astype(np.int64)]
+        if self.iv[pk.I_EXTERNAL]:
+            return self.veh[pk.V_PEXT].copy()
+        return self.cell_pressure[self.veh[pk.V_CELL].astype(np.int64)]
 
     @property
     def control_pressure(self) -> np.ndarray:
         """Control-reservoir pressures, gauge [Pa]."""
-        return self._gauge(V_MCR, V_VCR)
+        return self._gauge(pk.V_MCR, pk.V_VCR)
 
     @property
     def auxiliary_pressure(self) -> np.ndarray:
         """Auxiliary-reservoir pressures, gauge [Pa]."""
-        return self._gauge(V_MAUX, V_VAUX)
+        return self._gauge(pk.V_MAUX, pk.V_VAUX)
 
     @property
     def cylinder_pressure(self) -> np.ndarray:
         """Brake-cylinder pressures, gauge [Pa]."""
-        return self._gauge(V_MCYL, V_VCYL)
+        return self._gauge(pk.V_MCYL, pk.V_VCYL)
 
     @property
     def applied(self) -> np.ndarray:
         """Distributors in the applied position."""
-        return self.veh[V_APPLIED] > 0.5
+        return self.veh[pk.V_APPLIED] > 0.5
 
     @property
     def pipe_air_mass(self) -> float:
         """Air in the pipe [kg]."""
-        return float(np.sum(self.cells[C_M]))
+        return float(np.sum(self.cells[pk.C_M]))
 
     @property
     def total_air_mass(self) -> float:
         """Air in the pipe, reservoirs, cylinders and bulbs [kg]."""
         veh = self.veh
-        return self.pipe_air_mass + float(np.sum(veh[V_MCR] + veh[V_MAUX] + veh[V_MCYL]
-                                                 + veh[V_MQS]))
+        return self.pipe_air_mass + float(np.sum(veh[pk.V_MCR] + veh[pk.V_MAUX] + veh[pk.V_MCYL]
+                                                 + veh[pk.V_MQS]))
 
 
 def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=None,

@@ -1,12 +1,10 @@
 """
-Running resistance of a vehicle (Davis) and its equivalent mass.
+Running resistance on the Python side: the equivalent mass, the analytic coast-down speed.
 
-Davis (1926): R = A + B |v| + C v^2 [N] for a vehicle at speed v [m/s], always against the
-motion: A (journal and rolling resistance, the static part) [N], B (flange friction,
-oscillations) [N s/m], C (air) [N s^2/m^2]. At standstill the resistance acts like a brake:
-it holds the vehicle up to its static value A (plus the curve resistance) and never pushes
-it (the integrator's active set does this, together with the brake).
+The coast-down speed is a reference for the tests.
 
+Davis (1926): R = A + B |v| + C v^2 [N], compiled in
+:mod:`train_dynamics.physics.kernel.resistance`.
 Inertia: a vehicle accelerates its rotating masses (wheelsets, gears, motors) too; the
 equivalent mass for inertia is m (1 + rotating_mass_factor). Gravity, the braking force (paper
 eq. 13) and the resistance use m. Typical factors (Wende, Fahrdynamik des Schienenverkehrs,
@@ -15,24 +13,6 @@ eq. 13) and the resistance use m. Typical factors (Wende, Fahrdynamik des Schien
 from __future__ import annotations
 
 import numpy as np
-
-from train_dynamics.physics._jit import jit
-
-
-@jit
-def davis(speed: float, a: float, b: float, c: float) -> float:
-    """Return the magnitude of the running resistance [N] at speed [m/s] (Davis)."""
-    s = abs(speed)
-    return a + (b + c * s) * s
-
-
-@jit
-def running_resistance(v: np.ndarray, a: np.ndarray, b: np.ndarray, c: np.ndarray,
-                       out: np.ndarray) -> np.ndarray:
-    """Fill ``out`` with each vehicle's resistance magnitude [N] at its speed v [m/s]."""
-    for i in range(v.shape[0]):
-        out[i] = davis(v[i], a[i], b[i], c[i])
-    return out
 
 
 def equivalent_mass(mass, rotating_mass_factor) -> np.ndarray:

@@ -18,7 +18,8 @@ Positions s [m] are along the track in the direction of travel. Vehicle i occupi
 
 A profile is stored as breakpoints ``xs``, the value on [xs[k], xs[k+1]) ``vals`` (the last
 one to infinity) and the integral from xs[0] to xs[k] ``cum``: the mean over any interval is
-two look-ups (:func:`profile_mean`), compiled with numba for the kernel.
+two look-ups (``profile_mean`` of :mod:`train_dynamics.physics.kernel.track`, compiled with
+numba for the kernel).
 """
 from __future__ import annotations
 
@@ -26,7 +27,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from train_dynamics.physics._jit import jit
+from train_dynamics.physics.kernel.track import profile_integral, track_forces
 
 
 def roeckl(radius: float) -> float:
@@ -41,44 +42,6 @@ def _cumulative(xs: np.ndarray, vals: np.ndarray) -> np.ndarray:
     if xs.shape[0] > 1:
         cum[1:] = np.cumsum(vals[:-1] * np.diff(xs))
     return cum
-
-
-@jit(inline=True)
-def profile_integral(s: float, xs: np.ndarray, vals: np.ndarray, cum: np.ndarray) -> float:
-    """Return the integral of the piecewise-constant profile from -infinity to s."""
-    if xs.shape[0] == 0 or s <= xs[0]:
-        return 0.0
-    k = np.searchsorted(xs, s, side='right') - 1
-    return cum[k] + vals[k] * (s - xs[k])
-
-
-@jit(inline=True)
-def profile_mean(lo: float, hi: float, xs: np.ndarray, vals: np.ndarray,
-                 cum: np.ndarray) -> float:
-    """Return the mean of the profile over [lo, hi] (hi > lo) [the profile's unit]."""
-    return (profile_integral(hi, xs, vals, cum) - profile_integral(lo, xs, vals, cum)) / (hi - lo)
-
-
-@jit
-def track_forces(x: np.ndarray, front0: np.ndarray, lengths: np.ndarray, weight: np.ndarray,
-                 gx: np.ndarray, gv: np.ndarray, gc: np.ndarray, cx: np.ndarray,
-                 cv: np.ndarray, cc: np.ndarray, grade: np.ndarray, curve: np.ndarray) -> None:
-    """
-    Fill the gradient force [N, signed, forward > 0] and curve resistance [N, >= 0].
-
-    x: travelled distances [m]; front0: the front of each vehicle at t = 0 [m]; weight: m g
-    [N]; (gx, gv, gc) the gradient profile [per mille], (cx, cv, cc) the curve-resistance
-    profile [per mille]. An empty profile gives 0.
-    """
-    for i in range(x.shape[0]):
-        hi = front0[i] + x[i]
-        lo = hi - lengths[i]
-        grade[i] = 0.0
-        curve[i] = 0.0
-        if gx.shape[0] > 0:
-            grade[i] = -weight[i] * profile_mean(lo, hi, gx, gv, gc) * 1e-3
-        if cx.shape[0] > 0:
-            curve[i] = weight[i] * profile_mean(lo, hi, cx, cv, cc) * 1e-3
 
 
 @dataclass

@@ -12,21 +12,23 @@ so the couplers' forces cancel in the sum and the centre of mass obeys eq. (8) e
 (y = D x), M a = -D^T F(D x, D v) - Fb.
 
 :class:`TrainSimulator` is the one model that ``sim_node`` and the offline command run: the
-brake system (``brakes``) and the fixed-step integrator (``integrators``) advancing the
+brake system (``kernel/brakes.py``) and the integrators (``kernel/``) advancing the
 coach chain under zero-order-hold brake inputs.
 """
 from __future__ import annotations
 
-import time
-
 import numpy as np
 
-from train_dynamics.physics import adaptive, brakes, couplers, integrators, pneumatic
+from train_dynamics.physics import pneumatic
 from train_dynamics.physics.config import (Consist, G_FILL_TIME, G_RELEASE_TIME,
                                            P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
                                            P_RELEASE_TIME, SimConfig)
 from train_dynamics.physics.config.consist import check_friction_below_stiffness
-from train_dynamics.physics.layout import COACH, COUPLER, FLAG, SCALAR, WORK
+from train_dynamics.physics.kernel import adaptive, brakes, couplers, fixed_step
+from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, COUNT, COUPLER,
+                                                  INPUT, INTEGER, OPTION, PARAM, SCALAR,
+                                                  SCALAR_INPUT, STATE, VEHICLE, WORK)
+from train_dynamics.physics.kernel.step import make_workspace, OK, STATUS_TEXT
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.resistance import equivalent_mass
 from train_dynamics.quoting import quote
@@ -38,8 +40,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
 
     Inputs are gauge pressures [Pa] held constant until the next ``set_*`` call; a new value
     takes effect at the next integration step. Outputs are numpy arrays (copies). The state
-    lives in the packed arrays of :mod:`train_dynamics.physics.layout` (``coach``, ``cpl``,
-    ``sc``, ``iv``, ``ws``) that :func:`integrators.advance_chain` advances in place.
+    lives in the packed arrays of :mod:`train_dynamics.physics.kernel.layout` (``coach``, ``cpl``,
+    ``sc``, ``iv``, ``ws``) that :func:`fixed_step.advance_chain` advances in place.
     """
 
     #: per-coupler constants that ``coupler_constants`` may override (arrays of N-1) and
@@ -52,14 +54,14 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                     'draw_gear_stroke': COUPLER.ST, 'buffer_stroke': COUPLER.SC,
                     'blocked_stiffness': COUPLER.KB}
     #: per-vehicle fields of the consist and their rows in ``coach``
-    _VEHICLE_ROWS = {'davis_a': COACH.DAVIS_A, 'davis_b': COACH.DAVIS_B,
-                     'davis_c': COACH.DAVIS_C, 'length': COACH.LENGTH,
-                     'max_tractive_force': COACH.T_FORCE, 'max_power': COACH.T_POWER,
-                     'max_dynamic_brake_force': COACH.DB_FORCE,
-                     'max_dynamic_brake_power': COACH.DB_POWER,
-                     'dynamic_brake_fade_speed': COACH.DB_FADE,
-                     'traction_adhesion': COACH.T_ADH,
-                     'traction_build_up_time': COACH.T_BUILD}
+    _VEHICLE_ROWS = {'davis_a': VEHICLE.DAVIS_A, 'davis_b': VEHICLE.DAVIS_B,
+                     'davis_c': VEHICLE.DAVIS_C, 'length': VEHICLE.LENGTH,
+                     'max_tractive_force': VEHICLE.T_FORCE, 'max_power': VEHICLE.T_POWER,
+                     'max_dynamic_brake_force': VEHICLE.DB_FORCE,
+                     'max_dynamic_brake_power': VEHICLE.DB_POWER,
+                     'dynamic_brake_fade_speed': VEHICLE.DB_FADE,
+                     'traction_adhesion': VEHICLE.T_ADH,
+                     'traction_build_up_time': VEHICLE.T_BUILD}
 
     def __init__(self, cfg: SimConfig, coupler_constants: dict | None = None):
         """
@@ -82,7 +84,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self.track = cfg.track
         self.gprof = np.array([self.track.gx, self.track.gv, self.track.gc], dtype=float)
         self.cprof = np.array([self.track.cx, self.track.cv, self.track.cc], dtype=float)
-        self.ws = integrators.make_workspace(n)
+        self.ws = make_workspace(n)
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
         #: error-controlled chain (integration_tolerance > 0): the brake system keeps the
@@ -92,7 +94,12 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self.land = _landing_ticks(float(cfg.publish_rate), self.h)
         self.tick_fb = np.zeros((self.land + 1, n))
         self.tick_te = np.zeros((self.land + 1, n))
+        self.coach = np.zeros((len(COACH), n))
+        self.sc = np.zeros(len(SCALAR))
+        self.iv = np.zeros(len(INTEGER), dtype=np.int64)
+        self._set_constants()
         self.reset()
+        self.set_model(self.model_type, self.u)
 
     def _build_couplers(self, consist: Consist, coupler_constants: dict | None) -> None:
         """Fill ``cpl``: each connection's constants (eqs. 2-3, free play, strokes, K_b)."""
@@ -143,67 +150,61 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                                               **per_vehicle)
             self._trace = np.zeros((0, n))
 
-    # -- state ---------------------------------------------------------------------------
+    # -- constants and state -----------------------------------------------------------------
+    def _set_constants(self) -> None:
+        """Fill the constant groups of the packed arrays: VEHICLE, PARAM, OPTION (layout.py)."""
+        cfg = self.cfg
+        c = self.coach
+        consist = self.consist
+        mu = float(cfg.adhesion_coefficient)
+        own = consist['adhesion_coefficient']
+        c[VEHICLE.MASS] = self.inertia
+        c[VEHICLE.BMASS] = np.where(own == mu, self.masses, self.masses * own / mu)
+        c[VEHICLE.WEIGHT] = self.masses * float(cfg.gravity)
+        for name, row in self._VEHICLE_ROWS.items():
+            c[row] = consist[name]
+        c[VEHICLE.FRONT0] = self.track.fronts(consist['length'])
+        c[VEHICLE.DELAY] = self.delays / self.h
+        sc, iv = self.sc, self.iv
+        sc[[PARAM.H, PARAM.PMAX, PARAM.MU, PARAM.G, PARAM.PNOM, PARAM.PFS, PARAM.SENS,
+            PARAM.YLIM, PARAM.TOL, PARAM.FFLOOR]] = [
+            self.h, cfg.max_cylinder_pressure, cfg.adhesion_coefficient, cfg.gravity,
+            cfg.pipe_nominal_pressure, cfg.full_service_pressure, cfg.distributor_sensitivity,
+            cfg.max_coupler_displacement, self.tolerance,
+            1e-3 * float(np.max(self.masses)) * float(cfg.gravity)]
+        # the pneumatic brake hands the chain its cylinder pressures (cylinder_per_coach)
+        iv[OPTION.MODE] = brakes.CYLINDER_PER_COACH if self.pneu is not None else self.mode
+        iv[OPTION.EXT] = int(cfg.external_forces)
+        iv[OPTION.TRACK] = int(not self.track.flat_and_straight)
+        iv[OPTION.LAND] = self.land
+        iv[OPTION.BUDGET] = int(cfg.integration_max_steps)
+
     def reset(self) -> None:
         """Go back to t = 0: coaches at ``initial_speed``, couplers undeformed, brakes released."""
         cfg = self.cfg
-        n = self.n
         p_nom = float(cfg.pipe_nominal_pressure)
         self.steps = 0
-        self.coach = np.zeros((len(COACH), n))
         c = self.coach
-        c[COACH.V] = float(cfg.initial_speed)
-        c[COACH.MASS] = self.inertia
-        self._reset_vehicles()
-        c[COACH.PPIPE] = p_nom
-        c[COACH.PIPE_IN] = p_nom
-        c[COACH.DELAY] = self.delays / self.h
-        c[COACH.HELD] = (c[COACH.V] == 0.0)
-        self.ring = np.full(int(np.floor(c[COACH.DELAY, -1])) + 2, p_nom)
-        self.sc = np.zeros(len(SCALAR))
-        self.sc[[SCALAR.H, SCALAR.PMAX, SCALAR.MU, SCALAR.G, SCALAR.PNOM, SCALAR.PFS,
-                 SCALAR.SENS, SCALAR.HEAD_IN, SCALAR.YLIM]] = [
-            self.h, cfg.max_cylinder_pressure, cfg.adhesion_coefficient, cfg.gravity, p_nom,
-            cfg.full_service_pressure, cfg.distributor_sensitivity, p_nom,
-            cfg.max_coupler_displacement]
-        self.iv = np.zeros(len(FLAG), dtype=np.int64)     # FLAG.WS_VALID = 0
+        c[len(VEHICLE):] = 0.0          # state, inputs, outputs; the constants stay
+        c[STATE.V] = float(cfg.initial_speed)
+        c[STATE.PPIPE] = p_nom
+        c[INPUT.PIPE] = p_nom
+        c[STATE.HELD] = (c[STATE.V] == 0.0)
+        self.ring = np.full(int(np.floor(c[VEHICLE.DELAY, -1])) + 2, p_nom)
+        sc = self.sc
+        sc[len(PARAM):] = 0.0           # work integrals, inputs, controller
+        sc[SCALAR_INPUT.HEAD] = p_nom
+        sc[CONTROL.HPROP] = self.h
+        sc[CONTROL.HEVAL] = -1.0
+        sc[CONTROL.ERRPREV] = 1.0
+        sc[CONTROL.HMIN] = np.inf
+        sc[CONTROL.INT_HMIN] = np.inf
+        self.iv[len(OPTION):] = 0       # clocks, counters; CACHE.WS_VALID = 0
         self.ws[[WORK.FHI, WORK.FLO]] = 0.0             # the force envelope starts again
-        self.iv[FLAG.MODE] = self.mode
-        self.iv[FLAG.EXT] = int(cfg.external_forces)
-        self.iv[FLAG.TRACK] = int(not self.track.flat_and_straight)
-        self._reset_adaptive()
         if self.pneu is not None:
             self.pneu.reset()
-            self.iv[FLAG.MODE] = brakes.CYLINDER_PER_COACH
-            c[COACH.CYL_IN] = self.pneu.cylinder_pressure
+            c[INPUT.CYL] = self.pneu.cylinder_pressure
         self.fault: str | None = None
-        self.set_model(self.model_type, self.u)
-
-    def _reset_adaptive(self) -> None:
-        """Set the error-controlled stepping's constants and counters."""
-        sc, iv = self.sc, self.iv
-        iv[FLAG.LAND] = self.land
-        iv[FLAG.BUDGET] = int(self.cfg.integration_max_steps)
-        sc[SCALAR.TOL] = self.tolerance
-        sc[SCALAR.FFLOOR] = 1e-3 * float(np.max(self.masses)) * float(self.cfg.gravity)
-        sc[SCALAR.HPROP] = self.h
-        sc[SCALAR.HEVAL] = -1.0
-        sc[SCALAR.ERRPREV] = 1.0
-        sc[SCALAR.HMIN] = np.inf
-        sc[SCALAR.INT_HMIN] = np.inf
-
-    def _reset_vehicles(self) -> None:
-        """Fill the per-vehicle rows of the consist (resistance, track, traction, brake)."""
-        c = self.coach
-        consist = self.consist
-        cfg = self.cfg
-        mu = float(cfg.adhesion_coefficient)
-        own = consist['adhesion_coefficient']
-        c[COACH.BMASS] = np.where(own == mu, self.masses, self.masses * own / mu)
-        c[COACH.WEIGHT] = self.masses * float(cfg.gravity)
-        for name, row in self._VEHICLE_ROWS.items():
-            c[row] = consist[name]
-        c[COACH.FRONT0] = self.track.fronts(consist['length'])
 
     def set_model(self, model_type: str, scale_factor: float) -> None:
         """Switch the coupler friction law live (state untouched)."""
@@ -216,9 +217,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self.model_type = model_type
         self.model = couplers.MODEL_CODES[model_type]
         self.u = u
-        self.sc[SCALAR.U] = u
-        self.iv[FLAG.MODEL] = self.model
-        self.iv[FLAG.WS_VALID] = 0      # the couplers' Jacobian in ws depends on the model
+        self.sc[PARAM.U] = u
+        self.iv[OPTION.MODEL] = self.model
+        self.iv[CACHE.WS_VALID] = 0      # the couplers' Jacobian in ws depends on the model
 
     # -- inputs (gauge Pa) ------------------------------------------------------------------
     @staticmethod
@@ -230,17 +231,17 @@ class TrainSimulator(TrainOutputs, TrainBalances):
 
     def set_head_pipe_pressure(self, p: float) -> None:
         """Set the head-end brake-pipe pressure, gauge [Pa] (``pipe_head``)."""
-        self.sc[SCALAR.HEAD_IN] = float(self._finite(p, 'head pipe'))
+        self.sc[SCALAR_INPUT.HEAD] = float(self._finite(p, 'head pipe'))
         if self.pneu is not None:
-            self.pneu.set_command(self.sc[SCALAR.HEAD_IN])
+            self.pneu.set_command(self.sc[SCALAR_INPUT.HEAD])
 
     def set_pipe_pressure(self, p, index: int | None = None) -> None:
         """Set the local brake-pipe pressure(s), gauge [Pa] (``pipe_per_coach``); 0-based."""
         arr = self._finite(p, 'pipe')
         if index is None:
-            self.coach[COACH.PIPE_IN] = arr
+            self.coach[INPUT.PIPE] = arr
         else:
-            self.coach[COACH.PIPE_IN, index] = float(arr)
+            self.coach[INPUT.PIPE, index] = float(arr)
         if self.pneu is not None:
             self.pneu.set_pipe_pressure(arr, index)
 
@@ -251,9 +252,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         if np.any(ratio != 1.0):       # a vehicle's own p_max: the kernel works in the train's
             arr = arr / ratio
         if index is None:
-            self.coach[COACH.CYL_IN] = arr
+            self.coach[INPUT.CYL] = arr
         else:
-            self.coach[COACH.CYL_IN, index] = float(arr)
+            self.coach[INPUT.CYL, index] = float(arr)
 
     @property
     def locomotives(self) -> list[int]:
@@ -267,7 +268,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             raise ValueError(f'traction command must be in [-1, 1], got {quote(command)}')
         if index not in self.consist.locomotives:
             raise ValueError(f'vehicle {index + 1} is not a locomotive (no traction)')
-        self.coach[COACH.T_CMD, index] = c
+        self.coach[INPUT.T_CMD, index] = c
 
     # -- integration -------------------------------------------------------------------------
     @property
@@ -283,8 +284,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             return self._advance_pneumatic(int(n_steps))
         done, status = self._kernel(int(n_steps))
         self.steps += done
-        if status != integrators.OK:
-            self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
+        if status != OK:
+            self.fault = STATUS_TEXT[status].format(t=self.t)
         return done
 
     def _advance_pneumatic(self, n_steps: int) -> int:
@@ -293,20 +294,20 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             self._trace = np.zeros((n_steps, self.n))
         trace = self._trace[:n_steps]
         self.pneu.advance(n_steps, trace)
-        cyl_in = self.coach[COACH.CYL_IN]
+        cyl_in = self.coach[INPUT.CYL]
         done = 0
-        status = integrators.OK
+        status = OK
         scaled = bool(np.any(self.pmax_ratio != 1.0))   # vehicles' own p_max -> the train's
         for k in range(n_steps):
             cyl_in[:] = trace[k] / self.pmax_ratio if scaled else trace[k]
             step, status = self._kernel(1)
             done += step
-            if status != integrators.OK:
+            if status != OK:
                 break
-        self.coach[COACH.PPIPE] = self.pneu.pipe_pressure
+        self.coach[STATE.PPIPE] = self.pneu.pipe_pressure
         self.steps += done
-        if status != integrators.OK:
-            self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
+        if status != OK:
+            self.fault = STATUS_TEXT[status].format(t=self.t)
         return done
 
     def _kernel(self, n_steps: int, sync: bool = False) -> tuple[int, int]:
@@ -316,18 +317,18 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                                              self.iv, self.fill, self.rel, self.ring,
                                              self.ws, self.gprof, self.cprof,
                                              self.tick_fb, self.tick_te)
-        return integrators.advance_chain(n_steps, self.coach, self.cpl, self.sc, self.iv,
-                                         self.fill, self.rel, self.ring, self.ws, self.gprof,
-                                         self.cprof)
+        return fixed_step.advance_chain(n_steps, self.coach, self.cpl, self.sc, self.iv,
+                                        self.fill, self.rel, self.ring, self.ws, self.gprof,
+                                        self.cprof)
 
     def _sync(self) -> None:
         """Bring the error-controlled chain to the present tick (it lands on outputs)."""
         if (not self.adaptive or self.fault is not None
-                or self.iv[FLAG.CHAIN_TICK] >= self.iv[FLAG.TICK]):
+                or self.iv[CLOCK.CHAIN_TICK] >= self.iv[CLOCK.TICK]):
             return
         _, status = self._kernel(0, True)
-        if status != integrators.OK:
-            self.fault = integrators.STATUS_TEXT[status].format(t=self.t)
+        if status != OK:
+            self.fault = STATUS_TEXT[status].format(t=self.t)
 
     @property
     def integration_stats(self) -> dict:
@@ -342,15 +343,15 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         holding LCP's new sets, coaches stopping); hold_capped, steps that reached the
         iteration cap with the set still inconsistent (the step finishes all the same).
         """
-        sc = self.sc
-        return {'adaptive': self.adaptive, 'steps': int(sc[SCALAR.NSTEPS]),
-                'rejected': int(sc[SCALAR.NREJ]), 'h_min': float(sc[SCALAR.HMIN]),
-                'steps_last_period': int(sc[SCALAR.INT_STEPS]),
-                'h_min_last_period': float(sc[SCALAR.INT_HMIN]),
-                'steps_max_period': int(sc[SCALAR.INT_STEPS_MAX]),
-                'fallback_periods': int(sc[SCALAR.NFALLBACK]),
-                'hold_solves': int(sc[SCALAR.HOLD_SOLVES]),
-                'hold_capped': int(sc[SCALAR.HOLD_CAPPED])}
+        sc, iv = self.sc, self.iv
+        return {'adaptive': self.adaptive, 'steps': int(iv[COUNT.NSTEPS]),
+                'rejected': int(iv[COUNT.NREJ]), 'h_min': float(sc[CONTROL.HMIN]),
+                'steps_last_period': int(iv[COUNT.INT_STEPS]),
+                'h_min_last_period': float(sc[CONTROL.INT_HMIN]),
+                'steps_max_period': int(iv[COUNT.INT_STEPS_MAX]),
+                'fallback_periods': int(iv[COUNT.NFALLBACK]),
+                'hold_solves': int(iv[COUNT.HOLD_SOLVES]),
+                'hold_capped': int(iv[COUNT.HOLD_CAPPED])}
 
     def advance_to(self, t: float) -> int:
         """Integrate whole steps until ``self.t >= t - h/2``; return the steps done."""
@@ -381,27 +382,3 @@ def _cylinder_tables(cfg: SimConfig, consist: Consist) -> tuple[np.ndarray, np.n
     rel = (list(cfg.cylinder_release_time), list(cfg.cylinder_release_fraction)) \
         if cfg.cylinder_release_time else (rel_t, P_RELEASE_FRACTION)
     return np.asarray(fill, dtype=float), np.asarray(rel, dtype=float)
-
-
-def warmup() -> float:
-    """
-    Compile every kernel into the cache now; return the seconds it took.
-
-    For the install (``python -m train_dynamics.physics.train``, to be run by ``make venv``
-    and after a colcon build) so that the first start after it loads machine code instead
-    of compiling for 10-30 s: the fixed-step and the error-controlled kernel, the pneumatic
-    brake, external forces and track, on a small train.
-    """
-    t0 = time.perf_counter()
-    for tol in (0.0, 1e-3):
-        for extra in ({}, {'brake_model': 'pneumatic'},
-                      {'davis_a': 500.0, 'track_gradient_positions': [0.0],
-                       'track_gradients': [1.0]}):
-            sim = TrainSimulator(SimConfig.from_dict({'integration_tolerance': tol, **extra}))
-            sim.advance(10)
-            _ = sim.coupler_force
-    return time.perf_counter() - t0
-
-
-if __name__ == '__main__':    # pragma: no cover - the install step
-    print(f'train_dynamics: kernels compiled (or loaded from the cache) in {warmup():.1f} s')

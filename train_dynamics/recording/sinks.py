@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from train_dynamics import topics
-from train_dynamics.physics import couplers
+from train_dynamics.physics.kernel import couplers
 from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.cdr import encode_float64, encode_fluid_pressure
 from train_dynamics.recording.history import History, JointSeries

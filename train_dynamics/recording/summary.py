@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 
 from train_dynamics import topics
-from train_dynamics.physics import couplers
+from train_dynamics.physics.kernel import couplers
 from train_dynamics.recording import history
 from train_dynamics.recording.history import Envelope, History
 from train_dynamics.simulation.runner import Sample

@@ -12,7 +12,9 @@ from typing import Any
 
 import numpy as np
 from train_dynamics import topics
-from train_dynamics.physics import layout, pneumatic
+from train_dynamics.physics.kernel import layout
+from train_dynamics.physics.kernel import pneumatic as pneumatic_kernel
+from train_dynamics.physics.pneumatic import PneumaticSpec
 
 #: [bytes] largest simulator state a configuration may need (delay line + per-coach arrays)
 MAX_SIMULATOR_MEMORY = 1 << 30
@@ -24,7 +26,7 @@ SIMULATOR_BYTES_PER_COACH = 8 * (len(layout.COACH) + len(layout.COUPLER) + len(l
 #: chain, one trace of the pneumatic brake
 PERIOD_ROWS = 3
 #: [bytes] the pneumatic brake pipe's grid per cell: its cell rows and face rows
-PIPE_BYTES_PER_CELL = 8 * (pneumatic.N_CELL_ROWS + pneumatic.N_FACE_ROWS)
+PIPE_BYTES_PER_CELL = 8 * (pneumatic_kernel.N_CELL_ROWS + pneumatic_kernel.N_FACE_ROWS)
 #: [bytes] the simulator's arrays whatever the train (cylinder tables, scalars)
 SIMULATOR_FIXED_BYTES = 1 << 16
 #: [bytes] MCAP record and index overhead per message (opcode, length, channel, sequence,
@@ -73,7 +75,7 @@ def config_memory(cfg: Any) -> int:
     period = max(1, int(round(1.0 / (float(cfg.publish_rate) * h))))
     # a vehicle has round(length / cell_length) cells, at least 1 (pneumatic.py): at most
     # length / cell_length + 1
-    cells = (int(math.ceil(float(np.sum(lengths)) / pneumatic.PneumaticSpec.cell_length)) + n
+    cells = (int(math.ceil(float(np.sum(lengths)) / PneumaticSpec.cell_length)) + n
              if cfg.brake_model == 'pneumatic' else 0)
     return simulator_memory(n, ahead, float(cfg.brake_propagation_speed), h, period, cells)
 

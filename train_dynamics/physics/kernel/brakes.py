@@ -30,7 +30,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from train_dynamics.physics._jit import jit
+from train_dynamics.physics.kernel.compiler import jit
 
 #: brake_input mode codes used inside the compiled kernels
 PIPE_HEAD = 0

@@ -18,7 +18,7 @@ f(v) = 0.161 + 7.5 / (3.6 |v| + 44) (v in m/s, 3.6 v in km/h): 0.33 at rest, 0.2
 """
 from __future__ import annotations
 
-from train_dynamics.physics._jit import jit
+from train_dynamics.physics.kernel.compiler import jit
 
 #: Curtius-Kniffler adhesion at standstill, 0.161 + 7.5 / 44
 CK_AT_REST = 0.161 + 7.5 / 44.0

@@ -18,12 +18,12 @@ the set changes. Block principal pivoting (:func:`pivot`, Judice and Pires 1994)
 set where every vehicle at rest is consistent, in a few tridiagonal solves (no coupler
 evaluation), with Murty's single pivot when the block pivots stop reducing the number of
 inconsistent vehicles (that rule ends for positive definite A); a cap bounds the work.
-The full step is then solved once more with that set (integrators._active_set_step).
+The full step is then solved once more with that set (active_set.active_set_step).
 """
 from __future__ import annotations
 
-from train_dynamics.physics._jit import jit
-from train_dynamics.physics.layout import SCALAR, WORK
+from train_dynamics.physics.kernel.compiler import jit
+from train_dynamics.physics.kernel.layout import (TOTAL, WORK)
 
 #: [m/s] a braked vehicle slower than this is at rest (1 micrometre per second): without it
 #: a vehicle whose coupler force exactly balances its sliding brake could creep for ever
@@ -62,9 +62,9 @@ def stick(held, masses, ws, sc):
     Stop the vehicles released from rest that end the step moving against their friction.
 
     Such a vehicle (VSTART = 0, RELDIR d, d WORK.VNEW < 0, or braked and slower than V_REST,
-    as a moving one stops in integrators._stops) slid and stuck within the step:
+    as a moving one stops in active_set._stops) slid and stuck within the step:
     it ends at rest (VNEW = 0) and held, its friction over the step stays the sliding one
-    (WORK.HOLD = SIGNED, booked as before); the impulse -m v' [N s] goes to SCALAR.PEXT
+    (WORK.HOLD = SIGNED, booked as before); the impulse -m v' [N s] goes to TOTAL.PEXT
     (``sc``). Return the kinetic energy m v'^2 / 2 [J] the brakes took.
     """
     v_start = ws[WORK.VSTART]
@@ -80,7 +80,7 @@ def stick(held, masses, ws, sc):
         if rel_dir[i] * v_new[i] < 0.0 or (fb[i] > 0.0 and abs(v_new[i]) < V_REST):
             vi = v_new[i]
             work += 0.5 * masses[i] * vi * vi
-            sc[SCALAR.PEXT] -= masses[i] * vi
+            sc[TOTAL.PEXT] -= masses[i] * vi
             v_new[i] = 0.0
             held[i] = True
             hold[i] = signed[i]

@@ -8,10 +8,10 @@ with ``NUMBA_DISABLE_JIT=1``) the very same functions run as plain Python: corre
 
 Cache key. numba's own cache files a function under the path of its source folder and
 checks only that one file: a copy of the package elsewhere (a colcon ``build``/``install``
-tree, a fresh clone) compiles again, and a kernel of ``integrators.py`` that inlines a
+tree, a fresh clone) compiles again, and a kernel of ``fixed_step.py`` that inlines a
 function of ``brakes.py`` or freezes a constant of ``layout.py`` would keep running OLD code
 after that file changed. Here every kernel is filed under :func:`source_digest`: a hash of
-all kernel sources (:data:`KERNEL_SOURCES`; ``test_integrators.py`` checks the list) and of
+all kernel sources (:func:`kernel_sources`: every ``.py`` of this folder) and of
 the Python, numba, llvmlite and numpy versions, never of a path. One folder
 ``numba-<digest>`` per code version; inside it numba's index keys each entry by the
 function, its argument types and the CPU (name and features), so a changed source, a new
@@ -54,10 +54,23 @@ _CACHE_API = HAVE_NUMBA and all(hasattr(_caching, name) for name in (
 #: on them): approximate functions, contraction (FMA), reciprocal and sign-of-zero freedom.
 _FASTMATH = {'afn', 'contract', 'arcp', 'nsz'}
 
-#: the modules (of this folder) whose compiled code depends on each other
-KERNEL_SOURCES = ('_jit.py', 'adaptive.py', 'brakes.py', 'couplers.py', 'integrators.py',
-                  'layout.py', 'pneumatic.py', 'resistance.py', 'standstill.py', 'track.py',
-                  'traction.py')
+_HERE = os.path.dirname(os.path.abspath(__file__))
+
+
+def kernel_sources(folder: str | None = None) -> tuple[str, ...]:
+    """
+    Return the kernel's source files: every ``.py`` of ``folder`` (this folder), sorted.
+
+    The compiled code of one kernel module depends on the others (numba inlines functions
+    and freezes global constants), so the digest covers them all; a module that defines a
+    jitted function lives here (``test_kernel_cache.py`` checks it).
+    """
+    folder = folder or _HERE
+    try:
+        return tuple(sorted(n for n in os.listdir(folder) if n.endswith('.py')))
+    except OSError:
+        return ()
+
 
 #: the folder (next to this file) of the kernels compiled at build time
 PREBUILT = '_prebuilt'
@@ -67,7 +80,6 @@ PREBUILT = '_prebuilt'
 KEEP_VERSIONS = 4
 MAX_AGE_S = 14 * 86400.0
 
-_HERE = os.path.dirname(os.path.abspath(__file__))
 _state: dict = {}
 _dispatchers: list = []
 
@@ -75,7 +87,7 @@ _dispatchers: list = []
 def source_digest(folder: str = _HERE) -> str:
     """Return the hex digest of the kernel sources in ``folder`` and the compiler versions."""
     digest = hashlib.sha256()
-    for name in KERNEL_SOURCES:
+    for name in kernel_sources(folder):
         digest.update(name.encode() + b'\0')
         try:
             with open(os.path.join(folder, name), 'rb') as fh:

@@ -1,16 +1,16 @@
 """
-Error-controlled integration of the coach chain (``integration_tolerance`` > 0; issue 14).
+Error-controlled integration of the coach chain (``integration_tolerance`` > 0).
 
-The chain takes the steps of :mod:`train_dynamics.physics.integrators` (ROS2, the active
+The chain takes the steps of :mod:`.step` (ROS2, the active
 set of held vehicles, the external forces, the fault check) with a step size chosen per
 step: the embedded first-order solution of ROS2 estimates the local error of every coupler
 force, kept below tolerance x the largest coupler force in the train [-]
 (:func:`_error_norm`); a PI controller (Gustafsson) sets the next step; steps land on every
 output instant (:func:`_landing_step`). The brake system and the inputs keep the fixed tick
-SCALAR.H of the fixed-step kernel (:func:`_brake_tick`), and the braking and traction forces
+PARAM.H of the fixed-step kernel (:func:`_brake_tick`), and the braking and traction forces
 are linear between ticks (:func:`_tick_means`), so the inputs act at the same tick as in the
-fixed-step kernel, offline and in the node. FLAG.BUDGET bounds the steps per output period:
-a period that runs out finishes at the fixed step, counted (SCALAR.NFALLBACK).
+fixed-step kernel, offline and in the node. OPTION.BUDGET bounds the steps per output period:
+a period that runs out finishes at the fixed step, counted (COUNT.NFALLBACK).
 """
 from __future__ import annotations
 
@@ -18,14 +18,16 @@ import math
 
 import numpy as np
 
-from train_dynamics.physics import brakes, traction
-from train_dynamics.physics._jit import jit
-from train_dynamics.physics.integrators import (_accept_external, _accept_step,
-                                                _active_set_step, _brake_system_step,
-                                                _eval_couplers, _eval_couplers_work,
-                                                _fault_check, _static_resistance, GAMMA,
-                                                invalidate_caches, OK)
-from train_dynamics.physics.layout import COACH, FLAG, SCALAR, WORK
+from train_dynamics.physics.kernel import brakes, traction
+from train_dynamics.physics.kernel.active_set import active_set_step
+from train_dynamics.physics.kernel.compiler import jit
+from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_couplers_work,
+                                                        invalidate_caches)
+from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, CONTROL, COUNT, INPUT, OPTION,
+                                                  PARAM, STATE, TOTAL, VEHICLE, WORK)
+from train_dynamics.physics.kernel.ros2 import GAMMA
+from train_dynamics.physics.kernel.step import (accept_external, accept_step, brake_system_step,
+                                                fault_check, OK, static_resistance)
 
 #: [s] the error-controlled steps never go below this (a step this short is accepted)
 H_MIN = 1e-6
@@ -41,29 +43,29 @@ FAC_MAX = 5.0
 @jit(inline=True)
 def _brake_tick(coach, sc, iv, ring, tables, ws, fbt, tet):
     """
-    Advance the brake system one tick of SCALAR.H; store its force and traction at the tick.
+    Advance the brake system one tick of PARAM.H; store its force and traction at the tick.
 
     The brake system does not depend on the motion: it runs on the fixed tick (brake pipe,
     distributors, cylinders, inputs as in :func:`advance_chain`), and the chain's steps take
     the braking force (eq. 13) and the traction command as piecewise linear between ticks
     (rows ``fbt``, ``tet`` of the tick ring, index tick mod its length).
     """
-    _brake_system_step(coach, sc, iv, ring, tables, ws)
+    brake_system_step(coach, sc, iv, ring, tables, ws)
     fb_next = ws[WORK.FBNEXT]
-    brakes.braking_force(coach[COACH.PCYL], sc[SCALAR.PMAX], sc[SCALAR.MU],
-                         coach[COACH.BMASS], sc[SCALAR.G], fb_next)
-    tick = iv[FLAG.TICK] + 1
+    brakes.braking_force(coach[STATE.PCYL], sc[PARAM.PMAX], sc[PARAM.MU],
+                         coach[VEHICLE.BMASS], sc[PARAM.G], fb_next)
+    tick = iv[CLOCK.TICK] + 1
     r = tick % fbt.shape[0]
-    h = sc[SCALAR.H]
+    h = sc[PARAM.H]
     for i in range(fb_next.shape[0]):
-        coach[COACH.FB_AVAIL, i] = fb_next[i]
+        coach[STATE.FB_AVAIL, i] = fb_next[i]
         fbt[r, i] = fb_next[i]
-        old = coach[COACH.T_EFF, i]
-        if iv[FLAG.EXT] and coach[COACH.T_CMD, i] != old:
-            coach[COACH.T_EFF, i] = traction.ramp(old, coach[COACH.T_CMD, i], h,
-                                                  coach[COACH.T_BUILD, i])
-        tet[r, i] = coach[COACH.T_EFF, i]
-    iv[FLAG.TICK] = tick
+        old = coach[STATE.T_EFF, i]
+        if iv[OPTION.EXT] and coach[INPUT.T_CMD, i] != old:
+            coach[STATE.T_EFF, i] = traction.ramp(old, coach[INPUT.T_CMD, i], h,
+                                                  coach[VEHICLE.T_BUILD, i])
+        tet[r, i] = coach[STATE.T_EFF, i]
+    iv[CLOCK.TICK] = tick
 
 
 @jit(inline=True)
@@ -151,79 +153,79 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
 
     Step-size control: :func:`_error_norm` <= 1 accepts, else the step is redone shorter;
     the next step from the PI controller, at most the landing period, clipped to land on
-    the tick TICK. After FLAG.BUDGET steps in the period the rest is done in fixed steps
-    of SCALAR.H (counted in SCALAR.NFALLBACK): the work per output period is bounded.
+    the tick TICK. After OPTION.BUDGET steps in the period the rest is done in fixed steps
+    of PARAM.H (counted in COUNT.NFALLBACK): the work per output period is bounded.
     Returns the status (OK or the fault).
     """
-    h_tick = sc[SCALAR.H]
-    ka = iv[FLAG.CHAIN_TICK]
-    kb = iv[FLAG.TICK]
+    h_tick = sc[PARAM.H]
+    ka = iv[CLOCK.CHAIN_TICK]
+    kb = iv[CLOCK.TICK]
     total = (kb - ka) * h_tick
-    h_max = iv[FLAG.LAND] * h_tick
-    model = iv[FLAG.MODEL]
-    u = sc[SCALAR.U]
-    tol = sc[SCALAR.TOL]
-    ext = iv[FLAG.EXT]
+    h_max = iv[OPTION.LAND] * h_tick
+    model = iv[OPTION.MODEL]
+    u = sc[PARAM.U]
+    tol = sc[PARAM.TOL]
+    ext = iv[OPTION.EXT]
     s = 0.0
     steps = 0
     int_hmin = h_max
     fallback = False
-    h = min(sc[SCALAR.HPROP], h_max)
+    h = min(sc[CONTROL.HPROP], h_max)
     while s < total:
         rem = total - s
-        if steps >= iv[FLAG.BUDGET] and not fallback:
+        if steps >= iv[OPTION.BUDGET] and not fallback:
             fallback = True
-            sc[SCALAR.NFALLBACK] += 1.0
+            iv[COUNT.NFALLBACK] += 1
         if fallback:
             h = h_tick
         hs = _landing_step(h, rem)
-        if hs != sc[SCALAR.HEVAL]:
-            _eval_couplers(coach[COACH.X], coach[COACH.V], cpl, model, u, GAMMA * hs, ws)
-            sc[SCALAR.HEVAL] = hs
+        if hs != sc[CONTROL.HEVAL]:
+            eval_couplers(coach[STATE.X], coach[STATE.V], cpl, model, u, GAMMA * hs, ws)
+            sc[CONTROL.HEVAL] = hs
         _tick_means(fbt, tet, ka, s / h_tick, (s + hs) / h_tick, ws)
         if ext:
-            _static_resistance(coach, iv, gprof, cprof, ws)
-        pext = sc[SCALAR.PEXT]
-        extra_work = _active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
-        err = _error_norm(hs, ws, tol, sc[SCALAR.FFLOOR])
+            static_resistance(coach, iv, gprof, cprof, ws)
+        pext = sc[TOTAL.PEXT]
+        extra_work = active_set_step(hs, coach, cpl, sc, iv, held, ws, gprof)
+        err = _error_norm(hs, ws, tol, sc[PARAM.FFLOOR])
         if err > 1.0 and not fallback and hs > H_MIN:
-            sc[SCALAR.PEXT] = pext
-            sc[SCALAR.NREJ] += 1.0
-            sc[SCALAR.HEVAL] = -1.0     # the active set may have left other slopes in ws
+            sc[TOTAL.PEXT] = pext
+            iv[COUNT.NREJ] += 1
+            sc[CONTROL.HEVAL] = -1.0     # the active set may have left other slopes in ws
             h = max(hs * max(FAC_MIN, SAFETY * err ** -0.5), H_MIN)
             continue
-        status = _fault_check(ws, sc[SCALAR.YLIM])
+        status = fault_check(ws, sc[PARAM.YLIM])
         if status != OK:
             return status
         if ext:
-            sc[SCALAR.WB] += _accept_external(hs, coach, sc, held, ws)
-        sc[SCALAR.WB] += _accept_step(coach, held, extra_work, ws, ext)
+            sc[TOTAL.WB] += accept_external(hs, coach, sc, held, ws)
+        sc[TOTAL.WB] += accept_step(coach, held, extra_work, ws, ext)
         steps += 1
         if hs < rem:
             int_hmin = min(int_hmin, hs)
-            sc[SCALAR.HMIN] = min(sc[SCALAR.HMIN], hs)
+            sc[CONTROL.HMIN] = min(sc[CONTROL.HMIN], hs)
         s = total if hs >= rem else s + hs
         # PI controller
         e = max(err, 1e-4)
-        fac = SAFETY * e ** -PI_KI * sc[SCALAR.ERRPREV] ** PI_KP
+        fac = SAFETY * e ** -PI_KI * sc[CONTROL.ERRPREV] ** PI_KP
         fac = min(FAC_MAX, max(FAC_MIN, fac))
-        sc[SCALAR.ERRPREV] = e
+        sc[CONTROL.ERRPREV] = e
         if not fallback:
             if hs < rem or fac < 1.0:
                 h = hs * fac
             else:       # a step shortened to land: its error says nothing against h
                 h = max(h, hs * fac)
             h = max(min(h, h_max), H_MIN)
-            sc[SCALAR.HPROP] = h
+            sc[CONTROL.HPROP] = h
         # the couplers at the new state, with the next step's stage weights
         hn = _landing_step(h, total - s) if s < total else h
-        sc[SCALAR.WC] += _eval_couplers_work(coach, cpl, model, u, GAMMA * hn, ws)
-        sc[SCALAR.HEVAL] = hn
-    iv[FLAG.CHAIN_TICK] = kb
-    sc[SCALAR.NSTEPS] += steps
-    sc[SCALAR.INT_STEPS] = steps
-    sc[SCALAR.INT_STEPS_MAX] = max(sc[SCALAR.INT_STEPS_MAX], steps)
-    sc[SCALAR.INT_HMIN] = int_hmin
+        sc[TOTAL.WC] += eval_couplers_work(coach, cpl, model, u, GAMMA * hn, ws)
+        sc[CONTROL.HEVAL] = hn
+    iv[CLOCK.CHAIN_TICK] = kb
+    iv[COUNT.NSTEPS] += steps
+    iv[COUNT.INT_STEPS] = steps
+    iv[COUNT.INT_STEPS_MAX] = max(iv[COUNT.INT_STEPS_MAX], steps)
+    sc[CONTROL.INT_HMIN] = int_hmin
     return OK
 
 
@@ -234,9 +236,9 @@ def advance_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gpr
     Advance the brake system ``n_ticks`` ticks and the chain with error control; in place.
 
     Same arrays as :func:`advance_chain`, plus the tick ring ``fbt``, ``tet`` (at least
-    FLAG.LAND + 1 rows of N). The brake system and the inputs run on the fixed tick
-    SCALAR.H exactly as in the fixed-step kernel; the chain follows with error-controlled
-    steps (:func:`_chain_to`) and lands on every multiple of FLAG.LAND ticks (the output
+    OPTION.LAND + 1 rows of N). The brake system and the inputs run on the fixed tick
+    PARAM.H exactly as in the fixed-step kernel; the chain follows with error-controlled
+    steps (:func:`_chain_to`) and lands on every multiple of OPTION.LAND ticks (the output
     instants) and, when ``sync`` is set, on the present tick. Between landings the chain
     lags the brake system (its state is read only where it landed). Return
     (ticks done, status).
@@ -244,26 +246,26 @@ def advance_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gpr
     held = np.empty(coach.shape[1], dtype=np.bool_)
     tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
                                    rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
-    if iv[FLAG.WS_VALID] == 0:
-        brakes.delay_split(coach[COACH.DELAY], ws[WORK.K0], ws[WORK.FRAC])
-        r = iv[FLAG.TICK] % fbt.shape[0]
+    if iv[CACHE.WS_VALID] == 0:
+        brakes.delay_split(coach[VEHICLE.DELAY], ws[WORK.K0], ws[WORK.FRAC])
+        r = iv[CLOCK.TICK] % fbt.shape[0]
         for i in range(coach.shape[1]):
-            fbt[r, i] = coach[COACH.FB_AVAIL, i]
-            tet[r, i] = coach[COACH.T_EFF, i]
-        sc[SCALAR.HEVAL] = -1.0
+            fbt[r, i] = coach[STATE.FB_AVAIL, i]
+            tet[r, i] = coach[STATE.T_EFF, i]
+        sc[CONTROL.HEVAL] = -1.0
         invalidate_caches(ws)
-        if iv[FLAG.TICK] == 0:   # the couplers' forces at t = 0 (read before any step)
-            _eval_couplers(coach[COACH.X], coach[COACH.V], cpl, iv[FLAG.MODEL], sc[SCALAR.U],
-                           GAMMA * sc[SCALAR.H], ws)
-        iv[FLAG.WS_VALID] = 1
-    land = iv[FLAG.LAND]
+        if iv[CLOCK.TICK] == 0:   # the couplers' forces at t = 0 (read before any step)
+            eval_couplers(coach[STATE.X], coach[STATE.V], cpl, iv[OPTION.MODEL], sc[PARAM.U],
+                          GAMMA * sc[PARAM.H], ws)
+        iv[CACHE.WS_VALID] = 1
+    land = iv[OPTION.LAND]
     for k in range(n_ticks):
         _brake_tick(coach, sc, iv, ring, tables, ws, fbt, tet)
-        if iv[FLAG.TICK] % land == 0:
+        if iv[CLOCK.TICK] % land == 0:
             status = _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held)
             if status != OK:
                 return k + 1, status
-    if sync and iv[FLAG.CHAIN_TICK] < iv[FLAG.TICK]:
+    if sync and iv[CLOCK.CHAIN_TICK] < iv[CLOCK.TICK]:
         status = _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held)
         if status != OK:
             return n_ticks, status

@@ -1,0 +1,176 @@
+"""
+The couplers' rows of the workspace: force, slopes and stage weights at the chain's state.
+
+Each coupler's law (:mod:`.couplers`, with free play and blocking) is evaluated at its
+(y, ydot) into the WORK rows F, DFDY and KK (the stage-matrix weights g h dF/dydot +
+(g h)^2 dF/dy) that :func:`~.ros2.ros2_step` solves with. Cache (bit for bit): the rows
+carry the (y, ydot) and g h they were made for (WORK.YKEY, VKEY), so a coupler whose
+state did not change keeps them (:func:`invalidate_caches` forgets them all).
+:func:`eval_couplers_work` also books the couplers' work over the step and widens the
+in-train force envelope (WORK.FHI, FLO).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from train_dynamics.physics.kernel import couplers
+from train_dynamics.physics.kernel.compiler import jit
+from train_dynamics.physics.kernel.layout import COUPLER, STATE, WORK
+from train_dynamics.physics.kernel.ros2 import GAMMA
+
+
+@jit(inline=True)
+def invalidate_caches(ws):
+    """
+    Forget the static resistance cached per vehicle (WORK.XKEY, see :func:`static_resistance`).
+
+    Call it when a vehicle's resistance constants or the track change without a new
+    simulator (nothing does today: they are fixed per simulator, reset() rewrites the same
+    values). The couplers' cache (WORK.YKEY, VKEY) is renewed by every :func:`eval_couplers`.
+    """
+    xkey = ws[WORK.XKEY]
+    for i in range(xkey.shape[0]):
+        xkey[i] = np.nan
+
+
+@jit
+def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h):
+    """
+    Return one coupler's F [N], dF/dy [N/m] and the dF/dydot [N s/m] of the stage matrix.
+
+    The stage matrix takes, for the tanh model (eq. 14), the secant slope of the friction
+    force through ydot = 0, k_fr |y| tanh(u ydot) / ydot, not the tangent
+    u k_fr |y| sech^2(u ydot): a step that carries ydot across the 1/u-wide tanh band then
+    still sees the friction's damping (the tangent is ~0 outside the band, which made the
+    friction explicit exactly there and overshot the peak force of long trains by 10 % at
+    5 ms). ROS2 is a W-method: order 2 holds for any matrix. Both slopes agree as
+    ydot -> 0. The sign model keeps 0. The law has free play (slack g_t, g_c [m]) and blocks
+    at the strokes S_t, S_c [m] with stiffness K_b [N/m], which dF/dy then includes
+    (:func:`couplers.coupler_branch_travel`; with no slack and below the strokes it is the
+    paper's law bit for bit).
+    """
+    if model == couplers.TANH:
+        z = u * ydot
+        a = abs(z)
+        t = couplers.fast_tanh(a)               # tanh|z|
+        s = math.copysign(t, z)
+        ratio = t / a if a > 1e-3 else 1.0     # tanh(z) / z, within 4e-7 of 1 below 1e-3
+    else:
+        s = np.sign(ydot)
+        ratio = 0.0
+    f, stiff, amp = couplers.coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb)
+    return f, _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb), amp * u * ratio
+
+
+@jit
+def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb):
+    """Return the elastic (friction-free) force [N] of the law with free play and blocking."""
+    if y > gt:
+        d = y - gt
+        return kec * d + kb * max(d - st, 0.0)
+    if y < -gc:
+        d = y + gc
+        return ke * d + kb * min(d + sc, 0.0)
+    return 0.0
+
+
+@jit(inline=True)
+def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
+    """
+    Return the dF/dy [N/m] of the stage matrix: the secant over the step's predicted move.
+
+    When y + h ydot crosses the end of the free play (g_t or g_c > 0) or a stroke, the
+    tangent at y (0 in free play, k before blocking) would leave the stiff contact
+    explicit for the whole step: the secant of the elastic force between y and y + h ydot
+    puts it in the matrix (K_b when the step blocks). ROS2 is a W-method, so any slope keeps
+    order two. Without a crossing: the tangent ``stiff``.
+    """
+    yp = y + h * ydot
+    lo = min(y, yp)
+    hi = max(y, yp)
+    cross = (lo < gt + st < hi) or (lo < -(gc + sc) < hi)
+    if gt > 0.0:
+        cross = cross or (lo < gt < hi)
+    if gc > 0.0:
+        cross = cross or (lo < -gc < hi)
+    if not cross:
+        return stiff
+    return (_elastic_travel(yp, ke, kec, gt, gc, st, sc, kb)
+            - _elastic_travel(y, ke, kec, gt, gc, st, sc, kb)) / (yp - y)
+
+
+@jit(inline=True)
+def _store_coupler(j, y, ydot, cpl, model, u, gh, ws):
+    """
+    Write coupler j's F [N], dF/dy [N/m] and stage-matrix weight [kg] at (y, ydot) to ws.
+
+    Force law eqs. (2)-(4) / (14)-(16) with the constants of ``cpl`` [N/m]; the weight is
+    g h dF/dydot + (g h)^2 dF/dy (rows WORK.F, DFDY, KK). (y, ydot) go to WORK.YKEY, VKEY:
+    the key of :func:`eval_couplers_work`'s cache.
+    """
+    f, dy, dv = _coupler_w(y, ydot, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j],
+                           cpl[COUPLER.KEC, j], cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j],
+                           cpl[COUPLER.GC, j], cpl[COUPLER.ST, j], cpl[COUPLER.SC, j],
+                           cpl[COUPLER.KB, j], model, u, gh / GAMMA)
+    ws[WORK.F, j] = f
+    ws[WORK.DFDY, j] = dy
+    ws[WORK.KK, j] = gh * dv + gh * gh * dy
+    ws[WORK.YKEY, j] = y
+    ws[WORK.VKEY, j] = ydot
+
+
+@jit(inline=True)
+def eval_couplers(x, v, cpl, model, u, gh, ws):
+    """
+    Write every coupler's law at (x, v) to ws (:func:`_store_coupler`; y from eq. 9).
+
+    g h [s] goes to column N-1 of WORK.VKEY: with the couplers' (y, ydot), the key of
+    :func:`eval_couplers_work`'s cache.
+    """
+    n = x.shape[0]
+    for j in range(n - 1):
+        _store_coupler(j, x[j] - x[j + 1], v[j] - v[j + 1], cpl, model, u, gh, ws)
+    ws[WORK.VKEY, n - 1] = gh
+
+
+@jit
+def eval_couplers_work(coach, cpl, model, u, gh, ws):
+    """
+    Do :func:`eval_couplers` at the new state (STATE.X, V); return the couplers' work [J].
+
+    The work over the step from the positions WORK.XOLD [m] is trapezoidal in the force:
+    sum_j (F_j(old) + F_j(new)) / 2 (y_j(new) - y_j(old)). A coupler whose (y, ydot) and
+    g h are those its rows were evaluated at (WORK.YKEY, VKEY: e.g. between two vehicles
+    held at rest) keeps them: the law is a function of these alone (and of the model and
+    the constants, which change only with CACHE.WS_VALID = 0, then :func:`eval_couplers`).
+    Every accepted step's forces also widen the in-train force envelope WORK.FHI, FLO (the
+    largest tension and compression of each coupler [N], at the integrator's resolution:
+    an impact's peak between two outputs included).
+    """
+    x = coach[STATE.X]
+    v = coach[STATE.V]
+    x_old = ws[WORK.XOLD]
+    F0 = ws[WORK.F]
+    ykey = ws[WORK.YKEY]
+    vkey = ws[WORK.VKEY]
+    f_hi = ws[WORK.FHI]
+    f_lo = ws[WORK.FLO]
+    wc = 0.0
+    n = x.shape[0]
+    same_gh = vkey[n - 1] == gh
+    for j in range(n - 1):
+        y = x[j] - x[j + 1]
+        ydot = v[j] - v[j + 1]
+        f_old = F0[j]
+        if not (same_gh and y == ykey[j] and ydot == vkey[j]):
+            _store_coupler(j, y, ydot, cpl, model, u, gh, ws)
+        f = F0[j]
+        wc += 0.5 * (f_old + f) * (y - (x_old[j] - x_old[j + 1]))
+        if f > f_hi[j]:
+            f_hi[j] = f
+        elif f < f_lo[j]:
+            f_lo[j] = f
+    vkey[n - 1] = gh
+    return wc

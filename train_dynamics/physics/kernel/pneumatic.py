@@ -1,0 +1,251 @@
+"""
+Pneumatic brake, compiled: pipe flow, relay valve and distributors on packed arrays.
+
+The model (finite-volume brake pipe, orifice law, driver's brake valve, UIC distributors) is
+described in :mod:`train_dynamics.physics.pneumatic`, which packs the arrays these functions
+advance: cells (``C_*`` rows, one column per pipe cell), faces (``F_*``), vehicles (``V_*``),
+scalars (``S_*``) and integers (``I_*``). All inside pressures are absolute [Pa], air masses
+[kg].
+"""
+from __future__ import annotations
+
+import math
+
+from train_dynamics.physics.kernel.compiler import jit
+
+
+#: specific gas constant of air [J/(kg K)]
+R_AIR = 287.05
+
+
+#: nozzle law for air (kappa = 1.4): critical pressure ratio and the choked flow function
+R_CRIT = 0.5283
+
+
+PSI_CHOKED = 0.6847
+
+
+# Rows of the cell array, the face array and the vehicle array; slots of the scalars.
+C_M, C_VOL, C_LEAK = range(3)
+
+
+N_CELL_ROWS = 3
+
+
+F_W, F_OPEN, F_LEN, F_K = range(4)
+
+
+N_FACE_ROWS = 4
+
+
+(V_MCR, V_MAUX, V_MCYL, V_MQS, V_APPLIED, V_VCR, V_VAUX, V_VCYL, V_VQS, V_PMAX, V_AAPP,
+ V_AREL, V_CELL, V_PEXT) = range(14)
+
+
+N_VEH_ROWS = 14
+
+
+(S_H, S_RT, S_AREA, S_DIAM, S_MU, S_PATM, S_CMD, S_PMR, S_ACHG, S_AVENT, S_AEM, S_BAND,
+ S_EMTH, S_GCR, S_APPTH, S_RELTH, S_SPAN, S_AAUX, S_AQS, S_LAP, S_DBAND) = range(21)
+
+
+N_SCALARS = 21
+
+
+I_SUB, I_EXTERNAL, I_LAP = range(3)
+
+
+N_INT = 3
+
+
+@jit
+def orifice_flow(p_up: float, p_dn: float, area: float, rt: float) -> float:
+    """Mass flow [kg/s] through an orifice of effective area [m^2], p_up >= p_dn absolute."""
+    if p_up <= p_dn or area <= 0.0:
+        return 0.0
+    r = p_dn / p_up
+    if r <= R_CRIT:
+        psi = PSI_CHOKED
+    else:
+        psi = math.sqrt(7.0 * (r ** (2.0 / 1.4) - r ** (2.4 / 1.4)))
+    return area * p_up * psi / math.sqrt(rt)
+
+
+@jit
+def _exchange(p1, v1, p2, v2, area, h, rt):
+    """Mass [kg] moving from volume 1 to 2 in h (negative: 2 to 1), never past equality."""
+    if p1 >= p2:
+        dm = orifice_flow(p1, p2, area, rt) * h
+        eq = (p1 - p2) / (rt * (1.0 / v1 + 1.0 / v2))
+        return min(dm, eq)
+    dm = orifice_flow(p2, p1, area, rt) * h
+    eq = (p2 - p1) / (rt * (1.0 / v1 + 1.0 / v2))
+    return -min(dm, eq)
+
+
+@jit
+def _pipe_transport(cells, faces, sc, h):
+    """One forward-backward Euler step of the pipe flow (module docstring)."""
+    nc = cells.shape[1]
+    rt = sc[S_RT]
+    area = sc[S_AREA]
+    diam = sc[S_DIAM]
+    mu = sc[S_MU]
+    m = cells[C_M]
+    vol = cells[C_VOL]
+    w = faces[F_W]
+    for j in range(1, nc):
+        if faces[F_OPEN, j] == 0.0:
+            w[j] = 0.0
+            continue
+        rho_l = m[j - 1] / vol[j - 1]
+        rho_r = m[j] / vol[j]
+        rho = 0.5 * (rho_l + rho_r)
+        dx = faces[F_LEN, j]
+        aw = abs(w[j])
+        re = aw * diam / (area * mu)
+        # resistance r [1/s] in dw/dt = ... - r w
+        r_lam = 32.0 * mu / (rho * diam * diam)
+        r = r_lam
+        if re > 1.0:
+            f_turb = 0.3164 * re ** -0.25
+            r_turb = f_turb * aw / (2.0 * rho * area * diam)
+            if r_turb > r:
+                r = r_turb
+        r += faces[F_K, j] * aw / (2.0 * rho * area * dx)
+        drive = area * (rho_l - rho_r) * rt / dx
+        w[j] = (w[j] + h * drive) / (1.0 + h * r)
+    for j in range(nc):
+        m[j] += h * (w[j] - w[j + 1])
+
+
+@jit
+def _relay_valve(cells, sc, h):
+    """Driver's brake valve at the head: regulate cell 0 to the command (module docstring)."""
+    rt = sc[S_RT]
+    patm = sc[S_PATM]
+    vol = cells[C_VOL, 0]
+    p = cells[C_M, 0] * rt / vol
+    cmd = sc[S_CMD]
+    if cmd < sc[S_EMTH]:
+        # open to atmosphere (both ways: the column's inertia may overshoot below it)
+        cells[C_M, 0] -= _exchange(p, vol, patm, 1.0e9, sc[S_AEM], h, rt)
+        return
+    target = cmd + patm
+    err = target - p
+    if err > 0.0:
+        s = min(err / sc[S_BAND], 1.0)
+        dm = min(orifice_flow(sc[S_PMR] + patm, p, sc[S_ACHG] * s, rt) * h, err * vol / rt)
+        cells[C_M, 0] += dm
+    elif err < 0.0:
+        s = min(-err / sc[S_BAND], 1.0)
+        dm = min(orifice_flow(p, patm, sc[S_AVENT] * s, rt) * h, -err * vol / rt)
+        cells[C_M, 0] -= dm
+
+
+@jit
+def _distributors(cells, veh, sc, external, h):
+    """Every vehicle's distributor, reservoirs and cylinder over one step."""
+    rt = sc[S_RT]
+    patm = sc[S_PATM]
+    for i in range(veh.shape[1]):
+        c = int(veh[V_CELL, i])
+        if external:
+            p_l = veh[V_PEXT, i] + patm
+            v_l = 1.0e9
+        else:
+            v_l = cells[C_VOL, c]
+            p_l = cells[C_M, c] * rt / v_l
+        v_cr = veh[V_VCR, i]
+        v_aux = veh[V_VAUX, i]
+        v_cyl = veh[V_VCYL, i]
+        p_cr = veh[V_MCR, i] * rt / v_cr
+        p_aux = veh[V_MAUX, i] * rt / v_aux
+        p_cyl = veh[V_MCYL, i] * rt / v_cyl
+        dm_pipe = 0.0
+        gap = p_cr - p_l
+        applied = veh[V_APPLIED, i] > 0.5
+        if not applied and gap > sc[S_APPTH]:
+            applied = True
+        elif applied and gap < sc[S_RELTH]:
+            applied = False
+            veh[V_MQS, i] = patm * veh[V_VQS, i] / rt     # quick-service bulb vented
+        veh[V_APPLIED, i] = 1.0 if applied else 0.0
+        if not applied:
+            # CR follows the pipe through its nozzle (linear, time constant 1/g)
+            dm = sc[S_GCR] * h * (p_l - p_cr) * v_cr / rt
+            eq = (p_l - p_cr) / (rt * (1.0 / v_l + 1.0 / v_cr))
+            dm = min(dm, eq) if dm > 0.0 else max(dm, eq)
+            veh[V_MCR, i] += dm
+            dm_pipe -= dm
+            target = patm
+        else:
+            # quick-service bulb fills from the pipe (first stage)
+            v_qs = veh[V_VQS, i]
+            p_qs = veh[V_MQS, i] * rt / v_qs
+            if p_l > p_qs:
+                dm = _exchange(p_l, v_l, p_qs, v_qs, sc[S_AQS], h, rt)
+                veh[V_MQS, i] += dm
+                dm_pipe -= dm
+            frac = min(gap / sc[S_SPAN], 1.0)
+            target = patm + veh[V_PMAX, i] * frac
+        # AR charges from the pipe through its check valve
+        if p_l > p_aux:
+            dm = _exchange(p_l, v_l, p_aux, v_aux, sc[S_AAUX], h, rt)
+            veh[V_MAUX, i] += dm
+            dm_pipe -= dm
+            p_aux += dm * rt / v_aux
+        # relay part: fill BC from AR, or vent BC, toward the target
+        # (valve openings in proportion to the error, full at S_DBAND)
+        err = target - p_cyl
+        if err > sc[S_LAP]:
+            if p_aux > p_cyl:
+                s = min(err / sc[S_DBAND], 1.0)
+                dm = _exchange(p_aux, v_aux, p_cyl, v_cyl, s * veh[V_AAPP, i], h, rt)
+                dm = min(dm, (target - p_cyl) * v_cyl / rt)
+                veh[V_MAUX, i] -= dm
+                veh[V_MCYL, i] += dm
+        elif err < -sc[S_LAP] or (not applied and p_cyl > patm):
+            s = min(-err / sc[S_DBAND], 1.0)
+            if not applied:
+                s = 1.0
+            dm = orifice_flow(p_cyl, patm, s * veh[V_AREL, i], rt) * h
+            dm = min(dm, (p_cyl - target) * v_cyl / rt)
+            veh[V_MCYL, i] -= dm
+        if not external:
+            cells[C_M, c] += dm_pipe
+
+
+@jit
+def advance(n_steps, cells, faces, veh, sc, iv, trace):
+    """
+    Advance the brake system ``n_steps`` steps of sc[S_H] seconds, in place.
+
+    cells (3, n_cells), faces (4, n_cells + 1), veh (14, N): the layouts C_*, F_*, V_*;
+    sc, iv: scalars S_*, I_*. ``trace`` (n_steps, N) or (0, N): when it has rows, row k
+    receives each vehicle's cylinder pressure, gauge [Pa], at the end of step k.
+    """
+    h = sc[S_H]
+    nsub = iv[I_SUB]
+    hs = h / nsub
+    external = iv[I_EXTERNAL] != 0
+    rt = sc[S_RT]
+    patm = sc[S_PATM]
+    m = cells[C_M]
+    vol = cells[C_VOL]
+    leak = cells[C_LEAK]
+    record = trace.shape[0] > 0
+    for k in range(n_steps):
+        if not external:
+            for _ in range(nsub):
+                _pipe_transport(cells, faces, sc, hs)
+            for j in range(m.shape[0]):
+                if leak[j] > 0.0:
+                    m_atm = patm * vol[j] / rt
+                    m[j] = m_atm + (m[j] - m_atm) / (1.0 + h * leak[j])
+            if iv[I_LAP] == 0:
+                _relay_valve(cells, sc, h)
+        _distributors(cells, veh, sc, external, h)
+        if record:
+            for i in range(veh.shape[1]):
+                trace[k, i] = veh[V_MCYL, i] * rt / veh[V_VCYL, i] - patm
