@@ -29,6 +29,12 @@ PERIOD_ROWS = 3
 PIPE_BYTES_PER_CELL = 8 * (pneumatic_kernel.N_CELL_ROWS + pneumatic_kernel.N_FACE_ROWS)
 #: [bytes] the simulator's arrays whatever the train (cylinder tables, scalars)
 SIMULATOR_FIXED_BYTES = 1 << 16
+#: [s] the most work one output period of error-controlled stepping may be given
+MAX_PERIOD_SECONDS = 0.25
+#: [s] an upper estimate of the cost of one error-controlled step: a fixed part and one per
+#: vehicle (measured ~5 us + 0.3 us per vehicle on one core of the development machine)
+STEP_SECONDS = 1.0e-5
+STEP_SECONDS_PER_VEHICLE = 5.0e-7
 #: [bytes] MCAP record and index overhead per message (opcode, length, channel, sequence,
 #: two times; message-index entry)
 BAG_BYTES_PER_MESSAGE = 48
@@ -38,6 +44,20 @@ HEAD_INPUT_BYTES = 40 + BAG_BYTES_PER_MESSAGE
 TRACTION_COMMAND_BYTES = 12 + BAG_BYTES_PER_MESSAGE
 #: [bytes] a recorded /clock (rosgraph_msgs/Clock)
 CLOCK_BYTES = 12 + BAG_BYTES_PER_MESSAGE
+
+
+def max_period_steps(n_vehicles: int) -> int:
+    """
+    Return the largest ``integration_max_steps`` (error-controlled steps per output period).
+
+    One output period is one kernel call; the offline run and ``sim_node`` take signals and
+    serve their callbacks between two. The accepted steps of a period for ``n_vehicles`` are
+    bounded so that they take at most :data:`MAX_PERIOD_SECONDS` at :data:`STEP_SECONDS` +
+    :data:`STEP_SECONDS_PER_VEHICLE` per vehicle each (the driver's rejected steps are not
+    counted here).
+    """
+    return max(1, int(MAX_PERIOD_SECONDS / (STEP_SECONDS + STEP_SECONDS_PER_VEHICLE
+                                            * max(int(n_vehicles), 1))))
 
 
 def delay_line_length(n_coaches: int, coach_length: float, speed: float, h: float) -> int:

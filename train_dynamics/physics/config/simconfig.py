@@ -19,7 +19,8 @@ import math
 from typing import Any, Callable, Mapping
 
 from train_dynamics.physics import track
-from train_dynamics.physics.config.budgets import config_memory, fmt_bytes, MAX_SIMULATOR_MEMORY
+from train_dynamics.physics.config.budgets import (config_memory, fmt_bytes, MAX_PERIOD_SECONDS,
+                                                   max_period_steps, MAX_SIMULATOR_MEMORY)
 from train_dynamics.physics.config.consist import (check_friction_below_stiffness,
                                                    check_traction_power, Consist, consist_of,
                                                    CONSIST_PARAMETERS)
@@ -245,6 +246,7 @@ class SimConfig:
                 f'integration_step samples, each output period {steps:.3g} steps (1 / '
                 'publish_rate / integration_step) per vehicle; raise brake_propagation_speed, '
                 'integration_step or publish_rate, or shorten the train')
+        self._check_work()
         # the uniform train's vehicles (and the defaults of a consist's)
         check_friction_below_stiffness(self.values)
         check_traction_power(self.values)
@@ -304,6 +306,17 @@ class SimConfig:
                               'with max_tractive_force or max_dynamic_brake_force > 0), so the '
                               'traction schedule would command nothing; remove it or add a '
                               'locomotive')
+
+    def _check_work(self) -> None:
+        """Refuse an error-control work budget that could keep one output period busy."""
+        limit = max_period_steps(self.n_coaches)
+        if self.integration_tolerance > 0.0 and self.integration_max_steps > limit:
+            raise ConfigError(
+                f'integration_max_steps {self.integration_max_steps}: more than the limit of '
+                f'{limit} error-controlled steps per output period for {self.n_coaches} '
+                f'vehicles (about {MAX_PERIOD_SECONDS:g} s of work per period: signals and '
+                'callbacks are served between periods); lower integration_max_steps '
+                '(the rest of a period runs at the fixed integration_step)')
 
     def _check_regimes(self) -> None:
         """Refuse vehicles of mixed brake regimes unless both cylinder tables are given."""

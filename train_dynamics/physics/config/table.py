@@ -276,7 +276,8 @@ _PARAMS = [
     ParamSpec('integration_max_steps', 100, INTEGER,
               'Work budget of the error-controlled integration: steps per output period; '
               'beyond it the rest of the period runs at the fixed integration_step (counted '
-              'in /diagnostics fallback_periods).', low=1, high=1000000),
+              'in /diagnostics fallback_periods). At most ~0.25 s of work per period: '
+              '25000 / (1 + N / 20) steps for N vehicles.', low=1, high=1000000),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
