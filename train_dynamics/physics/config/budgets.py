@@ -18,15 +18,25 @@ from train_dynamics.physics.pneumatic import PneumaticSpec
 
 #: [bytes] largest simulator state a configuration may need (delay line + per-coach arrays)
 MAX_SIMULATOR_MEMORY = 1 << 30
-#: [bytes] upper estimate of the simulator's arrays per coach: the kernel's packed rows
-#: (state, coupler constants, workspace; from the layout) and 32 more float rows for the
-#: per-vehicle vectors and the error-controlled stepping's tick buffers
-SIMULATOR_BYTES_PER_COACH = 8 * (len(layout.COACH) + len(layout.COUPLER) + len(layout.WORK) + 32)
 #: rows per vehicle of one output period's buffers: two tick buffers of the error-controlled
 #: chain, one trace of the pneumatic brake
 PERIOD_ROWS = 3
 #: [bytes] the pneumatic brake pipe's grid per cell: its cell rows and face rows
 PIPE_BYTES_PER_CELL = 8 * (pneumatic_kernel.N_CELL_ROWS + pneumatic_kernel.N_FACE_ROWS)
+
+
+def simulator_bytes_per_coach() -> int:
+    """
+    Return an upper estimate [bytes] of the simulator's arrays per coach.
+
+    The kernel's packed rows (state, coupler constants, workspace; from the layout) and 32
+    more float rows for the per-vehicle vectors and the error-controlled stepping's tick
+    buffers. Read when called: the layout takes its per-vehicle rows from the parameter table,
+    so this module (imported with the table) must not use the layout while it is imported.
+    """
+    return 8 * (len(layout.COACH) + len(layout.COUPLER) + len(layout.WORK) + 32)
+
+
 #: [bytes] the simulator's arrays whatever the train (cylinder tables, scalars)
 SIMULATOR_FIXED_BYTES = 1 << 16
 #: [s] the most work one output period of error-controlled stepping may be given
@@ -76,7 +86,7 @@ def simulator_memory(n_coaches: int, coach_length: float, speed: float, h: float
     row per vehicle); ``cells``: the pneumatic brake pipe's cells (0: empirical brake).
     """
     return (8 * delay_line_length(n_coaches, coach_length, speed, h)
-            + SIMULATOR_BYTES_PER_COACH * n_coaches
+            + simulator_bytes_per_coach() * n_coaches
             + 8 * PERIOD_ROWS * (period_steps + 1) * n_coaches
             + PIPE_BYTES_PER_CELL * (cells + 1) + SIMULATOR_FIXED_BYTES)
 
@@ -117,10 +127,10 @@ def sample_topics(cfg: Any) -> tuple[str, ...]:
     Return the JointState topics a run of ``cfg`` records at every output instant.
 
     The outputs (couplers, coaches, brake_cylinders), ``brake_reservoirs`` with the pneumatic
-    brake, ``vehicle_forces`` for a train with external forces; in recording order.
+    brake, ``vehicle_motion``, ``vehicle_forces`` for a train with external forces.
     """
     out = topics.OUTPUT_TOPICS + ((topics.BRAKE_RESERVOIRS_TOPIC,) if has_reservoirs(cfg)
-                                  else ())
+                                  else ()) + (topics.VEHICLE_MOTION_TOPIC,)
     if cfg.external_forces:
         out += (topics.VEHICLE_FORCES_TOPIC,)
     return out
@@ -128,9 +138,13 @@ def sample_topics(cfg: Any) -> tuple[str, ...]:
 
 def output_bytes_per_sample(n_coaches: int, joint_topics: tuple[str, ...] = topics.OUTPUT_TOPICS
                             ) -> int:
-    """Return the bag bytes of one output instant: a JointState per topic of ``joint_topics``."""
+    """
+    Return the bag bytes of one output instant: a JointState per topic of ``joint_topics``.
+
+    ``vehicle_motion`` carries the frame_id ``track`` (8 bytes more).
+    """
     digits = len(str(n_coaches))
-    total = 0
+    total = 8 if topics.VEHICLE_MOTION_TOPIC in joint_topics else 0
     for topic in joint_topics:
         if topic == topics.COUPLERS_TOPIC:
             total += _joint_state_bytes(n_coaches - 1, 8 + digits)
