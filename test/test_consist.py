@@ -188,7 +188,10 @@ def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
     page = (Path(__file__).resolve().parents[1] / 'docs' / 'parameters.md').read_text()
     assert f'| `{field}` | `{spec.name}` |' in page, 'the per-vehicle table of the docs'
     value = _distinctive(spec)
-    path = write(tmp_path, f'vehicle_types: {{w: {{{field}: {value!r}}}}}\n'
+    # a force limit needs its power limit (consist.check_traction_power)
+    power = dict(consist._POWER_PAIRS).get(field)
+    extra = f', {power}: 1.0e6' if power else ''
+    path = write(tmp_path, f'vehicle_types: {{w: {{{field}: {value!r}{extra}}}}}\n'
                            'vehicles: [{type: w, count: 3}]\n')
     cfg = SimConfig.from_dict({'consist_file': path})
     if spec.choices:

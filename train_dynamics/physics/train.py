@@ -24,7 +24,7 @@ import itertools
 import numpy as np
 
 from train_dynamics.physics import equilibrium, pneumatic
-from train_dynamics.physics.config import (ConfigError, Consist, G_FILL_TIME, G_RELEASE_TIME,
+from train_dynamics.physics.config import (Consist, G_FILL_TIME, G_RELEASE_TIME,
                                            P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
                                            P_RELEASE_TIME, SimConfig)
 from train_dynamics.physics.config.consist import check_friction_below_stiffness
@@ -38,6 +38,7 @@ from train_dynamics.physics.kernel.step import make_workspace, OK, STATUS_TEXT
 from train_dynamics.physics.kernel.traction import traction_force
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.resistance import equivalent_mass
+from train_dynamics.quoting import quote
 
 
 class TrainSimulator(TrainOutputs, TrainBalances):
@@ -272,10 +273,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     def set_model(self, model_type: str, scale_factor: float) -> None:
         """Switch the coupler friction law live (state untouched)."""
         if model_type not in couplers.MODEL_CODES:
-            raise ValueError(f'model_type must be sign or tanh, got {model_type!r}')
+            raise ValueError(f'model_type must be sign or tanh, got {quote(model_type)}')
         u = float(scale_factor)
         if not np.isfinite(u) or u <= 0.0:
-            raise ValueError(f'scale_factor must be > 0, got {scale_factor!r}')
+            raise ValueError(f'scale_factor must be > 0, got {quote(scale_factor)}')
         self._sync()      # the chain reaches the present tick under the old law
         self.model_type = model_type
         self.model = couplers.MODEL_CODES[model_type]
@@ -289,7 +290,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     def _finite(p, what):
         arr = np.asarray(p, dtype=float)
         if not np.all(np.isfinite(arr)):
-            raise ValueError(f'{what}: pressure must be finite, got {p!r}')
+            raise ValueError(f'{what}: pressure must be finite, got {quote(p)}')
         return arr
 
     def set_head_pipe_pressure(self, p: float) -> None:
@@ -349,7 +350,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         """Set the traction command of locomotive ``index`` (0-based), in [-1, 1]."""
         c = float(command)
         if not (np.isfinite(c) and -1.0 <= c <= 1.0):
-            raise ValueError(f'traction command must be in [-1, 1], got {command!r}')
+            raise ValueError(f'traction command must be in [-1, 1], got {quote(command)}')
         if index not in self.consist.locomotives:
             raise ValueError(f'vehicle {index + 1} is not a locomotive (no traction)')
         self.coach[INPUT.T_CMD, index] = c
@@ -583,14 +584,12 @@ def _cylinder_tables(cfg: SimConfig, consist: Consist) -> tuple[np.ndarray, np.n
     """
     Return the filling and release tables of the train's brake regime.
 
-    The parameters' own tables when set; else the regime of the vehicles (all the same:
-    one regime per train for now) or of ``brake_regime``.
+    The parameters' own tables when set; else the regime of the vehicles (all the same: a
+    train of mixed regimes gives both tables) or of ``brake_regime``.
     """
     regimes = set(consist.regimes)
-    if len(regimes) > 1 and not cfg.cylinder_fill_time:
-        raise ConfigError('brake_regime: the vehicles mix regimes '
-                          f'({", ".join(sorted(regimes))}); one regime per train')
-    regime = regimes.pop() if regimes else cfg.brake_regime
+    # vehicles of mixed regimes have both tables given (SimConfig refuses them otherwise)
+    regime = regimes.pop() if len(regimes) == 1 else cfg.brake_regime
     fill_t = P_FILL_TIME if regime == 'P' else G_FILL_TIME
     rel_t = P_RELEASE_TIME if regime == 'P' else G_RELEASE_TIME
     fill = (list(cfg.cylinder_fill_time), list(cfg.cylinder_fill_fraction)) \

@@ -38,13 +38,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from train_dynamics.physics.config import spec
-from train_dynamics.physics.config.files import config_dirs, resolve_path, RosParamLoader
+from train_dynamics.physics.config.budgets import fmt_bytes
+from train_dynamics.physics.config.files import config_dirs, FastRosParamLoader, resolve_path
 from train_dynamics.physics.config.spec import ConfigError
-from train_dynamics.physics.config.table import PARAMETERS, validate_value, VEHICLE_PARAMETERS
+from train_dynamics.physics.config.table import (MAX_VEHICLES, PARAMETERS, validate_value,
+                                                 VEHICLE_PARAMETERS)
+from train_dynamics.quoting import clip, quote
 import yaml
 
 #: the fields a vehicle type may set (each a simulator parameter, see PARAM_OF)
@@ -74,15 +77,33 @@ CONSIST_PARAMETERS = frozenset({'consist_file', 'num_coaches', 'masses',
 _FRICTION_PAIRS = (('buffer_stiffness', 'buffer_friction', 'k_f < k_e'),
                    ('draw_gear_stiffness', 'draw_gear_friction', 'k_fc < k_ec'))
 
+#: a locomotive's force limits and their power limits: (force, power)
+_POWER_PAIRS = (('max_tractive_force', 'max_power'),
+                ('max_dynamic_brake_force', 'max_dynamic_brake_power'))
+
 LIBRARY = 'vehicles.yaml'
 
+#: [bytes] the largest consist file read (~20000 lines, ~0.5 s to parse): a parameter set
+#: naming a file reads it on the node's executor, so its cost is bounded
+MAX_FILE_BYTES = 1 << 20
 
-def check_friction_below_stiffness(fields: Mapping[str, Any], where: str = '') -> None:
+
+def _at(i: int, size: int, unit: str, labels: Sequence[str] | None) -> str:
+    """Return ' at <unit> <label>' of element ``i`` of arrays of ``size`` ('' for one value)."""
+    if size <= 1:
+        return ''
+    return f' at {unit} {labels[i] if labels is not None else i + 1}'
+
+
+def check_friction_below_stiffness(fields: Mapping[str, Any], where: str = '',
+                                   unit: str = 'coupler',
+                                   labels: Sequence[str] | None = None) -> None:
     """
     Raise :class:`ConfigError` unless friction < stiffness for buffers and draw gear (eqs. 2-3).
 
     Otherwise the force would change sign on unloading. ``fields``: numbers or arrays (one
-    value per coupler; the first failing one is named); ``where`` prefixes the message.
+    value per ``unit``; the first failing one is named, by ``labels`` when given, else by its
+    1-based index); ``where`` prefixes the message.
     """
     for stiff, fric, rule in _FRICTION_PAIRS:
         k = np.atleast_1d(np.asarray(fields[stiff], dtype=float))
@@ -90,17 +111,45 @@ def check_friction_below_stiffness(fields: Mapping[str, Any], where: str = '') -
         bad = np.flatnonzero(~(f < k))
         if bad.size:
             i = bad[0]
-            at = f' at coupler {i + 1}' if k.size > 1 else ''
             raise ConfigError(f'{where}{fric} must be < {stiff} ({rule}; {f[i]:g} >= {k[i]:g}'
-                              f'{at}), or the force would change sign on unloading')
+                              f'{_at(i, k.size, unit, labels)}), or the force would change sign '
+                              'on unloading')
+
+
+def check_traction_power(fields: Mapping[str, Any], where: str = '',
+                         labels: Sequence[str] | None = None) -> None:
+    """
+    Raise :class:`ConfigError` for a force limit without its power limit (traction.py).
+
+    The available force is min(F, P / |v|, mu m g): a vehicle with ``max_tractive_force`` > 0
+    and ``max_power`` 0 would pull only at standstill (it crept at mm/s); the same for the
+    dynamic brake. ``fields``: numbers or arrays (one per vehicle; the first failing one is
+    named, as in :func:`check_friction_below_stiffness`); ``where`` prefixes the message.
+    """
+    for force, power in _POWER_PAIRS:
+        f = np.atleast_1d(np.asarray(fields[force], dtype=float))
+        p = np.broadcast_to(np.asarray(fields[power], dtype=float), f.shape)
+        bad = np.flatnonzero((f > 0.0) & ~(p > 0.0))
+        if bad.size:
+            i = bad[0]
+            at = _at(i, f.size, 'vehicle', labels)
+            raise ConfigError(f'{where}{power} must be > 0 with {force} {f[i]:g} N{at}: the '
+                              f'available force min({force}, {power} / |v|) would be 0 at any '
+                              'speed; give the power [W] at the wheel rim')
 
 
 def _read_yaml(path: Path) -> Any:
+    """Return the YAML document of ``path``; refuse a file over :data:`MAX_FILE_BYTES` unread."""
     try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise ConfigError(f'{path}: {fmt_bytes(size)}, more than the limit of '
+                              f'{fmt_bytes(MAX_FILE_BYTES)} for a consist file (use count: to '
+                              'repeat a vehicle)')
         with open(path, encoding='utf-8') as fh:
-            return yaml.load(fh, Loader=RosParamLoader)
+            return yaml.load(fh, Loader=FastRosParamLoader)
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise ConfigError(f'cannot read {path}: {exc}'.splitlines()[0]) from None
+        raise ConfigError(clip(f'cannot read {path}: {exc}'.splitlines()[0])) from None
 
 
 def check_field(field: str, value: Any, where: str) -> Any:
@@ -115,7 +164,7 @@ def check_field(field: str, value: Any, where: str) -> Any:
                               f'(end fields: {", ".join(COUPLER_FIELDS)})')
         return {k: check_field(k, v, f'{where}: {field}') for k, v in value.items()}
     if field not in VEHICLE_FIELDS:
-        raise ConfigError(f'{where}: unknown field {field!r} (fields: '
+        raise ConfigError(f'{where}: unknown field {quote(field)} (fields: '
                           f'{", ".join(VEHICLE_FIELDS)}, {", ".join(END_KEYS)})')
     param = PARAM_OF.get(field, field)
     try:
@@ -132,11 +181,13 @@ def _types_of(doc: Any, source: str) -> dict[str, dict[str, Any]]:
         raise ConfigError(f'{source}: vehicle_types must be a mapping of name -> fields')
     types = {}
     for name, fields in doc.items():
+        if not isinstance(name, str):
+            raise ConfigError(f'{source}: vehicle type name {quote(name)} is not a string')
         fields = fields or {}
         if not isinstance(fields, dict):
-            raise ConfigError(f'{source}: vehicle type {name!r}: fields must be a mapping')
-        types[str(name)] = {k: check_field(k, v, f'{source}: vehicle type {name!r}')
-                            for k, v in fields.items()}
+            raise ConfigError(f'{source}: vehicle type {quote(name)}: fields must be a mapping')
+        types[name] = {k: check_field(k, v, f'{source}: vehicle type {quote(name)}')
+                       for k, v in fields.items()}
     return types
 
 
@@ -247,8 +298,8 @@ class Consist:
     def locomotives(self) -> list[int]:
         """Return the 0-based indices of the vehicles with traction or dynamic brake."""
         f = self.fields
-        return [i for i in range(self.n)
-                if f['max_tractive_force'][i] > 0.0 or f['max_dynamic_brake_force'][i] > 0.0]
+        return np.flatnonzero((f['max_tractive_force'] > 0.0)
+                              | (f['max_dynamic_brake_force'] > 0.0)).tolist()
 
     def coupler(self, field: str) -> np.ndarray:
         """Return one constant of every coupling (:data:`COUPLER_FIELDS`): N-1 values."""
@@ -265,34 +316,43 @@ def _end(row: dict[str, Any], key: str) -> dict[str, float]:
     return {f: float(own.get(f, row[f])) for f in COUPLER_FIELDS}
 
 
-def _make(rows: list[tuple[str, dict[str, Any]]], source: str,
+def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
           whole: Mapping[str, float] | None = None) -> Consist:
     """
-    Build a Consist from (type, complete field dict) rows of a file; cross-field checks.
+    Build a Consist from (type, complete field dict, count) entries of a file.
 
-    ``whole``: whole-coupling constants that replace the ends' series values in every coupling.
+    Cross-field checks once per entry (on arrays of the entries, each named by its first
+    vehicle; each end's buffer and draw gear on their own); the arrays are the entries'
+    fields repeated ``count`` times (the caller bounded the sum of the counts). Coupling j
+    joins the rear end of vehicle j to the front end of vehicle j + 1
+    (:func:`coupling_of_ends`); ``whole``: whole-coupling constants that replace the ends'
+    series values in every coupling.
     """
-    checked: set[int] = set()
-    for k, (name, f) in enumerate(rows, start=1):
-        if id(f) not in checked:        # a vehicle repeated by count: its fields once
-            for key in END_KEYS:
-                check_friction_below_stiffness(_end(f, key),
-                                               f'{source}: vehicle {k} ({name}) {key} end: ')
-            checked.add(id(f))
-    if len(rows) < 2:
-        raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {len(rows)}')
+    counts = np.array([c for _, _, c in entries], dtype=np.int64)
     numeric = [f for f in VEHICLE_FIELDS if f != 'brake_regime']
-    fields = {f: np.array([r[1][f] for r in rows], dtype=float) for f in numeric}
-    rear = [_end(r[1], 'rear') for r in rows[:-1]]
-    front = [_end(r[1], 'front') for r in rows[1:]]
-    couplings = coupling_of_ends({f: np.array([e[f] for e in rear]) for f in COUPLER_FIELDS},
-                                 {f: np.array([e[f] for e in front]) for f in COUPLER_FIELDS})
+    per_entry = {f: np.array([e[1][f] for e in entries], dtype=float) for f in numeric}
+    firsts = np.concatenate(([1], 1 + np.cumsum(counts[:-1])))
+    labels = [f'{first} ({name})' for first, (name, _, _) in zip(firsts, entries)]
+    ends = {}
+    for key in END_KEYS:
+        own = [_end(e[1], key) for e in entries]
+        ends[key] = {f: np.array([o[f] for o in own]) for f in COUPLER_FIELDS}
+        check_friction_below_stiffness(ends[key], f'{source}: {key} end: ', 'vehicle', labels)
+    check_traction_power(per_entry, f'{source}: ', labels)
+    n = int(counts.sum())
+    if n < 2:
+        raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {n}')
+    fields = {f: np.repeat(a, counts) for f, a in per_entry.items()}
+    types = [name for name, _, c in entries for _ in range(c)]
+    regimes = [f['brake_regime'] for _, f, c in entries for _ in range(c)]
+    entry_of = np.repeat(np.arange(len(entries)), counts)
+    couplings = coupling_of_ends({f: a[entry_of[:-1]] for f, a in ends['rear'].items()},
+                                 {f: a[entry_of[1:]] for f, a in ends['front'].items()})
     for f, v in (whole or {}).items():
-        couplings[f] = np.full(len(rows) - 1, float(v))
+        couplings[f] = np.full(n - 1, float(v))
     if whole:
         check_friction_below_stiffness(couplings, f'{source}: couplings: ')
-    return Consist([r[0] for r in rows], fields, [r[1]['brake_regime'] for r in rows],
-                   couplings)
+    return Consist(types, fields, regimes, couplings)
 
 
 def _whole_couplings(doc: Any, source: str) -> dict[str, float]:
@@ -309,11 +369,25 @@ def _whole_couplings(doc: Any, source: str) -> dict[str, float]:
     return {k: check_field(k, v, f'{source}: couplings') for k, v in doc.items()}
 
 
+def _count_of(entry: dict[str, Any], where: str) -> int:
+    """Return the ``count`` of a vehicles entry (1 when absent), checked."""
+    count = entry.pop('count', 1)
+    if not isinstance(count, int) or isinstance(count, bool) or count < 1:
+        raise ConfigError(f'{where}: count: must be an integer >= 1, got {quote(count)}')
+    if count > MAX_VEHICLES:
+        raise ConfigError(f'{where}: count: {count}, more than the limit of {MAX_VEHICLES} '
+                          'vehicles in a train')
+    return count
+
+
 def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None) -> Consist:
     """
     Read a consist file; ``values`` are the simulator parameters (the fields' defaults).
 
     Raise ConfigError naming the file, the vehicle (1-based, with its type) and the field.
+    The number of vehicles (the sum of the counts) is checked against
+    :data:`~train_dynamics.physics.config.table.MAX_VEHICLES` before any per-vehicle array
+    is built.
     """
     file = resolve_path(path, base_dir)
     source = str(file)
@@ -323,33 +397,40 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
                           'optionally vehicle_types:)')
     unknown = set(doc) - {'vehicle_types', 'vehicles', 'couplings'}
     if unknown:
-        raise ConfigError(f'{source}: unknown key(s) {", ".join(sorted(map(str, unknown)))} '
-                          '(expected vehicle_types, vehicles, couplings)')
+        raise ConfigError(clip(f'{source}: unknown key(s) '
+                               f'{", ".join(sorted(quote(k) for k in unknown))} '
+                               '(expected vehicle_types, vehicles, couplings)'))
     types = library_types()
     types.update(_types_of(doc.get('vehicle_types'), source))
     vehicles = doc.get('vehicles')
     if not isinstance(vehicles, list) or not vehicles:
         raise ConfigError(f'{source}: vehicles: must be a non-empty list, front to rear')
+    if len(vehicles) > MAX_VEHICLES:
+        raise ConfigError(f'{source}: vehicles: {len(vehicles)} entries, more than the limit of '
+                          f'{MAX_VEHICLES} vehicles in a train')
     defaults = defaults_of(values)
-    rows: list[tuple[str, dict[str, Any]]] = []
+    entries: list[tuple[str, dict[str, Any], int]] = []
+    total = 0
     for k, entry in enumerate(vehicles, start=1):
         where = f'{source}: vehicles[{k}]'
         if not isinstance(entry, dict) or 'type' not in entry:
             raise ConfigError(f'{where}: each entry needs type: NAME')
         entry = dict(entry)
-        name = str(entry.pop('type'))
-        if name not in types:
-            raise ConfigError(f'{where}: unknown vehicle type {name!r} (known: '
-                              f'{", ".join(sorted(types))})')
-        count = entry.pop('count', 1)
-        if not isinstance(count, int) or isinstance(count, bool) or count < 1:
-            raise ConfigError(f'{where} ({name}): count: must be an integer >= 1, got {count!r}')
+        name = entry.pop('type')
+        if not isinstance(name, str) or name not in types:
+            raise ConfigError(clip(f'{where}: unknown vehicle type {quote(name)} (known: '
+                                   f'{", ".join(sorted(types))})'))
+        count = _count_of(entry, f'{where} ({name})')
+        total += count
+        if total > MAX_VEHICLES:
+            raise ConfigError(f'{source}: vehicles: {total} vehicles up to vehicles[{k}], more '
+                              f'than the limit of {MAX_VEHICLES} vehicles in a train')
         overrides = {f: check_field(f, v, f'{where} ({name})') for f, v in entry.items()}
         merged = {**defaults, **types[name], **overrides}
         for key in END_KEYS:     # an end's own fields: the type's, then the entry's
             merged[key] = {**(types[name].get(key) or {}), **(overrides.get(key) or {})}
-        rows.extend((name, merged) for _ in range(count))
-    return _make(rows, source, _whole_couplings(doc.get('couplings'), source))
+        entries.append((name, merged, count))
+    return _make(entries, source, _whole_couplings(doc.get('couplings'), source))
 
 
 def uniform_consist(values: dict[str, Any]) -> Consist:

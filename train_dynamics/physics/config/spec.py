@@ -9,8 +9,11 @@ param set``, consist file, sweep file), goes through :func:`check_value`. Never 
 from __future__ import annotations
 
 from dataclasses import dataclass
+import itertools
 import math
 from typing import Any
+
+from train_dynamics.quoting import quote
 
 # Kinds of value, named after the ROS 2 parameter types they map to.
 DOUBLE = 'double'
@@ -24,6 +27,9 @@ ARRAY_KINDS = (DOUBLE_ARRAY, STRING_ARRAY)
 #: how a per-vehicle field joins two vehicles into one coupler (see config.consist)
 SERIES = 'series'   # the two ends' springs in series: compliances add, k_a k_b / (k_a + k_b)
 ADDED = 'added'     # the two ends' travels add: a + b
+
+#: the most values an array parameter may hold (checked before any value is looked at)
+MAX_ITEMS = 100_000
 
 
 class ConfigError(ValueError):
@@ -62,6 +68,7 @@ class ParamSpec:
     vehicle: str = ''
     connection: str = ''
     row: str = ''
+    max_items: int = MAX_ITEMS
 
     def bounds(self) -> list[str]:
         """Return the numeric range in words, e.g. ``['> 0', '<= 1e+07']`` (docs, descriptors)."""
@@ -89,18 +96,26 @@ def check_value(spec: ParamSpec, value: Any) -> Any:
         return _check_number(spec, value, name)
     if kind == BOOL:
         if not isinstance(value, bool):
-            raise ConfigError(f'{name}: expected true or false, got {value!r}')
+            raise ConfigError(f'{name}: expected true or false, got {quote(value)}')
         return value
     if kind == STRING:
         if not isinstance(value, str):
-            raise ConfigError(f'{name}: expected a string, got {type(value).__name__} {value!r}')
+            raise ConfigError(f'{name}: expected a string, got {type(value).__name__} '
+                              f'{quote(value)}')
         if spec.choices and value not in spec.choices:
-            raise ConfigError(f'{name}: {value!r} is not one of {", ".join(spec.choices)}')
+            raise ConfigError(f'{name}: {quote(value)} is not one of {", ".join(spec.choices)}')
         return value
     if kind in ARRAY_KINDS:
         if isinstance(value, (str, bytes)) or not hasattr(value, '__iter__'):
             what = 'numbers' if kind == DOUBLE_ARRAY else 'strings'
-            raise ConfigError(f'{name}: expected a list of {what}, got {value!r}')
+            raise ConfigError(f'{name}: expected a list of {what}, got {quote(value)}')
+        count = len(value) if hasattr(value, '__len__') else None
+        if count is None:       # an iterator: look at one value more than the limit at most
+            value = list(itertools.islice(value, spec.max_items + 1))
+            count = len(value)
+        if count > spec.max_items:
+            raise ConfigError(f'{name}: {count} values, more than the limit of '
+                              f'{spec.max_items}')
         if kind == STRING_ARRAY:
             return [_check_string(item, f'{name}[{k}]') for k, item in enumerate(value)]
         return [_check_number(spec, item, f'{name}[{k}]') for k, item in enumerate(value)]
@@ -109,7 +124,7 @@ def check_value(spec: ParamSpec, value: Any) -> Any:
 
 def _check_string(value: Any, label: str) -> str:
     if not isinstance(value, str):
-        raise ConfigError(f'{label}: expected a string, got {value!r}')
+        raise ConfigError(f'{label}: expected a string, got {quote(value)}')
     return value
 
 
@@ -118,14 +133,19 @@ def _check_number(spec: ParamSpec, value: Any, label: str) -> float | int:
     if spec.kind == INTEGER:
         if not isinstance(value, int) or isinstance(value, bool):
             raise ConfigError(f'{label}: expected an integer, got {type(value).__name__} '
-                              f'{value!r}')
+                              f'{quote(value)}')
         value = int(value)
+        if value.bit_length() > 63:      # (also: %g of it would overflow)
+            raise ConfigError(f'{label}: out of range, got {quote(value)}')
     elif not _is_number(value):
         if spec.kind == DOUBLE_ARRAY:
-            raise ConfigError(f'{label}: expected a number, got {value!r}')
-        raise ConfigError(f'{label}: expected a number, got {type(value).__name__} {value!r}')
+            raise ConfigError(f'{label}: expected a number, got {quote(value)}')
+        raise ConfigError(f'{label}: expected a number, got {type(value).__name__} {quote(value)}')
     else:
-        value = float(value)
+        try:
+            value = float(value)
+        except OverflowError:           # an integer beyond the floats
+            raise ConfigError(f'{label}: must be finite, got {quote(value)}') from None
     _check_range(spec, value, label)
     return value
 

@@ -15,6 +15,7 @@ from typing import Any, Mapping
 
 from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
                                                 DOUBLE_ARRAY, INTEGER, ParamSpec, SERIES, STRING)
+from train_dynamics.quoting import quote
 
 # Pressure defaults, written once (used by the simulator and the brake valve).
 ATMOSPHERIC_PRESSURE = 101325.0    # [Pa absolute]: FluidPressure (absolute) = gauge + this
@@ -40,6 +41,9 @@ G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
 #: default integration_tolerance: 0 = fixed step
 INTEGRATION_TOLERANCE = 0.0
 
+#: the most vehicles of a train, however given (num_coaches, masses, a consist file's counts)
+MAX_VEHICLES = 100_000
+
 _PARAMS = [
     ParamSpec('model_type', 'tanh', STRING,
               'Coupler friction law: "tanh" uses tanh(u*ydot) (paper eqs. 14-16), '
@@ -49,14 +53,15 @@ _PARAMS = [
               'u in tanh(u*ydot) [s/m], > 0 (paper eq. 14).',
               low=0.0, high=1.0e7, low_exclusive=True, dynamic=True),
     ParamSpec('num_coaches', 3, INTEGER, 'Number of coaches N >= 2 (ignored when masses is set).',
-              low=2, high=100000),
+              low=2, high=MAX_VEHICLES),
     ParamSpec('coach_mass', 45000.0, DOUBLE,
               'Mass of every coach m_i [kg], unless masses is set. Bounds: a track trolley '
               '(~0.5 t) to a loaded heavy-load wagon (~800 t).', low=500.0, high=1.0e6,
               vehicle='mass'),
     ParamSpec('masses', [], DOUBLE_ARRAY,
               'Per-coach masses [kg], front to rear; non-empty overrides num_coaches and '
-              'coach_mass. Bounds as coach_mass.', low=500.0, high=1.0e6),
+              'coach_mass. Bounds as coach_mass; at most as many values as num_coaches allows.',
+              low=500.0, high=1.0e6, max_items=MAX_VEHICLES),
     ParamSpec('coach_length', 25.0, DOUBLE,
               'Coach length [m]: brake-pipe length per coach. Bounds: a trolley (1 m) to '
               'twice the longest rail vehicles (~50 m).', low=1.0, high=100.0, vehicle='length',
@@ -163,7 +168,7 @@ _PARAMS = [
               low=0.0, high=1.0e5),
     ParamSpec('angle_cock_closed', 0, INTEGER,
               'Pneumatic: coupling k (between vehicles k and k+1) whose angle cocks are '
-              'closed, cutting the brake pipe; 0 = all open.', low=0, high=100000),
+              'closed, cutting the brake pipe; 0 = all open.', low=0, high=MAX_VEHICLES),
     ParamSpec('brake_pipe_diameter', 0.032, DOUBLE,
               'Pneumatic: inner diameter of the brake pipe [m] (EN 15355: 25-32 mm).',
               low=0.01, high=0.1),
@@ -261,7 +266,8 @@ _PARAMS = [
               '500/(R-30) below.', low=100.0, high=1.0e6),
     ParamSpec('traction_schedule_times', [], DOUBLE_ARRAY,
               'Offline runs without a traction bag: times [s] (increasing) from which every '
-              'locomotive holds the matching traction_schedule_commands entry.',
+              'locomotive holds the matching traction_schedule_commands entry; refused for a '
+              'train without a locomotive.',
               low=0.0, high=1.0e7),
     ParamSpec('traction_schedule_commands', [], DOUBLE_ARRAY,
               'Traction command in [-1, 1] (> 0 traction, < 0 dynamic brake) from each '
@@ -276,7 +282,8 @@ _PARAMS = [
     ParamSpec('integration_max_steps', 100, INTEGER,
               'Work budget of the error-controlled integration: steps per output period; '
               'beyond it the rest of the period takes at most as many equal steps without '
-              'error control (counted in /diagnostics fallback_periods).', low=1,
+              'error control (counted in /diagnostics fallback_periods). At most ~0.25 s of '
+              'work per period: 25000 / (1 + N / 20) steps for N vehicles.', low=1,
               high=1000000),
 ]
 
@@ -337,5 +344,5 @@ def validate_value(name: str, value: Any,
     """
     spec = table.get(name)
     if spec is None:
-        raise ConfigError(f'unknown parameter {name!r}')
+        raise ConfigError(f'unknown parameter {quote(name)}')
     return check_value(spec, value)
