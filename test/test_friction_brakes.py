@@ -1,0 +1,109 @@
+"""Friction materials, EN 14531-1 force chain, braked mass, wheel slide, slide protection."""
+import math
+
+import pytest
+
+from train_dynamics.physics import friction as fr
+from train_dynamics.physics import wheelset as ws
+
+G = 9.81
+
+
+def test_force_chain_worked_example():
+    # Tread-braked wagon worked by hand with the EN 14531-1 formulae: a 10" cylinder
+    # (d = 254 mm, A = 0.050671 m^2) at 3.8 bar, cylinder efficiency 0.95, return spring
+    # 1500 N; rigging ratio 8.5, efficiency 0.83; 8 cast-iron blocks; at 60 km/h.
+    area = math.pi * 0.254 ** 2 / 4.0
+    piston = 3.8e5 * area * 0.95 - 1500.0                  # 18292.2 - 1500 = 16792.2 N
+    assert piston == pytest.approx(16792.2, abs=0.5)
+    normal = fr.chain_normal_force(3.8e5, area, 1500.0, 8.5, 0.83, cylinders=1,
+                                   cylinder_efficiency=0.95)
+    assert normal == pytest.approx(16792.2 * 8.5 * 0.83, rel=1e-5)      # 118 469 N
+    block = normal / 8                                                   # 14 809 N = 1.5096 t
+    k = block / (1000 * G)
+    mu = 0.6 * (16 * k + 100) / (80 * k + 100) * (60 + 100) / (5 * 60 + 100)
+    # 0.6 (16 * 1.5096 + 100) / (80 * 1.5096 + 100) = 0.33742; * (160 / 400) = 0.13497
+    assert mu == pytest.approx(0.13497, abs=5e-5)
+    force = fr.retarding_force(fr.CAST_IRON, 60 / 3.6, normal, 8)
+    assert force == pytest.approx(mu * normal, rel=1e-12)
+    assert force == pytest.approx(15_990.0, rel=1e-3)
+    # below the spring's pressure the chain gives nothing
+    assert fr.chain_normal_force(1500.0 / area / 2, area, 1500.0, 8.5, 0.83) == 0.0
+
+
+def _deceleration(material, kmh, normal=120_000.0, blocks=8, mass=60_000.0):
+    return fr.retarding_force(material, kmh / 3.6, normal, blocks) / mass
+
+
+def test_cast_iron_falls_with_speed_disc_nearly_constant():
+    ratio = _deceleration(fr.CAST_IRON, 10) / _deceleration(fr.CAST_IRON, 100)
+    assert 1.8 <= ratio <= 2.6
+    assert ratio == pytest.approx((110 / 150) / (200 / 600), rel=1e-12)
+    disc = _deceleration(fr.DISC, 10) / _deceleration(fr.DISC, 100)
+    assert abs(disc - 1.0) <= 0.15
+    for material in (fr.COMPOSITE_K, fr.COMPOSITE_LL):
+        assert abs(_deceleration(material, 10) / _deceleration(material, 100) - 1.0) <= 0.3
+
+
+@pytest.mark.parametrize('material, braked_mass, blocks', [
+    (fr.CAST_IRON, 50_000.0, 8), (fr.DISC, 75_000.0, 16), (fr.COMPOSITE_K, 60_000.0, 8)])
+def test_braked_mass_reproduces_braked_weight_percentage(material, braked_mass, blocks):
+    mass = 50_000.0
+    tau = 1.5                          # first-order fill: equivalent response time tau
+    test = ws.BrakeTest(mass=mass, v0=120 / 3.6, material=material, blocks=blocks,
+                        fill_tau=tau, h=0.01)
+    rotating = test.inertia / test.radius ** 2
+    test.normal_full = fr.braked_mass_normal_force(braked_mass, mass, material, blocks, 2 * tau,
+                                                   inertia=rotating)
+    result = test.run()
+    assert result['longest_locked'] == 0.0
+    lam = fr.minden_percentage(120 / 3.6, result['distance'])
+    assert lam == pytest.approx(100 * braked_mass / mass, rel=0.03)
+
+
+def test_load_weighing():
+    assert fr.load_weighed_force(30e3, 25e3, 90e3, 50e3, 150e3, changeover_mass=50e3) == 50e3
+    assert fr.load_weighed_force(60e3, 25e3, 90e3, 50e3, 150e3, changeover_mass=50e3) == 150e3
+    assert fr.load_weighed_force(57.5e3, 25e3, 90e3, 50e3, 150e3) == pytest.approx(100e3)
+    assert fr.load_weighed_force(120e3, 25e3, 90e3, 50e3, 150e3) == 150e3
+
+
+def test_creep_law_saturates_and_falls():
+    mu = 0.05
+    assert ws.creep_coefficient(0.0, 20.0, mu) == 0.0
+    peak = max(ws.creep_coefficient(20.0 * k / 1000, 20.0, mu) for k in range(1, 50))
+    assert 0.95 * mu < peak <= mu
+    assert ws.creep_coefficient(20.0, 20.0, mu) == pytest.approx(
+        mu * (0.6 * math.exp(-0.6 * 20.0) + 0.4), rel=1e-9)          # locked: sliding friction
+    assert ws.available_adhesion(100 / 3.6, ws.DRY_ADHESION) == pytest.approx(
+        0.161 + 7.5 / 144, rel=1e-12)
+
+
+def _emergency(mu_low, wsp, v0=100 / 3.6):
+    return ws.BrakeTest(mu_low=mu_low, wsp=wsp, v0=v0, h=0.005).run()
+
+
+def test_dry_rail_no_slide_and_energy_momentum():
+    r = _emergency(ws.DRY_ADHESION, 'none')
+    assert r['sliding_time'] == 0.0 and r['longest_locked'] == 0.0
+    assert r['v_end'] < 0.05
+    balance = r['brake_work'] + r['creep_work'] - r['energy_drop']
+    assert abs(balance) <= 0.005 * r['initial_energy']
+    assert abs(balance) <= 1e-12 * r['initial_energy']       # exact by construction
+    assert r['impulse'] == pytest.approx(r['momentum_drop'], rel=1e-12)
+
+
+def test_low_adhesion_locks_without_wsp_not_with_builtin():
+    mu = 0.05
+    ideal = ws.adhesion_limited_distance(100 / 3.6, mu)
+    bare = _emergency(mu, 'none')
+    assert bare['longest_locked'] > 10.0                    # locked for most of the stop
+    assert bare['creep_work'] > 0.5 * bare['initial_energy']     # the rail, not the brake
+    protected = _emergency(mu, 'builtin')
+    assert protected['longest_locked'] <= 0.5
+    assert protected['distance'] <= 1.3 * ideal
+    assert protected['distance'] < bare['distance']
+    for r in (bare, protected):
+        assert abs(r['brake_work'] + r['creep_work'] - r['energy_drop']) \
+            <= 0.005 * r['initial_energy']
+        assert r['impulse'] == pytest.approx(r['momentum_drop'], rel=1e-12)
