@@ -53,7 +53,7 @@ def test_braked_mass_reproduces_braked_weight_percentage(material, braked_mass, 
     test = ws.BrakeTest(mass=mass, v0=120 / 3.6, material=material, blocks=blocks,
                         fill_tau=tau, h=0.01)
     rotating = test.inertia / test.radius ** 2
-    test.normal_full = fr.braked_mass_normal_force(braked_mass, mass, material, blocks, 2 * tau,
+    test.normal_full = fr.braked_mass_normal_force(braked_mass, mass, material, blocks, tau,
                                                    inertia=rotating)
     result = test.run()
     assert result['longest_locked'] == 0.0
@@ -107,3 +107,53 @@ def test_low_adhesion_locks_without_wsp_not_with_builtin():
         assert abs(r['brake_work'] + r['creep_work'] - r['energy_drop']) \
             <= 0.005 * r['initial_energy']
         assert r['impulse'] == pytest.approx(r['momentum_drop'], rel=1e-12)
+
+
+# -- the train: friction materials in the kernel --------------------------------------------
+
+def _train(speed_kmh, **overrides):
+    from train_dynamics.physics.config import SimConfig
+    from train_dynamics.physics.train import TrainSimulator
+    values = {'num_coaches': 3, 'initial_speed': speed_kmh / 3.6,
+              'brake_input': 'cylinder_per_coach', 'brake_model': 'empirical'}
+    values.update(overrides)
+    return TrainSimulator(SimConfig.from_dict(values))
+
+
+def _train_deceleration(speed_kmh, **overrides):
+    """Deceleration [m/s^2] of a train at full cylinder pressure, measured over 0.2 s."""
+    sim = _train(speed_kmh, **overrides)
+    sim.set_cylinder_pressure(3.8e5)
+    sim.advance_to(0.05)
+    v0, t0 = sim.v.mean(), sim.t
+    sim.advance_to(0.25)
+    return (v0 - sim.v.mean()) / (sim.t - t0)
+
+
+def test_train_cast_iron_and_disc_against_speed():
+    chain = {'brake_cylinder_area': 0.0507, 'rigging_ratio': 8.0, 'brake_blocks': 8.0}
+    iron = _train_deceleration(10, friction_material='cast_iron', **chain) \
+        / _train_deceleration(100, friction_material='cast_iron', **chain)
+    assert 1.8 <= iron <= 2.6
+    disc = {'friction_material': 'disc', 'braked_mass_p': 60_000.0, 'brake_radius_ratio': 0.55,
+            'brake_blocks': 16.0}
+    ratio = _train_deceleration(10, **disc) / _train_deceleration(100, **disc)
+    assert abs(ratio - 1.0) <= 0.15
+    # the chain by hand: 3.8 bar * 0.0507 m^2 * 0.95 * 8 * 0.83 = 121 543 N on 8 blocks
+    sim = _train(100, friction_material='cast_iron', **chain)
+    sim.set_cylinder_pressure(3.8e5)
+    sim.advance_to(0.01)
+    normal = 3.8e5 * 0.0507 * 0.95 * 8.0 * 0.83
+    expected = fr.retarding_force(fr.CAST_IRON, sim.v[0], normal, 8)
+    assert sim.brake_force[0] == pytest.approx(expected, rel=2e-3)
+
+
+def test_train_friction_material_needs_a_force_level():
+    from train_dynamics.physics.config import ConfigError
+    with pytest.raises(ConfigError, match=r'vehicle 1 \(coach\).*brake_cylinder_area.*'
+                                          r'rigging_ratio.*braked_mass_p'):
+        _train(100, friction_material='composite_k')
+
+
+def test_train_paper_default_unchanged():
+    assert _train_deceleration(100) == pytest.approx(_train_deceleration(100, braked_mass_p=1.0))

@@ -44,49 +44,22 @@ import math
 
 import numpy as np
 
-#: friction materials; ``paper`` is the paper's eq. (13), the others follow this module
-MATERIALS = ('paper', 'cast_iron', 'composite_k', 'composite_ll', 'disc')
-CAST_IRON, COMPOSITE_K, COMPOSITE_LL, DISC = 1, 2, 3, 4
-MATERIAL_CODES = {name: code for code, name in enumerate(MATERIALS)}
+from train_dynamics.physics.config.spec import ConfigError
+from train_dynamics.physics.kernel import friction as _kernel
+from train_dynamics.physics.kernel.friction import (CAST_IRON, COMPOSITE_K,  # noqa: F401
+                                                    COMPOSITE_LL, DISC, MATERIALS, PAPER)
 
-#: speed breakpoints [km/h] of the composition-block and pad curves
-CURVE_KMH = np.array([0.0, 50.0, 100.0, 160.0, 200.0, 300.0])
-#: K blocks (UIC 541-4 / EN 16452 "K" level): nearly constant, a representative mean curve
-#: inside the certification band (mean 0.25 +- 0.03 over the braking speed range)
-COMPOSITE_K_MU = np.array([0.270, 0.255, 0.245, 0.235, 0.230, 0.220])
-#: LL blocks (EN 16452 "LL" level, retrofit of cast-iron wagons): a representative mean curve;
-#: lower and slightly more speed-dependent than K, tuned by the standard to give cast-iron
-#: stopping distances at the wagon's braked weight
-COMPOSITE_LL_MU = np.array([0.200, 0.175, 0.160, 0.150, 0.145, 0.140])
-#: organic disc pads (UIC 541-3: mean friction coefficient 0.35 with a tolerance band
-#: of about +- 10 % over the speed range); a representative mean curve
-DISC_MU = np.array([0.370, 0.360, 0.350, 0.340, 0.330, 0.310])
+#: friction material name -> its code in the kernel
+MATERIAL_CODES = {name: code for code, name in enumerate(MATERIALS)}
 
 #: Minden formula constants (see the module docstring)
 MINDEN_K = 3.85
 MINDEN_D = 6.1
 
 
-def karwatzki(v: float, block_force: float, g: float = 9.81) -> float:
-    """
-    Return the friction coefficient of a cast-iron (P10) block [-] (Karwatzki).
-
-    mu = 0.6 (16 K + 100) / (80 K + 100) * (V + 100) / (5 V + 100), K the block force in
-    tonnes-force (block_force [N] / (1000 g)), V the speed [km/h] (v [m/s]). Karwatzki's
-    formula as used by TrainDy and quoted in UIC 544-1's background (ORE B 126); 2.2 times
-    higher at 10 km/h than at 100 km/h for a given block force.
-    """
-    k = max(block_force, 0.0) / (1000.0 * g)
-    kmh = 3.6 * abs(v)
-    return 0.6 * (16.0 * k + 100.0) / (80.0 * k + 100.0) * (kmh + 100.0) / (5.0 * kmh + 100.0)
-
-
 def material_friction(material: int, v: float, block_force: float, g: float = 9.81) -> float:
     """Return the friction coefficient [-] of ``material`` (MATERIAL_CODES) at v [m/s]."""
-    if material == CAST_IRON:
-        return karwatzki(v, block_force, g)
-    curve = {COMPOSITE_K: COMPOSITE_K_MU, COMPOSITE_LL: COMPOSITE_LL_MU, DISC: DISC_MU}[material]
-    return float(np.interp(3.6 * abs(v), CURVE_KMH, curve))
+    return _kernel.material_friction(material, v, block_force, g)
 
 
 def chain_normal_force(p: float, area: float, spring: float, rigging_ratio: float,
@@ -123,13 +96,14 @@ def minden_percentage(v0: float, distance: float, gradient: float = 0.0,
 
 
 def braked_mass_normal_force(braked_mass: float, mass: float, material: int, blocks: int,
-                             fill_time: float, radius_ratio: float = 1.0,
+                             response_time: float, radius_ratio: float = 1.0,
                              v_ref: float = 120.0 / 3.6, g: float = 9.81,
                              inertia: float = 0.0) -> float:
     """
     Return the normal force at full cylinder pressure N_full [N] that gives braked mass B.
 
-    The stop from v_ref [m/s] on the level: free run v_ref t_e (t_e = fill_time / 2), then
+    The stop from v_ref [m/s] on the level: free run v_ref t_e (t_e = ``response_time`` [s],
+    the equivalent response time of the cylinder's filling, :func:`response_time`), then
     (m + m_rot) v dv / F_r(v) integrated to rest must equal the Minden distance of
     lambda = 100 B / m; ``inertia`` m_rot [kg] the rotating masses' allowance (the brake stops
     them too; the percentage is of the mass m).
@@ -137,7 +111,7 @@ def braked_mass_normal_force(braked_mass: float, mass: float, material: int, blo
     iteration (it converges in a few steps: the block-force factor varies slowly).
     """
     lam = 100.0 * braked_mass / mass
-    braking = minden_distance(v_ref, lam) - v_ref * 0.5 * fill_time
+    braking = minden_distance(v_ref, lam) - v_ref * response_time
     if braking <= 0.0:
         raise ValueError(f'braked mass {braked_mass} kg of a {mass} kg vehicle asks a stop '
                          f'shorter than its brake fill time allows')
@@ -153,6 +127,62 @@ def braked_mass_normal_force(braked_mass: float, mass: float, material: int, blo
             return new
         normal = new
     return normal
+
+
+def response_time(fill_times, fill_fractions) -> float:
+    """
+    Return the equivalent response time t_e [s] of a filling characteristic (EN 14531-1).
+
+    The area above the curve p / p_max against time: a step of the full force t_e after
+    the command loses the same speed as the real build-up.
+    """
+    t = np.asarray(fill_times, dtype=float)
+    f = 1.0 - np.asarray(fill_fractions, dtype=float)
+    return float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(t)))
+
+
+def force_rows(consist, inertia: np.ndarray, fill, g: float) -> np.ndarray:
+    """
+    Return the kernel's friction-brake rows of each vehicle: (5, N) material, K1, K0, blocks, rho.
+
+    ``consist`` the vehicles (their friction fields), ``inertia`` m (1 + rotating mass
+    factor) [kg], ``fill`` the train's filling table (times, p/p_max). A vehicle of a
+    material other than paper needs the force chain (brake_cylinder_area and rigging_ratio)
+    or the braked mass of its regime (braked_mass_p or braked_mass_g); else ConfigError
+    naming the vehicle and the fields.
+    """
+    n = consist.n
+    rows = np.zeros((5, n))
+    rows[0] = consist['friction_material']
+    rows[3] = consist['brake_blocks']
+    rows[4] = consist['brake_radius_ratio']
+    t_e = None
+    for i in range(n):
+        material = int(rows[0, i])
+        if material == PAPER:
+            continue
+        field = lambda name: float(consist[name][i])       # noqa: E731
+        area, ratio = field('brake_cylinder_area'), field('rigging_ratio')
+        regime = consist.regimes[i]
+        braked = field(f'braked_mass_{regime.lower()}')
+        if area > 0.0 and ratio > 0.0:          # EN 14531-1 chain: N = p K1 - K0
+            lever = field('brake_cylinders') * ratio * field('rigging_efficiency')
+            rows[1, i] = area * field('brake_cylinder_efficiency') * lever
+            rows[2, i] = field('brake_spring_force') * lever
+        elif braked > 0.0:                       # UIC 544-1 braked mass: N = N_full p / p_max
+            if t_e is None:
+                t_e = response_time(fill[0], fill[1])
+            mass = field('mass')
+            normal = braked_mass_normal_force(braked, mass, material, int(rows[3, i]), t_e,
+                                              rows[4, i], g=g, inertia=inertia[i] - mass)
+            rows[1, i] = normal / field('max_cylinder_pressure')
+        else:
+            raise ConfigError(
+                f'vehicle {i + 1} ({consist.types[i]}): friction_material '
+                f'{MATERIALS[material]} needs its force level: brake_cylinder_area and '
+                f'rigging_ratio (EN 14531-1 force chain) or braked_mass_{regime.lower()} '
+                f'(braked mass of regime {regime}, UIC 544-1)')
+    return rows
 
 
 def load_weighed_force(mass: float, empty_mass: float, loaded_mass: float, empty_force: float,

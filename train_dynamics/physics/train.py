@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from train_dynamics.physics import pneumatic
+from train_dynamics.physics import friction, pneumatic
 from train_dynamics.physics.config import (ConfigError, Consist, G_FILL_TIME, G_RELEASE_TIME,
                                            P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
                                            P_RELEASE_TIME, SimConfig)
@@ -160,6 +160,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         c[VEHICLE.MASS] = self.inertia
         c[VEHICLE.BMASS] = np.where(own == mu, self.masses, self.masses * own / mu)
         c[VEHICLE.WEIGHT] = self.masses * float(cfg.gravity)
+        c[[VEHICLE.MATERIAL, VEHICLE.BRAKE_GAIN, VEHICLE.BRAKE_OFF, VEHICLE.BLOCKS,
+           VEHICLE.RHO]] = friction.force_rows(consist, self.inertia, self.fill,
+                                               float(cfg.gravity))
         for name, row in self._VEHICLE_ROWS.items():
             c[row] = consist[name]
         c[VEHICLE.FRONT0] = self.track.fronts(consist['length'])
@@ -171,6 +174,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             cfg.pipe_nominal_pressure, cfg.full_service_pressure, cfg.distributor_sensitivity,
             cfg.max_coupler_displacement, self.tolerance,
             1e-3 * float(np.max(self.masses)) * float(cfg.gravity)]
+        sc[PARAM.FRICTION] = float(np.any(c[VEHICLE.MATERIAL] != friction.PAPER))
         # the pneumatic brake hands the chain its cylinder pressures (cylinder_per_coach)
         iv[OPTION.MODE] = brakes.CYLINDER_PER_COACH if self.pneu is not None else self.mode
         iv[OPTION.EXT] = int(cfg.external_forces)

@@ -183,6 +183,12 @@ def connection_harmonic(a, b) -> np.ndarray:
     return np.where(a == b, a, mean)
 
 
+def _number(field: str, value: Any) -> float:
+    """Return a field's value as a number: a choice (friction_material) as its index."""
+    choices = VEHICLE_PARAMETERS[field].choices
+    return float(choices.index(value)) if choices else float(value)
+
+
 def _make(rows: list[tuple[str, dict[str, Any]]], source: str) -> Consist:
     """Build a Consist from (type, complete field dict) rows of a file; cross-field checks."""
     checked: set[int] = set()
@@ -193,7 +199,7 @@ def _make(rows: list[tuple[str, dict[str, Any]]], source: str) -> Consist:
     if len(rows) < 2:
         raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {len(rows)}')
     numeric = [f for f in VEHICLE_FIELDS if f != 'brake_regime']
-    fields = {f: np.array([r[1][f] for r in rows], dtype=float) for f in numeric}
+    fields = {f: np.array([_number(f, r[1][f]) for r in rows], dtype=float) for f in numeric}
     return Consist([r[0] for r in rows], fields, [r[1]['brake_regime'] for r in rows])
 
 
@@ -251,7 +257,7 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
     n = len(masses)
     if n < 2:
         raise ConfigError(f'parameters: a train needs at least 2 vehicles, got {n}')
-    fields = {f: np.full(n, float(v)) for f, v in defaults.items() if f != 'brake_regime'}
+    fields = {f: np.full(n, _number(f, v)) for f, v in defaults.items() if f != 'brake_regime'}
     fields['mass'] = np.array([float(m) for m in masses])
     return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n)
 

@@ -93,6 +93,11 @@ VEHICLE = _group('VehicleRows', [
     'DB_FADE',      # locomotive: dynamic brake fade speed [m/s]
     'T_ADH',        # locomotive: traction adhesion at rest
     'T_BUILD',      # locomotive: force build-up time [s]
+    'MATERIAL',     # friction material code (kernel/friction.py); 0 = paper, eq. (13)
+    'BRAKE_GAIN',   # friction brakes: normal force per cylinder pressure K1 [N/Pa]
+    'BRAKE_OFF',    # friction brakes: normal force lost to the return springs K0 [N]
+    'BLOCKS',       # friction brakes: blocks or pads sharing the normal force
+    'RHO',          # friction brakes: radius ratio (1 tread; disc r_eff / r_wheel)
 ])
 STATE = _group('StateRows', [
     'X',            # position, distance travelled since t = 0 [m]
@@ -144,6 +149,7 @@ PARAM = _group('ParamSlots', [
     'YLIM',         # largest physically possible |y| [m]
     'TOL',          # integration_tolerance: local coupler-force error / force level [-]
     'FFLOOR',       # force level below which the tolerance is absolute [N]
+    'FRICTION',     # 1.0: some vehicle brakes with a friction material (not paper)
 ])
 TOTAL = _group('TotalSlots', [
     'WB',           # work of the brakes since t = 0 [J]
