@@ -13,6 +13,8 @@ VENV ?= .venv
 VPY := $(VENV)/bin/python
 STAMP := $(VENV)/.train_dynamics-installed
 PYTEST_ARGS ?=
+# options of the demo, e.g. make run RUN_ARGS='--rtf 4' (python -m train_dynamics.cli.demo -h)
+RUN_ARGS ?=
 
 # rclpy/DDS: never discover beyond this machine, and use a private domain. Tests choose their
 # own domain per session (test/conftest.py); for run/bench/soak take the caller's
@@ -43,23 +45,30 @@ $(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml
 	  echo "creating $(VENV) with $$($(PYTHON) --version)"; \
 	  $(PYTHON) -m venv "$(VENV)"; \
 	fi
-	$(VPY) -m pip install -r requirements.txt
+	# --no-compile: no byte-compiling of every installed module now; Python writes the .pyc of
+	# what it imports on first use
+	$(VPY) -m pip install --no-compile -r requirements.txt
 	$(VPY) -m pip install --no-deps --no-build-isolation --use-pep517 -e .
 	# compile the numba kernels that `make run` needs now into the user cache
-	# (~/.cache/train_dynamics/numba-<code version>, keyed by the sources' content), the other
-	# variants (error-controlled, pneumatic) in a detached background process
-	$(VPY) -m train_dynamics.cli.prebuild --variants paper --rest-in-background
+	# (~/.cache/train_dynamics/numba-<code version>, keyed by the sources' content)
+	$(VPY) -m train_dynamics.cli.prebuild --variants paper
 	@touch "$@"
 
+# every kernel variant compiled (or loaded) before the tests, in this process: no test
+# compiles while another is timed, and no background compile competes with the suite
 test: venv
+	$(VPY) -m train_dynamics.cli.prebuild
 	$(VPY) -m pytest test/ $(PYTEST_ARGS)
 
 # The linter tests carry the pytest mark `linter` and the list of paths they check.
 lint: venv
 	$(VPY) -m pytest test/ -m linter -q -p no:logging $(PYTEST_ARGS)
 
+# the other variants (error-controlled, pneumatic) compile in a detached background process
+# while the demo runs (its log: prebuild.log in the kernel cache folder)
 run: venv
-	$(VPY) -m train_dynamics.cli.demo
+	$(VPY) -m train_dynamics.cli.prebuild --variants paper --rest-in-background
+	$(VPY) -m train_dynamics.cli.demo $(RUN_ARGS)
 
 bench: venv
 	$(VPY) bench/run_all.py

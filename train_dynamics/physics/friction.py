@@ -143,7 +143,7 @@ def response_time(fill_times, fill_fractions) -> float:
 
 def force_rows(consist, inertia: np.ndarray, fill, g: float) -> np.ndarray:
     """
-    Return the kernel's friction-brake rows of each vehicle: (5, N) material, K1, K0, blocks, rho.
+    Return the force chain of each vehicle reduced to a line: (2, N) K1 [N/Pa], K0 [N].
 
     ``consist`` the vehicles (their friction fields), ``inertia`` m (1 + rotating mass
     factor) [kg], ``fill`` the train's filling table (times, p/p_max). A vehicle of a
@@ -151,14 +151,10 @@ def force_rows(consist, inertia: np.ndarray, fill, g: float) -> np.ndarray:
     or the braked mass of its regime (braked_mass_p or braked_mass_g); else ConfigError
     naming the vehicle and the fields.
     """
-    n = consist.n
-    rows = np.zeros((5, n))
-    rows[0] = consist['friction_material']
-    rows[3] = consist['brake_blocks']
-    rows[4] = consist['brake_radius_ratio']
+    rows = np.zeros((2, consist.n))
     t_e = None
-    for i in range(n):
-        material = int(rows[0, i])
+    for i in range(consist.n):
+        material = int(consist['friction_material'][i])
         if material == PAPER:
             continue
         field = lambda name: float(consist[name][i])       # noqa: E731
@@ -167,15 +163,17 @@ def force_rows(consist, inertia: np.ndarray, fill, g: float) -> np.ndarray:
         braked = field(f'braked_mass_{regime.lower()}')
         if area > 0.0 and ratio > 0.0:          # EN 14531-1 chain: N = p K1 - K0
             lever = field('brake_cylinders') * ratio * field('rigging_efficiency')
-            rows[1, i] = area * field('brake_cylinder_efficiency') * lever
-            rows[2, i] = field('brake_spring_force') * lever
+            rows[0, i] = area * field('brake_cylinder_efficiency') * lever
+            rows[1, i] = field('brake_spring_force') * lever
         elif braked > 0.0:                       # UIC 544-1 braked mass: N = N_full p / p_max
             if t_e is None:
                 t_e = response_time(fill[0], fill[1])
             mass = field('mass')
-            normal = braked_mass_normal_force(braked, mass, material, int(rows[3, i]), t_e,
-                                              rows[4, i], g=g, inertia=inertia[i] - mass)
-            rows[1, i] = normal / field('max_cylinder_pressure')
+            normal = braked_mass_normal_force(braked, mass, material,
+                                              int(field('brake_blocks')), t_e,
+                                              field('brake_radius_ratio'), g=g,
+                                              inertia=inertia[i] - mass)
+            rows[0, i] = normal / field('max_cylinder_pressure')
         else:
             raise ConfigError(
                 f'vehicle {i + 1} ({consist.types[i]}): friction_material '

@@ -152,6 +152,13 @@ class Consist:
         """Return one numeric field of every vehicle (array of N)."""
         return self.fields[field]
 
+    def choices(self, field: str) -> list[str]:
+        """Return a choice field of every vehicle by name (stored as its index, _number)."""
+        if field == 'brake_regime':
+            return list(self.regimes)
+        names = VEHICLE_PARAMETERS[field].choices
+        return [names[int(code)] for code in self.fields[field]]
+
     @property
     def locomotives(self) -> list[int]:
         """Return the 0-based indices of the vehicles with traction or dynamic brake."""

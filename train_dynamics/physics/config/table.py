@@ -6,8 +6,8 @@ range and whether it may change while the simulation runs; ``sim_node`` and the 
 command share the table, the docs' parameter table is generated from it
 (:mod:`~train_dynamics.physics.config.docs`). The per-vehicle fields of a consist are the
 entries with ``vehicle`` set (:data:`VEHICLE_PARAMETERS`): name in a consist file, unit, range,
-default and connection rule in one place. Pressures in parameters are GAUGE pressures [Pa],
-except :data:`ATMOSPHERIC_PRESSURE`.
+default, connection rule and kernel row (:data:`KERNEL_ROWS`) in one place. Pressures in
+parameters are GAUGE pressures [Pa], except :data:`ATMOSPHERIC_PRESSURE`.
 """
 from __future__ import annotations
 
@@ -62,7 +62,8 @@ _PARAMS = [
               'coach_mass. Bounds as coach_mass.', low=500.0, high=1.0e6),
     ParamSpec('coach_length', 25.0, DOUBLE,
               'Coach length [m]: brake-pipe length per coach. Bounds: a trolley (1 m) to '
-              'twice the longest rail vehicles (~50 m).', low=1.0, high=100.0, vehicle='length'),
+              'twice the longest rail vehicles (~50 m).', low=1.0, high=100.0, vehicle='length',
+              row='LENGTH'),
     ParamSpec('buffer_stiffness', 2.8e6, DOUBLE,
               'Buffer stiffness k_e [N/m] (paper eq. 2). Real buffers: 0.5-50 MN/m; the '
               'bounds allow two decades either side.', low=1.0e4, high=1.0e10,
@@ -194,11 +195,11 @@ _PARAMS = [
               'Rotating-mass allowance: the inertia of a vehicle is m (1 + factor).',
               low=0.0, high=2.0, vehicle='rotating_mass_factor'),
     ParamSpec('davis_a', 0.0, DOUBLE, 'Running resistance (Davis) constant term A [N].',
-              low=0.0, high=1.0e6, vehicle='davis_a'),
+              low=0.0, high=1.0e6, vehicle='davis_a', row='DAVIS_A'),
     ParamSpec('davis_b', 0.0, DOUBLE, 'Running resistance (Davis) B |v| term [N s/m].',
-              low=0.0, high=1.0e6, vehicle='davis_b'),
+              low=0.0, high=1.0e6, vehicle='davis_b', row='DAVIS_B'),
     ParamSpec('davis_c', 0.0, DOUBLE, 'Running resistance (Davis) C v^2 term [N s^2/m^2].',
-              low=0.0, high=1.0e5, vehicle='davis_c'),
+              low=0.0, high=1.0e5, vehicle='davis_c', row='DAVIS_C'),
     ParamSpec('buffer_stroke', 0.105, DOUBLE,
               'Buffer stroke S_c [m] before blocking (UIC 526-1: 105 mm).',
               low=0.0, high=10.0, low_exclusive=True,
@@ -219,27 +220,27 @@ _PARAMS = [
               vehicle='blocked_stiffness', connection=HARMONIC),
     ParamSpec('max_tractive_force', 0.0, DOUBLE,
               'Locomotive: starting tractive effort [N] (0: not a traction unit).',
-              low=0.0, high=1.0e7, vehicle='max_tractive_force'),
+              low=0.0, high=1.0e7, vehicle='max_tractive_force', row='T_FORCE'),
     ParamSpec('max_power', 0.0, DOUBLE, 'Locomotive: power at the wheel rim in traction [W].',
-              low=0.0, high=1.0e8, vehicle='max_power'),
+              low=0.0, high=1.0e8, vehicle='max_power', row='T_POWER'),
     ParamSpec('max_dynamic_brake_force', 0.0, DOUBLE,
               'Locomotive: maximum dynamic (electric) braking force [N].', low=0.0, high=1.0e7,
-              vehicle='max_dynamic_brake_force'),
+              vehicle='max_dynamic_brake_force', row='DB_FORCE'),
     ParamSpec('max_dynamic_brake_power', 0.0, DOUBLE,
               'Locomotive: maximum dynamic braking power [W].', low=0.0, high=1.0e8,
-              vehicle='max_dynamic_brake_power'),
+              vehicle='max_dynamic_brake_power', row='DB_POWER'),
     ParamSpec('traction_build_up_time', 4.0, DOUBLE,
               'Locomotive: time [s] for the tractive/dynamic-brake force to go from 0 to the '
               'full command (rate limit); 0 = immediate.', low=0.0, high=600.0,
-              vehicle='traction_build_up_time'),
+              vehicle='traction_build_up_time', row='T_BUILD'),
     ParamSpec('traction_adhesion', 0.33, DOUBLE,
               'Locomotive: wheel-rail adhesion at standstill for traction and dynamic braking; '
               'falls with speed as Curtius-Kniffler.', low=0.0, high=1.0, low_exclusive=True,
-              vehicle='traction_adhesion'),
+              vehicle='traction_adhesion', row='T_ADH'),
     ParamSpec('dynamic_brake_fade_speed', 1.4, DOUBLE,
               'Locomotive: below this speed [m/s] the dynamic braking force fades linearly '
               'to 0.', low=0.0, high=50.0, low_exclusive=True,
-              vehicle='dynamic_brake_fade_speed'),
+              vehicle='dynamic_brake_fade_speed', row='DB_FADE'),
     # Friction brakes (physics/friction.py): the material and one of two routes to the force
     # level, the EN 14531-1 force chain (cylinder area and rigging ratio) or the braked mass
     # of the vehicle's regime (UIC 544-1). Ignored for paper (eq. 13).
@@ -247,7 +248,7 @@ _PARAMS = [
               'Friction material of the brakes: paper (eq. 13 with the adhesion coefficient, '
               'as in the paper), cast_iron (Karwatzki: falls with speed and block force), '
               'composite_k, composite_ll (composition blocks), disc (pads on discs).',
-              choices=FRICTION_MATERIALS, vehicle='friction_material'),
+              choices=FRICTION_MATERIALS, vehicle='friction_material', row='MATERIAL'),
     ParamSpec('brake_cylinder_area', 0.0, DOUBLE,
               'Force chain: piston area of one brake cylinder [m^2] (a 10 inch cylinder: '
               '0.0507); 0 = no force chain (braked mass instead).', low=0.0, high=1.0,
@@ -271,11 +272,12 @@ _PARAMS = [
               vehicle='rigging_efficiency'),
     ParamSpec('brake_blocks', 8.0, DOUBLE,
               'Number of blocks (tread) or pads (disc) sharing the normal force: the block '
-              'force of the cast-iron law.', low=1.0, high=256.0, vehicle='brake_blocks'),
+              'force of the cast-iron law.', low=1.0, high=256.0, vehicle='brake_blocks',
+              row='BLOCKS'),
     ParamSpec('brake_radius_ratio', 1.0, DOUBLE,
               'Radius ratio rho [-]: 1 for tread brakes; disc: effective friction radius '
               'over wheel radius (~0.25 / 0.46).', low=0.0, high=2.0, low_exclusive=True,
-              vehicle='brake_radius_ratio'),
+              vehicle='brake_radius_ratio', row='RHO'),
     ParamSpec('braked_mass_p', 0.0, DOUBLE,
               'Braked mass [kg] in regime P (the braked weight on the vehicle label, UIC '
               '544-1); sets the force level when there is no force chain; 0 = not given.',
@@ -340,6 +342,8 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
 
 #: per-vehicle field name (as in a consist file) -> its parameter, in table order
 VEHICLE_PARAMETERS: dict[str, ParamSpec] = {p.vehicle: p for p in _PARAMS if p.vehicle}
+#: per-vehicle field -> the kernel row (``layout.VEHICLE``) that holds it as is, in table order
+KERNEL_ROWS: dict[str, str] = {f: p.row for f, p in VEHICLE_PARAMETERS.items() if p.row}
 
 
 def validate_value(name: str, value: Any,
