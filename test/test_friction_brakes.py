@@ -157,3 +157,19 @@ def test_train_friction_material_needs_a_force_level():
 
 def test_train_paper_default_unchanged():
     assert _train_deceleration(100) == pytest.approx(_train_deceleration(100, braked_mass_p=1.0))
+
+
+@pytest.mark.parametrize('changeover, factor', [(0.0, 0.4 + 0.6 * 5 / 65), (50_000.0, 0.4),
+                                                (28_000.0, 1.0)])
+def test_train_load_weighing_scales_the_piston_pressure(changeover, factor):
+    chain = {'brake_cylinder_area': 0.0507, 'rigging_ratio': 8.0, 'brake_spring_force': 1500.0,
+             'friction_material': 'composite_k', 'coach_mass': 30_000.0,
+             'load_empty_mass': 25_000.0, 'load_full_mass': 90_000.0, 'load_empty_ratio': 0.4,
+             'load_changeover_mass': changeover}
+    sim = _train(50, **chain)
+    sim.set_cylinder_pressure(3.8e5)
+    sim.advance_to(0.01)
+    lever = 8.0 * 0.83
+    normal = 3.8e5 * factor * 0.0507 * 0.95 * lever - 1500.0 * lever
+    expected = fr.retarding_force(fr.COMPOSITE_K, sim.v[0], normal, 8)
+    assert sim.brake_force[0] == pytest.approx(expected, rel=2e-3)

@@ -149,7 +149,9 @@ def force_rows(consist, inertia: np.ndarray, fill, g: float) -> np.ndarray:
     factor) [kg], ``fill`` the train's filling table (times, p/p_max). A vehicle of a
     material other than paper needs the force chain (brake_cylinder_area and rigging_ratio)
     or the braked mass of its regime (braked_mass_p or braked_mass_g); else ConfigError
-    naming the vehicle and the fields.
+    naming the vehicle and the fields. Both give the loaded level; with load-weighing
+    (load_empty_mass > 0) the valve scales the pressure on the piston, K1, by
+    :func:`load_weighed_force` of the vehicle's mass (levels ``load_empty_ratio`` and 1).
     """
     rows = np.zeros((2, consist.n))
     t_e = None
@@ -180,6 +182,15 @@ def force_rows(consist, inertia: np.ndarray, fill, g: float) -> np.ndarray:
                 f'{MATERIALS[material]} needs its force level: brake_cylinder_area and '
                 f'rigging_ratio (EN 14531-1 force chain) or braked_mass_{regime.lower()} '
                 f'(braked mass of regime {regime}, UIC 544-1)')
+        empty = field('load_empty_mass')
+        if empty > 0.0:                          # the load valve scales the pressure
+            changeover = field('load_changeover_mass')
+            if changeover <= 0.0 and field('load_full_mass') <= empty:
+                raise ConfigError(f'vehicle {i + 1} ({consist.types[i]}): a continuous load '
+                                  'valve needs load_full_mass above load_empty_mass')
+            rows[0, i] *= load_weighed_force(field('mass'), empty, field('load_full_mass'),
+                                             field('load_empty_ratio'), 1.0,
+                                             changeover if changeover > 0.0 else math.nan)
     return rows
 
 

@@ -120,6 +120,10 @@ class SimConfig:
     brake_radius_ratio: float = 1.0                   # disc: r_eff / r_wheel [-]
     braked_mass_p: float = 0.0                        # braked mass, regime P [kg]
     braked_mass_g: float = 0.0                        # braked mass, regime G [kg]
+    load_empty_mass: float = 0.0                      # load-weighing: empty [kg]; 0 = none
+    load_full_mass: float = 0.0                       # load-weighing: loaded from [kg]
+    load_changeover_mass: float = 0.0                 # 0 = continuous valve [kg]
+    load_empty_ratio: float = 1.0                     # empty / loaded pressure [-]
     # the line
     initial_position: float = 0.0                     # front of vehicle 1 at t = 0 [m]
     track_gradient_positions: list[float] = field(default_factory=list)   # [m], increasing

@@ -285,6 +285,22 @@ _PARAMS = [
     ParamSpec('braked_mass_g', 0.0, DOUBLE,
               'Braked mass [kg] in regime G (as braked_mass_p).', low=0.0, high=1.0e6,
               vehicle='braked_mass_g'),
+    ParamSpec('load_empty_mass', 0.0, DOUBLE,
+              'Load-weighing: mass of the empty vehicle [kg]; 0 = no load-weighing (the '
+              'force level is the loaded one). The actual mass is the mass of the vehicle.',
+              low=0.0, high=1.0e6, vehicle='load_empty_mass'),
+    ParamSpec('load_full_mass', 0.0, DOUBLE,
+              'Load-weighing: mass [kg] from which the loaded force level applies (the '
+              'force chain or braked mass give the loaded level).', low=0.0, high=1.0e6,
+              vehicle='load_full_mass'),
+    ParamSpec('load_changeover_mass', 0.0, DOUBLE,
+              'Load-weighing: empty/loaded changeover at this mass [kg]; 0 = a continuous '
+              'load-proportional valve between load_empty_mass and load_full_mass.',
+              low=0.0, high=1.0e6, vehicle='load_changeover_mass'),
+    ParamSpec('load_empty_ratio', 1.0, DOUBLE,
+              'Load-weighing: cylinder pressure of the empty setting over the loaded one [-] '
+              '(the load valve scales the pressure that acts on the piston).', low=0.0,
+              high=1.0, low_exclusive=True, vehicle='load_empty_ratio'),
     ParamSpec('initial_position', 0.0, DOUBLE,
               'Position along the track [m] of the front of vehicle 1 at t = 0.',
               low=-1.0e7, high=1.0e7),
