@@ -1,6 +1,7 @@
 """Friction materials, EN 14531-1 force chain, braked mass, wheel slide, slide protection."""
 import math
 
+import numpy as np
 import pytest
 
 from train_dynamics.physics import friction as fr
@@ -173,3 +174,19 @@ def test_train_load_weighing_scales_the_piston_pressure(changeover, factor):
     normal = 3.8e5 * factor * 0.0507 * 0.95 * lever - 1500.0 * lever
     expected = fr.retarding_force(fr.COMPOSITE_K, sim.v[0], normal, 8)
     assert sim.brake_force[0] == pytest.approx(expected, rel=2e-3)
+
+
+@pytest.mark.parametrize('tolerance', [0.0, 1e-3])
+def test_train_cast_iron_stop_energy_and_momentum(tolerance):
+    """A cast-iron train stops: energy within 0.5 %, momentum to round-off."""
+    sim = _train(100, num_coaches=4, integration_tolerance=tolerance,
+                 friction_material='cast_iron', brake_cylinder_area=0.0507, rigging_ratio=8.0,
+                 brake_spring_force=1500.0, davis_a=500.0)     # resistance: impulses booked
+    ke0, p0 = sim.kinetic_energy, sim.momentum
+    sim.set_cylinder_pressure(3.8e5)
+    sim.advance_to(150.0)
+    assert np.all(sim.v == 0.0)                     # stopped, held by the brakes
+    lost = ke0 - sim.kinetic_energy
+    dissipated = sim.work_brake + sim.work_resistance + (sim.work_coupler - sim.elastic_energy)
+    assert abs(dissipated - lost) < 0.005 * lost
+    assert sim.momentum - p0 == pytest.approx(sim.external_impulse, abs=1e-9 * abs(p0))
