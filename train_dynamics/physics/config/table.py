@@ -15,6 +15,9 @@ from typing import Any, Mapping
 
 from train_dynamics.physics.config.spec import (ARITHMETIC, BOOL, check_value, ConfigError, DOUBLE,
                                                 DOUBLE_ARRAY, HARMONIC, INTEGER, ParamSpec, STRING)
+# the friction materials in the order of their codes in the kernel (the models and their
+# sources: physics/friction.py)
+from train_dynamics.physics.kernel.friction import MATERIALS as FRICTION_MATERIALS
 
 # Pressure defaults, written once (used by the simulator and the brake valve).
 ATMOSPHERIC_PRESSURE = 101325.0    # [Pa absolute]: FluidPressure (absolute) = gauge + this
@@ -39,9 +42,6 @@ G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
 
 #: default integration_tolerance: 0 = fixed step
 INTEGRATION_TOLERANCE = 0.0
-#: friction materials of the brakes, in the order of their codes in the kernel
-#: (physics/friction.py: the models and their sources)
-FRICTION_MATERIALS = ('paper', 'cast_iron', 'composite_k', 'composite_ll', 'disc')
 
 _PARAMS = [
     ParamSpec('model_type', 'tanh', STRING,

@@ -18,11 +18,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from train_dynamics.physics.config.table import FRICTION_MATERIALS as MATERIALS
 from train_dynamics.physics.kernel.brakes import table_interp
 from train_dynamics.physics.kernel.compiler import jit
 
-#: the materials' codes: their index in the parameter's choices; ``paper`` is eq. (13)
+#: friction materials, the choices of the parameter ``friction_material`` (config/table.py);
+#: a material's code in the kernel is its index here; ``paper`` is eq. (13)
+MATERIALS = ('paper', 'cast_iron', 'composite_k', 'composite_ll', 'disc')
 PAPER, CAST_IRON, COMPOSITE_K, COMPOSITE_LL, DISC = range(len(MATERIALS))
 
 #: speed breakpoints [km/h] of the composition-block and pad curves
