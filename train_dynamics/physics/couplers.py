@@ -37,6 +37,19 @@ def elastic_energy_travel(y, ke, kec, gt, gc, st, sc, kb) -> np.ndarray:
             + 0.5 * ke * dc * dc + 0.5 * kb * np.maximum(dc - sc, 0.0) ** 2)
 
 
+def law_breakpoints(gt, gc, st, sc) -> np.ndarray:
+    """
+    Return the displacements y [m] where the coupler law changes branch: (4, N-1) or (4,).
+
+    The ends of the free play -g_c and g_t (the kink at y = 0 of a tight coupling) and the
+    strokes' ends, where blocking starts, -(g_c + S_c) and g_t + S_t (the law of
+    :func:`train_dynamics.physics.kernel.couplers.coupler_branch_travel`). Across each the
+    slope of F(y) jumps: an integrator of order > 1 must not step over one.
+    """
+    gt, gc, st, sc = (np.asarray(a, dtype=float) for a in (gt, gc, st, sc))
+    return np.array(np.broadcast_arrays(-(gc + sc), -gc, gt, gt + st))
+
+
 def deflection_bounds(force, gt, gc, st, sc, kb):
     """
     Return (lowest, highest) y [m] a coupler carrying ``force`` [N] can have.

@@ -17,6 +17,10 @@ coach chain under zero-order-hold brake inputs.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+import heapq
+import itertools
+
 import numpy as np
 
 from train_dynamics.physics import friction, pneumatic
@@ -39,9 +43,12 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     Train, brake system and fixed-step integrator (eqs. 5-9, 12-16).
 
     Inputs are gauge pressures [Pa] held constant until the next ``set_*`` call; a new value
-    takes effect at the next integration step. Outputs are numpy arrays (copies). The state
-    lives in the packed arrays of :mod:`train_dynamics.physics.kernel.layout` (``coach``, ``cpl``,
-    ``sc``, ``iv``, ``ws``) that :func:`fixed_step.advance_chain` advances in place.
+    takes effect at once (zero-order hold). An input due at a simulation time t [s] between
+    two steps is handed to :meth:`schedule`: the step that spans t is split there
+    (:attr:`exact_inputs`), so a 1 kHz input reaches the model at 1 kHz whatever the step.
+    Outputs are numpy arrays (copies). The state lives in the packed arrays of
+    :mod:`train_dynamics.physics.kernel.layout` (``coach``, ``cpl``, ``sc``, ``iv``, ``ws``)
+    that :func:`fixed_step.advance_chain` advances in place.
     """
 
     #: per-coupler constants that ``coupler_constants`` may override (arrays of N-1) and
@@ -98,6 +105,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self._set_constants()
         self.reset()
         self.set_model(self.model_type, self.u)
+        #: inputs are applied at their own instants, splitting a step (cylinder_per_coach,
+        #: pipe_per_coach); the pipe-head delay line and the pneumatic brake run on the
+        #: tick h: there an input at t acts from the first step k with k h >= t
+        self.exact_inputs = self.pneu is None and self.mode != brakes.PIPE_HEAD
 
     def _build_couplers(self, consist: Consist, coupler_constants: dict | None) -> None:
         """Fill ``cpl``: each connection's constants (eqs. 2-3, free play, strokes, K_b)."""
@@ -185,6 +196,13 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         cfg = self.cfg
         p_nom = float(cfg.pipe_nominal_pressure)
         self.steps = 0
+        #: inputs waiting for their instant: heap of (t [s], order, apply)
+        self._pending: list = []
+        self._order = itertools.count()
+        #: [s] time past ``steps`` h reached inside a split step (0 between steps)
+        self._within = 0.0
+        #: cylinder inputs were set since the last step (:meth:`_hold_cylinders` due)
+        self._cylinders_set = False
         c = self.coach
         c[len(VEHICLE):] = 0.0          # state, inputs, outputs; the constants stay
         c[STATE.V] = float(cfg.initial_speed)
@@ -256,6 +274,27 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             self.coach[INPUT.CYL] = arr
         else:
             self.coach[INPUT.CYL, index] = float(arr)
+        if self.pneu is None and self.mode == brakes.CYLINDER_PER_COACH:
+            self._cylinders_set = True       # held from now: _hold_cylinders, next step
+
+    def _hold_cylinders(self) -> None:
+        """
+        Make the cylinder inputs act from now: a step on the braking force (zero-order hold).
+
+        The step's braking force is the mean of eq. (13) at its two ends; an input that steps
+        here sets the start value too, so a staircase input gives a staircase force (not a
+        ramp over the next step). Error control: the chain is brought to the present tick
+        first and the tick's force row restarts at the new value. Done once for all the inputs
+        set at an instant, before the next step (the chain has not moved since they were set).
+        """
+        self._cylinders_set = False
+        self._sync()
+        c = self.coach
+        c[STATE.PCYL] = c[INPUT.CYL]
+        brakes.braking_force(c[STATE.PCYL], self.sc[PARAM.PMAX], self.sc[PARAM.MU],
+                             c[VEHICLE.BMASS], self.sc[PARAM.G], c[STATE.FB_AVAIL])
+        if self.adaptive and self.iv[CACHE.WS_VALID]:
+            self.tick_fb[self.iv[CLOCK.TICK] % self.tick_fb.shape[0]] = c[STATE.FB_AVAIL]
 
     @property
     def locomotives(self) -> list[int]:
@@ -275,12 +314,132 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     @property
     def t(self) -> float:
         """Return the simulation time [s]."""
-        return self.steps * self.h
+        return self.steps * self.h + self._within
+
+    def schedule(self, t: float, apply: Callable[[], None]) -> None:
+        """
+        Apply an input at simulation time ``t`` [s]: call ``apply()`` when the run reaches t.
+
+        ``apply`` sets inputs (``set_*``). With :attr:`exact_inputs` the step that spans t is
+        split at t (:meth:`advance`); else the input acts from the first step k with
+        k h >= t. An instant already reached (within 1e-6 h) applies now. Inputs due at the
+        same instant apply in the order they were scheduled.
+        """
+        t = float(t)
+        if not np.isfinite(t):
+            raise ValueError(f'input time must be finite, got {t!r}')
+        if t <= self.t + _INSTANT * self.h:
+            apply()
+            return
+        heapq.heappush(self._pending, (t, next(self._order), apply))
+
+    def _due_tick(self, t: float) -> int:
+        """Return the first step k with k h >= t [s] (within 1e-6 h)."""
+        return max(0, int(np.ceil(t / self.h - _INSTANT)))
+
+    def _apply_due(self) -> None:
+        """Apply the scheduled inputs due now."""
+        pending = self._pending
+        limit = self.t + _INSTANT * self.h
+        while pending and (pending[0][0] <= limit or (
+                not self.exact_inputs and self._due_tick(pending[0][0]) <= self.steps)):
+            heapq.heappop(pending)[2]()
 
     def advance(self, n_steps: int) -> int:
-        """Integrate ``n_steps`` fixed steps; return the steps done (fewer after a fault)."""
+        """
+        Integrate ``n_steps`` steps of h; return the steps done (fewer after a fault).
+
+        A step that spans scheduled inputs (:meth:`schedule`, :attr:`exact_inputs`) is done
+        in pieces ending at their instants; the inputs due at the end are applied.
+        """
         if self.fault is not None or n_steps <= 0:
             return 0
+        if not self._pending:
+            return self._advance_ticks(int(n_steps))
+        target = self.steps + int(n_steps)
+        start = self.steps
+        while self.fault is None and self.steps < target:
+            self._apply_due()
+            if not self._pending:
+                self._advance_ticks(target - self.steps)
+                break
+            t_next = self._pending[0][0]
+            if self.exact_inputs:
+                k = int(np.floor(t_next / self.h + _INSTANT))   # the step that spans it
+            else:
+                k = self._due_tick(t_next)
+            if k > self.steps:
+                self._advance_ticks(min(k, target) - self.steps)
+            else:
+                self._split_step()
+        if self.fault is None:
+            self._apply_due()
+        return self.steps - start
+
+    def _split_step(self) -> None:
+        """
+        Do the next step of h in pieces that end at the scheduled inputs inside it.
+
+        Each piece is one step of the driver with its length in PARAM.H: fixed step, one
+        ROS2 step (the couplers' stage rows evaluated again for it); error control, one
+        brake-system tick of the piece's length and the chain under error control to its
+        end. The tick counters then count the whole step once.
+        """
+        self._sync()
+        if self.fault is not None:
+            return
+        h = self.h
+        t_end = (self.steps + 1) * h
+        eps = _INSTANT * h
+        pending = self._pending
+        tick0 = int(self.iv[CLOCK.TICK])
+        while True:
+            t_piece = pending[0][0] if pending and pending[0][0] < t_end - eps else t_end
+            dt = t_piece - self.t
+            if dt > eps:
+                status = self._piece(dt, tick0)
+                if status != OK:
+                    self.fault = STATUS_TEXT[status].format(t=self.t)
+                    return
+                self._within += dt
+            if t_piece >= t_end:
+                break
+            while pending and pending[0][0] <= self.t + eps:
+                heapq.heappop(pending)[2]()
+        self._within = 0.0
+        self.steps += 1
+        if self.adaptive:
+            self.iv[CLOCK.TICK] = self.iv[CLOCK.CHAIN_TICK] = tick0 + 1
+            self.iv[CACHE.WS_VALID] = 0     # the tick ring restarts from the state here
+
+    def _piece(self, dt: float, tick0: int) -> int:
+        """Run one driver step of length ``dt`` [s] (< h) from tick ``tick0``; the status."""
+        if self._cylinders_set:
+            self._hold_cylinders()
+        sc, iv = self.sc, self.iv
+        sc[PARAM.H] = dt
+        iv[CACHE.WS_VALID] = 0           # the couplers' rows (and tick ring) for this length
+        try:
+            if self.adaptive:
+                iv[CLOCK.TICK] = iv[CLOCK.CHAIN_TICK] = tick0
+                _, status = adaptive.advance_adaptive(
+                    1, True, self.coach, self.cpl, sc, iv, self.fill, self.rel, self.ring,
+                    self.ws, self.gprof, self.cprof, self.tick_fb, self.tick_te)
+            else:
+                _, status = fixed_step.advance_chain(1, self.coach, self.cpl, sc, iv,
+                                                     self.fill, self.rel, self.ring, self.ws,
+                                                     self.gprof, self.cprof)
+        finally:
+            sc[PARAM.H] = self.h
+            iv[CACHE.WS_VALID] = 0
+        return status
+
+    def _advance_ticks(self, n_steps: int) -> int:
+        """Integrate ``n_steps`` whole steps of h; return the steps done."""
+        if n_steps <= 0:
+            return 0
+        if self._cylinders_set:
+            self._hold_cylinders()
         if self.pneu is not None:
             return self._advance_pneumatic(int(n_steps))
         done, status = self._kernel(int(n_steps))
@@ -358,6 +517,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         """Integrate whole steps until ``self.t >= t - h/2``; return the steps done."""
         target = int(np.floor(t / self.h + 0.5))
         return self.advance(target - self.steps)
+
+
+#: [steps of h] instants closer than this are the same instant (rounding of t = k h)
+_INSTANT = 1e-6
 
 
 def _landing_ticks(rate: float, h: float) -> int:

@@ -55,11 +55,15 @@ def _joint_state_bytes(joints: int, name_len: int) -> int:
 
 
 def output_bytes_per_sample(n_coaches: int) -> int:
-    """Return the bag bytes of one output instant: couplers, coaches, brake_cylinders."""
+    """
+    Return the bag bytes of one output instant.
+
+    couplers, coaches, brake_cylinders and vehicle_motion (its frame_id ``track``: 8 bytes).
+    """
     digits = len(str(n_coaches))
     msgs = (_joint_state_bytes(n_coaches - 1, 8 + digits)
-            + 2 * _joint_state_bytes(n_coaches, 6 + digits))
-    return msgs + 3 * BAG_BYTES_PER_MESSAGE
+            + 3 * _joint_state_bytes(n_coaches, 6 + digits) + 8)
+    return msgs + 4 * BAG_BYTES_PER_MESSAGE
 
 
 def output_disk(cfg: Any, duration: float) -> int:

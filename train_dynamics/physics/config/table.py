@@ -333,8 +333,9 @@ _PARAMS = [
               low=0.0, high=0.1),
     ParamSpec('integration_max_steps', 100, INTEGER,
               'Work budget of the error-controlled integration: steps per output period; '
-              'beyond it the rest of the period runs at the fixed integration_step (counted '
-              'in /diagnostics fallback_periods).', low=1, high=1000000),
+              'beyond it the rest of the period takes at most as many equal steps without '
+              'error control (counted in /diagnostics fallback_periods).', low=1,
+              high=1000000),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
@@ -350,6 +351,29 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'wall seconds until a publisher is connected to every brake-input topic of '
               'brake_input (the state stays at t = 0 meanwhile); 0 = start at once.',
               low=0.0, high=3600.0, dynamic=True),
+    ParamSpec('sync_mode', 'free', STRING,
+              'free: the simulation runs at real_time_factor whatever the controller does; '
+              'lockstep: after each output the node waits until every active brake input has '
+              "answered with a message stamped with that output's stamp, then advances one "
+              'output period (and starts only when the controller is connected both ways).',
+              choices=('free', 'lockstep'), dynamic=True),
+    ParamSpec('input_timing', 'arrival', STRING,
+              'arrival: a brake input takes effect at the next integration step after it '
+              'arrives; stamp: at the first integration step at or after its header stamp '
+              '(simulation time); a stamp already past is applied at once and counted late.',
+              choices=('arrival', 'stamp'), dynamic=True),
+    ParamSpec('lockstep_timeout', 5.0, DOUBLE,
+              'lockstep: wall seconds without the answer to an output after which the node '
+              'reports it (log, /diagnostics) and then does what lockstep_on_timeout says; '
+              '0 = wait silently.',
+              low=0.0, high=3600.0, dynamic=True),
+    ParamSpec('lockstep_on_timeout', 'wait', STRING,
+              'lockstep, after lockstep_timeout: wait (keep waiting for the answer) or stop '
+              '(end the run; sim_node exits with status 4).',
+              choices=('wait', 'stop'), dynamic=True),
+    ParamSpec('step_periods', 1, INTEGER,
+              'Output periods the ~/step service advances a paused simulation by.',
+              low=1, high=1000000000, dynamic=True),
     ParamSpec('record_flush_period', 10.0, DOUBLE,
               'Wall-clock period [s] at which the record_bag MCAP file is finished and a new '
               'one started: a SIGKILL loses at most this much of the recording.',
