@@ -33,7 +33,8 @@ from train_dynamics.physics.kernel import adaptive, brakes, couplers, fixed_step
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, COUNT, COUPLER,
                                                   INPUT, INTEGER, OPTION, PARAM, SCALAR,
                                                   SCALAR_INPUT, STATE, VEHICLE, WORK)
-from train_dynamics.physics.kernel.step import make_workspace, OK, STATUS_TEXT
+from train_dynamics.physics.kernel.step import (available_braking_force, make_workspace, OK,
+                                                STATUS_TEXT)
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.resistance import equivalent_mass
 
@@ -281,7 +282,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         """
         Make the cylinder inputs act from now: a step on the braking force (zero-order hold).
 
-        The step's braking force is the mean of eq. (13) at its two ends; an input that steps
+        The step's braking force is the mean of the available force (eq. 13, or the friction
+        material's, ``step.available_braking_force``) at its two ends; an input that steps
         here sets the start value too, so a staircase input gives a staircase force (not a
         ramp over the next step). Error control: the chain is brought to the present tick
         first and the tick's force row restarts at the new value. Done once for all the inputs
@@ -291,8 +293,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self._sync()
         c = self.coach
         c[STATE.PCYL] = c[INPUT.CYL]
-        brakes.braking_force(c[STATE.PCYL], self.sc[PARAM.PMAX], self.sc[PARAM.MU],
-                             c[VEHICLE.BMASS], self.sc[PARAM.G], c[STATE.FB_AVAIL])
+        available_braking_force(c, self.sc, c[STATE.FB_AVAIL])
         if self.adaptive and self.iv[CACHE.WS_VALID]:
             self.tick_fb[self.iv[CLOCK.TICK] % self.tick_fb.shape[0]] = c[STATE.FB_AVAIL]
 
