@@ -191,20 +191,24 @@ def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
     # a force limit needs its power limit (consist.check_traction_power)
     power = dict(consist._POWER_PAIRS).get(field)
     extra = f', {power}: 1.0e6' if power else ''
+    if field == 'friction_material':      # a material other than paper needs a force level
+        extra += ', braked_mass_p: 40000.0'
     path = write(tmp_path, f'vehicle_types: {{w: {{{field}: {value!r}{extra}}}}}\n'
                            'vehicles: [{type: w, count: 3}]\n')
     cfg = SimConfig.from_dict({'consist_file': path})
-    if spec.choices:
-        assert list(cfg.consist.regimes) == [value] * 3
+    kernel_value = value
+    if spec.choices:            # a choice reaches the kernel as its index in the choices
+        assert cfg.consist.choices(field) == [value] * 3
+        kernel_value = float(spec.choices.index(value))
     else:
         assert list(cfg.consist[field]) == [value] * 3
     if spec.row:
         assert spec.row in layout.VEHICLE._fields
         assert spec.row in compiler.table_kernel_rows()      # the kernel cache's key
         sim = TrainSimulator(cfg)
-        assert list(sim.coach[getattr(layout.VEHICLE, spec.row)]) == [value] * 3
+        assert list(sim.coach[getattr(layout.VEHICLE, spec.row)]) == [kernel_value] * 3
         sim.reset()
-        assert list(sim.coach[getattr(layout.VEHICLE, spec.row)]) == [value] * 3
+        assert list(sim.coach[getattr(layout.VEHICLE, spec.row)]) == [kernel_value] * 3
 
 
 def test_the_kernel_layout_has_a_row_for_each_field_that_declares_one_and_no_other():

@@ -23,7 +23,7 @@ import itertools
 
 import numpy as np
 
-from train_dynamics.physics import equilibrium, pneumatic
+from train_dynamics.physics import equilibrium, friction, pneumatic
 from train_dynamics.physics.config import (Consist, G_FILL_TIME, G_RELEASE_TIME,
                                            P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
                                            P_RELEASE_TIME, SimConfig)
@@ -34,7 +34,8 @@ from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, 
                                                   INPUT, INTEGER, OPTION, PARAM, SCALAR,
                                                   SCALAR_INPUT, STATE, VEHICLE, WORK)
 from train_dynamics.physics.kernel.resistance import running_resistance
-from train_dynamics.physics.kernel.step import make_workspace, OK, STATUS_TEXT
+from train_dynamics.physics.kernel.step import (available_braking_force, make_workspace, OK,
+                                                STATUS_TEXT)
 from train_dynamics.physics.kernel.traction import traction_force
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.resistance import equivalent_mass
@@ -67,7 +68,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     #: ``coach``: derived from the ``row`` of their ParamSpec (config.table.KERNEL_ROWS). The
     #: other VEHICLE rows are transforms of fields, written in ``_set_constants``: MASS
     #: (mass, rotating_mass_factor), BMASS (mass, adhesion_coefficient), WEIGHT (mass),
-    #: FRONT0 (length, initial_position), DELAY (length, brake_propagation_speed).
+    #: FRONT0 (length, initial_position), DELAY (length, brake_propagation_speed), BRAKE_GAIN
+    #: and BRAKE_OFF (the friction-brake fields, physics/friction.force_rows).
     _VEHICLE_ROWS = {field: getattr(VEHICLE, row) for field, row in KERNEL_ROWS.items()}
 
     def __init__(self, cfg: SimConfig, coupler_constants: dict | None = None):
@@ -172,6 +174,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         c[VEHICLE.MASS] = self.inertia
         c[VEHICLE.BMASS] = np.where(own == mu, self.masses, self.masses * own / mu)
         c[VEHICLE.WEIGHT] = self.masses * float(cfg.gravity)
+        c[[VEHICLE.BRAKE_GAIN, VEHICLE.BRAKE_OFF]] = friction.force_rows(
+            consist, self.inertia, self.fill, float(cfg.gravity))
         for name, row in self._VEHICLE_ROWS.items():
             c[row] = consist[name]
         c[VEHICLE.FRONT0] = self.track.fronts(consist['length'])
@@ -183,6 +187,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             cfg.pipe_nominal_pressure, cfg.full_service_pressure, cfg.distributor_sensitivity,
             cfg.max_coupler_displacement, self.tolerance,
             1e-3 * float(np.max(self.masses)) * float(cfg.gravity)]
+        sc[PARAM.FRICTION] = float(np.any(c[VEHICLE.MATERIAL] != friction.PAPER))
         # the pneumatic brake hands the chain its cylinder pressures (cylinder_per_coach)
         iv[OPTION.MODE] = brakes.CYLINDER_PER_COACH if self.pneu is not None else self.mode
         iv[OPTION.EXT] = int(cfg.external_forces)
@@ -326,7 +331,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         """
         Make the cylinder inputs act from now: a step on the braking force (zero-order hold).
 
-        The step's braking force is the mean of eq. (13) at its two ends; an input that steps
+        The step's braking force is the mean of the available force (eq. 13, or the friction
+        material's, ``step.available_braking_force``) at its two ends; an input that steps
         here sets the start value too, so a staircase input gives a staircase force (not a
         ramp over the next step). Error control: the chain is brought to the present tick
         first and the tick's force row restarts at the new value. Done once for all the inputs
@@ -336,8 +342,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self._sync()
         c = self.coach
         c[STATE.PCYL] = c[INPUT.CYL]
-        brakes.braking_force(c[STATE.PCYL], self.sc[PARAM.PMAX], self.sc[PARAM.MU],
-                             c[VEHICLE.BMASS], self.sc[PARAM.G], c[STATE.FB_AVAIL])
+        available_braking_force(c, self.sc, c[STATE.FB_AVAIL])
         if self.adaptive and self.iv[CACHE.WS_VALID]:
             self.tick_fb[self.iv[CLOCK.TICK] % self.tick_fb.shape[0]] = c[STATE.FB_AVAIL]
 

@@ -294,6 +294,13 @@ class Consist:
         """Return one numeric field of every vehicle (array of N)."""
         return self.fields[field]
 
+    def choices(self, field: str) -> list[str]:
+        """Return a choice field of every vehicle by name (stored as its index, _number)."""
+        if field == 'brake_regime':
+            return list(self.regimes)
+        names = VEHICLE_PARAMETERS[field].choices
+        return [names[int(code)] for code in self.fields[field]]
+
     @property
     def locomotives(self) -> list[int]:
         """Return the 0-based indices of the vehicles with traction or dynamic brake."""
@@ -316,6 +323,12 @@ def _end(row: dict[str, Any], key: str) -> dict[str, float]:
     return {f: float(own.get(f, row[f])) for f in COUPLER_FIELDS}
 
 
+def _number(field: str, value: Any) -> float:
+    """Return a field's value as a number: a choice (friction_material) as its index."""
+    choices = VEHICLE_PARAMETERS[field].choices
+    return float(choices.index(value)) if choices else float(value)
+
+
 def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
           whole: Mapping[str, float] | None = None) -> Consist:
     """
@@ -330,7 +343,8 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
     """
     counts = np.array([c for _, _, c in entries], dtype=np.int64)
     numeric = [f for f in VEHICLE_FIELDS if f != 'brake_regime']
-    per_entry = {f: np.array([e[1][f] for e in entries], dtype=float) for f in numeric}
+    per_entry = {f: np.array([_number(f, e[1][f]) for e in entries], dtype=float)
+                 for f in numeric}
     firsts = np.concatenate(([1], 1 + np.cumsum(counts[:-1])))
     labels = [f'{first} ({name})' for first, (name, _, _) in zip(firsts, entries)]
     ends = {}
@@ -446,7 +460,7 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
     n = len(masses)
     if n < 2:
         raise ConfigError(f'parameters: a train needs at least 2 vehicles, got {n}')
-    fields = {f: np.full(n, float(v)) for f, v in defaults.items() if f != 'brake_regime'}
+    fields = {f: np.full(n, _number(f, v)) for f, v in defaults.items() if f != 'brake_regime'}
     fields['mass'] = np.array([float(m) for m in masses])
     ends = {f: fields[f][1:] for f in COUPLER_FIELDS}
     return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n,

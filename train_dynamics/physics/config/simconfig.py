@@ -113,6 +113,21 @@ class SimConfig:
     traction_adhesion: float = 0.33                   # at standstill [-]
     dynamic_brake_fade_speed: float = 1.4             # [m/s]
     initial_state: str = 'equilibrium'                # couplers at t = 0, or 'unstressed'
+    friction_material: str = 'paper'                  # paper (eq. 13) or a material
+    brake_cylinder_area: float = 0.0                  # force chain: piston area [m^2]
+    brake_cylinders: float = 1.0                      # force chain: cylinders per vehicle
+    brake_cylinder_efficiency: float = 0.95           # force chain: eta_c [-]
+    brake_spring_force: float = 0.0                   # force chain: return spring [N]
+    rigging_ratio: float = 0.0                        # force chain: lever ratio i [-]
+    rigging_efficiency: float = 0.83                  # force chain: eta_r [-]
+    brake_blocks: float = 8.0                         # blocks or pads per vehicle
+    brake_radius_ratio: float = 1.0                   # disc: r_eff / r_wheel [-]
+    braked_mass_p: float = 0.0                        # braked mass, regime P [kg]
+    braked_mass_g: float = 0.0                        # braked mass, regime G [kg]
+    load_empty_mass: float = 0.0                      # load-weighing: empty [kg]; 0 = none
+    load_full_mass: float = 0.0                       # load-weighing: loaded from [kg]
+    load_changeover_mass: float = 0.0                 # 0 = continuous valve [kg]
+    load_empty_ratio: float = 1.0                     # empty / loaded pressure [-]
     # the line
     initial_position: float = 0.0                     # front of vehicle 1 at t = 0 [m]
     track_gradient_positions: list[float] = field(default_factory=list)   # [m], increasing

@@ -16,6 +16,9 @@ from typing import Any, Mapping
 from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
                                                 DOUBLE_ARRAY, INTEGER, ParamSpec, SERIES, STRING)
 from train_dynamics.quoting import quote
+# the friction materials in the order of their codes in the kernel (the models and their
+# sources: physics/friction.py)
+from train_dynamics.physics.kernel.friction import MATERIALS as FRICTION_MATERIALS
 
 # Pressure defaults, written once (used by the simulator and the brake valve).
 ATMOSPHERIC_PRESSURE = 101325.0    # [Pa absolute]: FluidPressure (absolute) = gauge + this
@@ -248,6 +251,66 @@ _PARAMS = [
               'gradient, curve, resistance and traction at t = 0, free play included: a steady '
               'run stays steady) or "unstressed" (every coupler at y = 0, the paper\'s start).',
               choices=('equilibrium', 'unstressed')),
+    # Friction brakes (physics/friction.py): the material and one of two routes to the force
+    # level, the EN 14531-1 force chain (cylinder area and rigging ratio) or the braked mass
+    # of the vehicle's regime (UIC 544-1). Ignored for paper (eq. 13).
+    ParamSpec('friction_material', 'paper', STRING,
+              'Friction material of the brakes: paper (eq. 13 with the adhesion coefficient, '
+              'as in the paper), cast_iron (Karwatzki: falls with speed and block force), '
+              'composite_k, composite_ll (composition blocks), disc (pads on discs).',
+              choices=FRICTION_MATERIALS, vehicle='friction_material', row='MATERIAL'),
+    ParamSpec('brake_cylinder_area', 0.0, DOUBLE,
+              'Force chain: piston area of one brake cylinder [m^2] (a 10 inch cylinder: '
+              '0.0507); 0 = no force chain (braked mass instead).', low=0.0, high=1.0,
+              vehicle='brake_cylinder_area'),
+    ParamSpec('brake_cylinders', 1.0, DOUBLE,
+              'Force chain: number of brake cylinders of the vehicle.', low=1.0, high=64.0,
+              vehicle='brake_cylinders'),
+    ParamSpec('brake_cylinder_efficiency', 0.95, DOUBLE,
+              'Force chain: cylinder efficiency eta_c [-] (EN 14531-1; seals: ~0.95).',
+              low=0.0, high=1.0, low_exclusive=True, vehicle='brake_cylinder_efficiency'),
+    ParamSpec('brake_spring_force', 0.0, DOUBLE,
+              'Force chain: return-spring force of one cylinder [N] (subtracted from the '
+              'piston force).', low=0.0, high=1.0e5, vehicle='brake_spring_force'),
+    ParamSpec('rigging_ratio', 0.0, DOUBLE,
+              'Force chain: brake rigging (lever) ratio i [-] from piston to all blocks or '
+              'pads of one cylinder; 0 = no force chain.', low=0.0, high=100.0,
+              vehicle='rigging_ratio'),
+    ParamSpec('rigging_efficiency', 0.83, DOUBLE,
+              'Force chain: rigging efficiency eta_r [-] (EN 14531-1 tread rigging: '
+              '~0.83; disc units ~0.95).', low=0.0, high=1.0, low_exclusive=True,
+              vehicle='rigging_efficiency'),
+    ParamSpec('brake_blocks', 8.0, DOUBLE,
+              'Number of blocks (tread) or pads (disc) sharing the normal force: the block '
+              'force of the cast-iron law.', low=1.0, high=256.0, vehicle='brake_blocks',
+              row='BLOCKS'),
+    ParamSpec('brake_radius_ratio', 1.0, DOUBLE,
+              'Radius ratio rho [-]: 1 for tread brakes; disc: effective friction radius '
+              'over wheel radius (~0.25 / 0.46).', low=0.0, high=2.0, low_exclusive=True,
+              vehicle='brake_radius_ratio', row='RHO'),
+    ParamSpec('braked_mass_p', 0.0, DOUBLE,
+              'Braked mass [kg] in regime P (the braked weight on the vehicle label, UIC '
+              '544-1); sets the force level when there is no force chain; 0 = not given.',
+              low=0.0, high=1.0e6, vehicle='braked_mass_p'),
+    ParamSpec('braked_mass_g', 0.0, DOUBLE,
+              'Braked mass [kg] in regime G (as braked_mass_p).', low=0.0, high=1.0e6,
+              vehicle='braked_mass_g'),
+    ParamSpec('load_empty_mass', 0.0, DOUBLE,
+              'Load-weighing: mass of the empty vehicle [kg]; 0 = no load-weighing (the '
+              'force level is the loaded one). The actual mass is the mass of the vehicle.',
+              low=0.0, high=1.0e6, vehicle='load_empty_mass'),
+    ParamSpec('load_full_mass', 0.0, DOUBLE,
+              'Load-weighing: mass [kg] from which the loaded force level applies (the '
+              'force chain or braked mass give the loaded level).', low=0.0, high=1.0e6,
+              vehicle='load_full_mass'),
+    ParamSpec('load_changeover_mass', 0.0, DOUBLE,
+              'Load-weighing: empty/loaded changeover at this mass [kg]; 0 = a continuous '
+              'load-proportional valve between load_empty_mass and load_full_mass.',
+              low=0.0, high=1.0e6, vehicle='load_changeover_mass'),
+    ParamSpec('load_empty_ratio', 1.0, DOUBLE,
+              'Load-weighing: cylinder pressure of the empty setting over the loaded one [-] '
+              '(the load valve scales the pressure that acts on the piston).', low=0.0,
+              high=1.0, low_exclusive=True, vehicle='load_empty_ratio'),
     ParamSpec('initial_position', 0.0, DOUBLE,
               'Position along the track [m] of the front of vehicle 1 at t = 0.',
               low=-1.0e7, high=1.0e7),

@@ -27,7 +27,8 @@ from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_coup
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, CONTROL, COUNT, INPUT, OPTION,
                                                   PARAM, STATE, TOTAL, VEHICLE, WORK)
 from train_dynamics.physics.kernel.ros2 import GAMMA
-from train_dynamics.physics.kernel.step import (accept_external, accept_step, brake_system_step,
+from train_dynamics.physics.kernel.step import (accept_external, accept_step,
+                                                available_braking_force, brake_system_step,
                                                 fault_check, OK, static_resistance)
 
 #: [s] the error-controlled steps never go below this (a step this short is accepted)
@@ -53,8 +54,7 @@ def _brake_tick(coach, sc, iv, ring, tables, ws, fbt, tet):
     """
     brake_system_step(coach, sc, iv, ring, tables, ws)
     fb_next = ws[WORK.FBNEXT]
-    brakes.braking_force(coach[STATE.PCYL], sc[PARAM.PMAX], sc[PARAM.MU],
-                         coach[VEHICLE.BMASS], sc[PARAM.G], fb_next)
+    available_braking_force(coach, sc, fb_next)
     tick = iv[CLOCK.TICK] + 1
     r = tick % fbt.shape[0]
     h = sc[PARAM.H]

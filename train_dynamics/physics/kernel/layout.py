@@ -86,6 +86,8 @@ DERIVED_VEHICLE_ROWS = [
     'WEIGHT',       # m g [N]: gravity, curve resistance, traction adhesion
     'FRONT0',       # track position of the vehicle's front at t = 0 [m]
     'DELAY',        # brake-pipe delay of the vehicle [steps]
+    'BRAKE_GAIN',   # friction brakes: normal force per cylinder pressure K1 [N/Pa]
+    'BRAKE_OFF',    # friction brakes: normal force lost to the return springs K0 [N]
 ]
 #: then one row per per-vehicle field that the kernel reads as is, in table order: the
 #: ``row`` of its ParamSpec (config/table.py, :data:`KERNEL_ROWS`: name, unit, range there)
@@ -140,6 +142,7 @@ PARAM = _group('ParamSlots', [
     'YLIM',         # largest physically possible |y| [m]
     'TOL',          # integration_tolerance: local coupler-force error / force level [-]
     'FFLOOR',       # force level below which the tolerance is absolute [N]
+    'FRICTION',     # 1.0: some vehicle brakes with a friction material (not paper)
 ])
 TOTAL = _group('TotalSlots', [
     'WB',           # work of the brakes since t = 0 [J]

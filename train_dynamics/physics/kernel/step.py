@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from train_dynamics.physics.kernel import brakes, traction
+from train_dynamics.physics.kernel import brakes, friction, traction
 from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.coupler_rows import invalidate_caches
 from train_dynamics.physics.kernel.layout import (CLOCK, INPUT, OPTION, OUTPUT, PARAM,
@@ -89,18 +89,35 @@ def brake_system_step(coach, sc, iv, ring, tables, ws):
 
 
 @jit(inline=True)
+def available_braking_force(coach, sc, out):
+    """
+    Write the braking force available at the cylinder pressures [N] to ``out``.
+
+    Eq. (13) limited by eq. (12) (:func:`~.brakes.braking_force`); then, when some vehicle
+    brakes with a friction material (PARAM.FRICTION), its force at its speed
+    (:func:`~.friction.friction_braking_force`; the speed of the chain's present state).
+    """
+    brakes.braking_force(coach[STATE.PCYL], sc[PARAM.PMAX], sc[PARAM.MU],
+                         coach[VEHICLE.BMASS], sc[PARAM.G], out)
+    if sc[PARAM.FRICTION] != 0.0:
+        friction.friction_braking_force(coach[VEHICLE.MATERIAL], coach[STATE.PCYL],
+                                        coach[STATE.V], coach[VEHICLE.BRAKE_GAIN],
+                                        coach[VEHICLE.BRAKE_OFF], coach[VEHICLE.BLOCKS],
+                                        coach[VEHICLE.RHO], sc[PARAM.G], out)
+
+
+@jit(inline=True)
 def braking_force_trapezoid(coach, sc, ws):
     """
     Write the braking force over the step [N] to WORK.FB: the trapezoid of eq. (13).
 
-    The mean of the available force (eq. 13, limited by eq. 12) at both ends of the step,
+    The mean of the available force (:func:`available_braking_force`) at both ends of the step,
     second order; STATE.FB_AVAIL moves on to the step's end (WORK.FBNEXT).
     """
     fb = ws[WORK.FB]
     fb_next = ws[WORK.FBNEXT]
     fb_avail = coach[STATE.FB_AVAIL]
-    brakes.braking_force(coach[STATE.PCYL], sc[PARAM.PMAX], sc[PARAM.MU],
-                         coach[VEHICLE.BMASS], sc[PARAM.G], fb_next)
+    available_braking_force(coach, sc, fb_next)
     for i in range(fb.shape[0]):
         fb[i] = 0.5 * (fb_avail[i] + fb_next[i])
         fb_avail[i] = fb_next[i]

@@ -1,0 +1,210 @@
+"""
+Friction brakes as a brake controller sees them: materials, force chain, braked mass, load.
+
+Retarding force at the rail of one vehicle [N], for a friction material other than
+``paper`` (the paper's eq. 13, :func:`~train_dynamics.physics.kernel.brakes.braking_force`):
+
+    F_r = mu_m(v, F_block) * N * rho
+
+with N [N] the total normal force of the blocks or pads, mu_m the material's friction
+coefficient (:func:`material_friction`) at the speed of the rubbing surface v [m/s] (the
+wheel's peripheral speed; disc: the same wheel speed, the curves are given against train
+speed), F_block = N / n_blocks [N] the force of one block, and rho the radius ratio: 1 for
+tread brakes, r_eff / r_wheel for disc brakes (pads act at the disc's effective radius).
+
+**Force chain** (EN 14531-1, "Railway applications - methods for calculation of stopping and
+slowing distances", tread and disc brake force formulae), :func:`chain_normal_force`:
+
+    F_piston = p A eta_c - F_spring        (cylinder pressure p [Pa, gauge], piston area A
+                                            [m^2], cylinder efficiency eta_c, return spring
+                                            F_spring [N]; never negative)
+    N        = n_cyl F_piston i eta_r      (rigging ratio i, rigging efficiency eta_r)
+
+**Braked mass** (UIC 544-1): a vehicle's label gives its braked weight B [kg] per regime; the
+braked-weight percentage lambda = 100 B / m [%]. The relation between lambda and the stopping
+distance used here is the Minden formula of the DB test centre (the empirical relation the
+UIC braked-weight percentages of P-braked trains were set on; quoted by Wende, Fahrdynamik
+des Schienenverkehrs, 2003, ch. 8):
+
+    s [m] = 3.85 v0^2 / (6.1 psi (1 + lambda / 10) + i)     v0 [km/h], i [per mille, > 0
+                                                             uphill], psi = 1 (P regime)
+
+:func:`braked_mass_normal_force` turns B into the normal force N_full at full cylinder
+pressure so that the vehicle's stop from the reference speed on the level reproduces s (free
+run for the equivalent response time t_e = fill time / 2, EN 14531-1, then the material's
+friction curve integrated over the speed: exact for a constant pressure).
+
+**Load-weighing** (:func:`load_weighed_force`): an empty/loaded changeover (two force
+levels, switched at a changeover mass) or a continuous load-proportional valve (linear
+between the empty and the loaded level).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from train_dynamics.physics.config.spec import ConfigError
+from train_dynamics.physics.kernel import friction as _kernel
+from train_dynamics.physics.kernel.friction import (CAST_IRON, COMPOSITE_K,  # noqa: F401
+                                                    COMPOSITE_LL, DISC, MATERIALS, PAPER)
+
+#: friction material name -> its code in the kernel
+MATERIAL_CODES = {name: code for code, name in enumerate(MATERIALS)}
+
+#: Minden formula constants (see the module docstring)
+MINDEN_K = 3.85
+MINDEN_D = 6.1
+
+
+def material_friction(material: int, v: float, block_force: float, g: float = 9.81) -> float:
+    """Return the friction coefficient [-] of ``material`` (MATERIAL_CODES) at v [m/s]."""
+    return _kernel.material_friction(material, v, block_force, g)
+
+
+def chain_normal_force(p: float, area: float, spring: float, rigging_ratio: float,
+                       rigging_efficiency: float, cylinders: int = 1,
+                       cylinder_efficiency: float = 1.0) -> float:
+    """
+    Return the total normal force N [N] of the blocks or pads at cylinder pressure p [Pa].
+
+    EN 14531-1: piston force p A eta_c - F_spring (>= 0) through the rigging, ratio i and
+    efficiency eta_r, times the number of cylinders.
+    """
+    piston = max(p * area * cylinder_efficiency - spring, 0.0)
+    return cylinders * piston * rigging_ratio * rigging_efficiency
+
+
+def retarding_force(material: int, v: float, normal: float, blocks: int,
+                    radius_ratio: float = 1.0, g: float = 9.81) -> float:
+    """Return the retarding force at the rail [N]: mu_m(v, N / blocks) N rho (module docstring)."""
+    return material_friction(material, v, normal / blocks, g) * normal * radius_ratio
+
+
+def minden_distance(v0: float, braked_percentage: float, gradient: float = 0.0,
+                    psi: float = 1.0) -> float:
+    """Return the Minden-formula stopping distance [m] from v0 [m/s] at lambda [%]."""
+    kmh = 3.6 * v0
+    return MINDEN_K * kmh * kmh / (MINDEN_D * psi * (1.0 + braked_percentage / 10.0) + gradient)
+
+
+def minden_percentage(v0: float, distance: float, gradient: float = 0.0,
+                      psi: float = 1.0) -> float:
+    """Return the braked-weight percentage lambda [%] that stops from v0 [m/s] in distance [m]."""
+    kmh = 3.6 * v0
+    return 10.0 * ((MINDEN_K * kmh * kmh / distance - gradient) / (MINDEN_D * psi) - 1.0)
+
+
+def braked_mass_normal_force(braked_mass: float, mass: float, material: int, blocks: int,
+                             response_time: float, radius_ratio: float = 1.0,
+                             v_ref: float = 120.0 / 3.6, g: float = 9.81,
+                             inertia: float = 0.0) -> float:
+    """
+    Return the normal force at full cylinder pressure N_full [N] that gives braked mass B.
+
+    The stop from v_ref [m/s] on the level: free run v_ref t_e (t_e = ``response_time`` [s],
+    the equivalent response time of the cylinder's filling, :func:`response_time`), then
+    (m + m_rot) v dv / F_r(v) integrated to rest must equal the Minden distance of
+    lambda = 100 B / m; ``inertia`` m_rot [kg] the rotating masses' allowance (the brake stops
+    them too; the percentage is of the mass m).
+    The cast-iron friction depends on the block force, so N_full is found by fixed-point
+    iteration (it converges in a few steps: the block-force factor varies slowly).
+    """
+    lam = 100.0 * braked_mass / mass
+    braking = minden_distance(v_ref, lam) - v_ref * response_time
+    if braking <= 0.0:
+        raise ValueError(f'braked mass {braked_mass} kg of a {mass} kg vehicle asks a stop '
+                         f'shorter than its brake fill time allows')
+    speeds = np.linspace(0.0, v_ref, 401)
+    normal = mass * v_ref ** 2 / (2.0 * braking * 0.25 * radius_ratio)   # first guess
+    for _ in range(50):
+        mus = np.array([material_friction(material, v, normal / blocks, g) for v in speeds])
+        # s = int m v dv / (mu(v) N rho)  =>  N = m int v / mu dv / (s rho)
+        integral = float(np.sum(0.5 * (speeds[1:] / mus[1:] + speeds[:-1] / mus[:-1])
+                                * np.diff(speeds)))
+        new = (mass + inertia) * integral / (braking * radius_ratio)
+        if abs(new - normal) <= 1e-12 * new:
+            return new
+        normal = new
+    return normal
+
+
+def response_time(fill_times, fill_fractions) -> float:
+    """
+    Return the equivalent response time t_e [s] of a filling characteristic (EN 14531-1).
+
+    The area above the curve p / p_max against time: a step of the full force t_e after
+    the command loses the same speed as the real build-up.
+    """
+    t = np.asarray(fill_times, dtype=float)
+    f = 1.0 - np.asarray(fill_fractions, dtype=float)
+    return float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(t)))
+
+
+def force_rows(consist, inertia: np.ndarray, fill, g: float) -> np.ndarray:
+    """
+    Return the force chain of each vehicle reduced to a line: (2, N) K1 [N/Pa], K0 [N].
+
+    ``consist`` the vehicles (their friction fields), ``inertia`` m (1 + rotating mass
+    factor) [kg], ``fill`` the train's filling table (times, p/p_max). A vehicle of a
+    material other than paper needs the force chain (brake_cylinder_area and rigging_ratio)
+    or the braked mass of its regime (braked_mass_p or braked_mass_g); else ConfigError
+    naming the vehicle and the fields. Both give the loaded level; with load-weighing
+    (load_empty_mass > 0) the valve scales the pressure on the piston, K1, by
+    :func:`load_weighed_force` of the vehicle's mass (levels ``load_empty_ratio`` and 1).
+    """
+    rows = np.zeros((2, consist.n))
+    t_e = None
+    for i in range(consist.n):
+        material = int(consist['friction_material'][i])
+        if material == PAPER:
+            continue
+        field = lambda name: float(consist[name][i])       # noqa: E731
+        area, ratio = field('brake_cylinder_area'), field('rigging_ratio')
+        regime = consist.regimes[i]
+        braked = field(f'braked_mass_{regime.lower()}')
+        if area > 0.0 and ratio > 0.0:          # EN 14531-1 chain: N = p K1 - K0
+            lever = field('brake_cylinders') * ratio * field('rigging_efficiency')
+            rows[0, i] = area * field('brake_cylinder_efficiency') * lever
+            rows[1, i] = field('brake_spring_force') * lever
+        elif braked > 0.0:                       # UIC 544-1 braked mass: N = N_full p / p_max
+            if t_e is None:
+                t_e = response_time(fill[0], fill[1])
+            mass = field('mass')
+            normal = braked_mass_normal_force(braked, mass, material,
+                                              int(field('brake_blocks')), t_e,
+                                              field('brake_radius_ratio'), g=g,
+                                              inertia=inertia[i] - mass)
+            rows[0, i] = normal / field('max_cylinder_pressure')
+        else:
+            raise ConfigError(
+                f'vehicle {i + 1} ({consist.types[i]}): friction_material '
+                f'{MATERIALS[material]} needs its force level: brake_cylinder_area and '
+                f'rigging_ratio (EN 14531-1 force chain) or braked_mass_{regime.lower()} '
+                f'(braked mass of regime {regime}, UIC 544-1)')
+        empty = field('load_empty_mass')
+        if empty > 0.0:                          # the load valve scales the pressure
+            changeover = field('load_changeover_mass')
+            if changeover <= 0.0 and field('load_full_mass') <= empty:
+                raise ConfigError(f'vehicle {i + 1} ({consist.types[i]}): a continuous load '
+                                  'valve needs load_full_mass above load_empty_mass')
+            rows[0, i] *= load_weighed_force(field('mass'), empty, field('load_full_mass'),
+                                             field('load_empty_ratio'), 1.0,
+                                             changeover if changeover > 0.0 else math.nan)
+    return rows
+
+
+def load_weighed_force(mass: float, empty_mass: float, loaded_mass: float, empty_force: float,
+                       loaded_force: float, changeover_mass: float = math.nan) -> float:
+    """
+    Return the normal force level [N] of a load-weighed vehicle of actual ``mass`` [kg].
+
+    With ``changeover_mass`` [kg] given: the empty level below it, the loaded level at or
+    above it (empty/loaded changeover); without (NaN): linear between the empty level at
+    ``empty_mass`` and the loaded level at ``loaded_mass`` and held beyond them (continuous
+    load-proportional valve).
+    """
+    if not math.isnan(changeover_mass):
+        return loaded_force if mass >= changeover_mass else empty_force
+    frac = min(max((mass - empty_mass) / (loaded_mass - empty_mass), 0.0), 1.0)
+    return empty_force + frac * (loaded_force - empty_force)
