@@ -363,9 +363,11 @@ class PneumaticBrake:
             self.veh[pk.V_PEXT, index] = float(p)
 
     # -- stepping ---------------------------------------------------------------------------
-    def advance(self, n_steps: int, trace: np.ndarray | None = None) -> None:
+    def advance(self, n_steps: int, trace: np.ndarray | None = None,
+                traction: np.ndarray | None = None) -> None:
         """
-        Advance ``n_steps`` steps; ``trace`` (n_steps, N) receives the cylinder pressures.
+        Advance ``n_steps`` steps; ``trace`` (n_steps, N) receives the cylinder pressures,
+        ``traction`` (n_steps,) the remotes' traction command during each step.
 
         Pending actions (EP valves after their delay, radio messages) take effect at the
         first step boundary at or after their instant.
@@ -380,6 +382,8 @@ class PneumaticBrake:
             if self._events:
                 k = min(k, max(1, int(math.ceil((self._events[0][0] - self.t) / self.h
                                                 - 1e-9))))
+            if traction is not None:
+                traction[done:done + k] = self.remote_traction
             pk.advance(k, self.cells, self.faces, self.veh, self.sc, self.iv,
                        self._empty if trace is None else trace[done:done + k])
             self.steps += k
@@ -464,12 +468,13 @@ class PneumaticBrake:
 
 
 def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=None,
-                regimes=None) -> PneumaticBrake:
+                regimes=None, accelerators=None, remotes=None) -> PneumaticBrake:
     """
     Return the pneumatic brake of a simulator configuration (``parameters.SimConfig``).
 
-    ``lengths``, ``p_max``, ``regimes``: per-vehicle data of a consist; by default the
-    uniform train's ``coach_length``, ``max_cylinder_pressure`` and ``brake_regime``.
+    ``lengths``, ``p_max``, ``regimes``, ``accelerators``, ``remotes``: per-vehicle data of
+    a consist; by default the uniform train's ``coach_length``, ``max_cylinder_pressure`` and
+    ``brake_regime``, no accelerators, no remote locomotives.
     """
     n = cfg.n_coaches
     spec = PneumaticSpec(
@@ -479,8 +484,12 @@ def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=
         full_service_pressure=float(cfg.full_service_pressure),
         leakage=float(cfg.brake_pipe_leakage),
         angle_cock_closed=int(cfg.angle_cock_closed),
-        main_reservoir_pressure=float(cfg.main_reservoir_pressure))
+        main_reservoir_pressure=float(cfg.main_reservoir_pressure),
+        radio_delay=float(cfg.radio_delay),
+        radio_loss=float(cfg.radio_loss))
     return PneumaticBrake(
         np.full(n, float(cfg.coach_length)) if lengths is None else lengths,
         float(cfg.max_cylinder_pressure) if p_max is None else p_max,
-        str(cfg.brake_regime) if regimes is None else regimes, h, spec, external_pipe)
+        str(cfg.brake_regime) if regimes is None else regimes, h, spec, external_pipe,
+        accelerators=False if accelerators is None else accelerators,
+        remotes=False if remotes is None else remotes, brake_system=str(cfg.brake_system))

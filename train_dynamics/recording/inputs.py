@@ -91,7 +91,7 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
         info = bag_info(path)
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
-    locos = set(cfg.consist.locomotives) if cfg.external_forces else set()
+    locos = set(cfg.consist.commanded) if cfg.external_forces else set()
     selected: dict[str, int] = {}
     for topic, (msgtype, _) in info.topics.items():
         rel = topic[len(ns) + 1:] if ns and topic.startswith(ns + '/') else topic

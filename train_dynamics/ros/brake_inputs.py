@@ -224,7 +224,7 @@ class BrakeInputs:
         self._stale_count = 0
         self._wait_since = None
         self._update_subscriptions(mode, n)
-        self.traction.start(cfg.consist.locomotives if cfg.external_forces else [])
+        self.traction.start(cfg.consist.commanded if cfg.external_forces else [])
 
     def set_policy(self, timeout: float, on_timeout: str) -> None:
         """Report inputs older than ``timeout`` [s wall]; ``on_timeout``: hold/emergency."""

@@ -75,7 +75,7 @@ def traction_schedule(cfg: Any) -> list[TractionEvent]:
 
     Empty for a train without locomotives or without a schedule.
     """
-    locos = cfg.consist.locomotives if cfg.traction_schedule_times else []
+    locos = cfg.consist.commanded if cfg.traction_schedule_times else []
     h = float(cfg.integration_step)
     events = []
     for t, c in zip(cfg.traction_schedule_times, cfg.traction_schedule_commands):

@@ -159,6 +159,17 @@ class Consist:
         return [i for i in range(self.n)
                 if f['max_tractive_force'][i] > 0.0 or f['max_dynamic_brake_force'][i] > 0.0]
 
+    @property
+    def remotes(self) -> list[int]:
+        """Return the 0-based indices of the distributed-power (remote) locomotives."""
+        return [int(i) for i in np.flatnonzero(self.fields['remote'] > 0.5)]
+
+    @property
+    def commanded(self) -> list[int]:
+        """Return the locomotives that take traction commands: all but the remotes."""
+        remotes = self.remotes
+        return [i for i in self.locomotives if i not in remotes]
+
     def coupler(self, field: str) -> np.ndarray:
         """Return the connection value of a field, one per coupler: N-1 values."""
         a = self.fields[field][:-1]
