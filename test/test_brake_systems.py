@@ -242,3 +242,50 @@ def test_bad_ep_command_rejected():
             brake.set_ep_command(bad)
     with pytest.raises(ValueError):
         make(2, brake_system='vacuum')
+
+
+# -- the simulator and the offline run loop ------------------------------------------------
+DP_CONSIST = """
+vehicles:
+  - {type: heavy_freight_locomotive}
+  - {type: freight_wagon_loaded, count: 8}
+  - {type: heavy_freight_locomotive, remote: true}
+"""
+
+
+def test_simulator_dp_traction_and_ep_command_through_the_run_loop(tmp_path):
+    from train_dynamics.physics.config import ConfigError, SimConfig
+    from train_dynamics.physics.kernel.layout import INPUT
+    from train_dynamics.physics.train import TrainSimulator
+    from train_dynamics.simulation.runner import (EP_INDEX, InputSchedule, run_simulation,
+                                                  TractionEvent)
+    from train_dynamics import topics
+    (tmp_path / 'dp.yaml').write_text(DP_CONSIST)
+    base = {'consist_file': str(tmp_path / 'dp.yaml'), 'brake_model': 'pneumatic',
+            'initial_speed': 10.0, 'radio_delay': 0.4}
+    with pytest.raises(ConfigError, match='pneumatic'):
+        SimConfig.from_dict({**base, 'brake_model': 'empirical'})
+    with pytest.raises(ConfigError, match='consist'):
+        SimConfig.from_dict({'remote': True})
+    cfg = SimConfig.from_dict(base)
+    sim = TrainSimulator(cfg)
+    assert sim.remotes == [9] and sim.locomotives == [0] and sim.lead == 0
+    with pytest.raises(ValueError, match='remote'):
+        sim.set_traction_command(0.5, 9)
+    sim.set_traction_command(0.5, 0)
+    sim.advance(int(round(0.3 / sim.h)))
+    assert sim.coach[INPUT.T_CMD, 9] == 0.0
+    sim.advance(int(round(0.2 / sim.h)))
+    assert sim.coach[INPUT.T_CMD, 9] == 0.5 and sim.coach[INPUT.T_CMD, 0] == 0.5
+    # EP through the offline run loop: the command event reaches every cylinder
+    cfg = SimConfig.from_dict({'brake_model': 'pneumatic', 'brake_system': 'ep',
+                               'num_coaches': 4, 'initial_speed': 10.0})
+    t_ns = 1_000_000_000
+    events = [TractionEvent(500, t_ns, EP_INDEX, 0.5, topics.EP_COMMAND_TOPIC)]
+    seen = []
+    sim = run_simulation(cfg, 4.0, InputSchedule(topics.PIPE_HEAD, traction=events),
+                         on_sample=lambda s: None, on_input=seen.append)
+    assert seen == events and sim.fault is None
+    assert sim.pneu.cylinder_pressure == pytest.approx(np.full(4, 0.5 * P_MAX), abs=0.05 * BAR)
+    with pytest.raises(ConfigError, match='brake_model pneumatic'):
+        SimConfig.from_dict({'brake_system': 'ecp'})

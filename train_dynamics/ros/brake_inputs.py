@@ -54,6 +54,7 @@ from train_dynamics.physics.config import input_rejection, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
 from train_dynamics.ros.publishers import stamp
+from train_dynamics.ros.ep_inputs import EpInputs
 from train_dynamics.ros.traction_inputs import TractionInputs
 
 HEAD = topics.PIPE_HEAD
@@ -183,6 +184,8 @@ class BrakeInputs:
         self._wait_ready: float | None = None
         #: the locomotives' traction commands (same validation counts, timeout and policy)
         self.traction = TractionInputs(node, INPUT_QOS, self._reject_traction)
+        #: the EP / ECP train-line command (same validation counts and timeout)
+        self.ep = EpInputs(node, INPUT_QOS, self._reject_traction)
 
     def _reject_traction(self, resolved: str, reason: str, detail: str) -> None:
         self._reject(resolved, Rejected(reason, detail))
@@ -206,7 +209,7 @@ class BrakeInputs:
     @property
     def accepted(self) -> int:
         """Return the accepted brake inputs and traction commands."""
-        return self._accepted + self.traction.accepted
+        return self._accepted + self.traction.accepted + self.ep.accepted
 
     # -- a run (executor thread, simulation lock held) -------------------------------------
     def start(self, cfg: SimConfig, n: int, recording: bool) -> None:
@@ -225,6 +228,7 @@ class BrakeInputs:
         self._wait_since = None
         self._update_subscriptions(mode, n)
         self.traction.start(cfg.consist.commanded if cfg.external_forces else [])
+        self.ep.start(cfg.ep_commanded)
 
     def set_policy(self, timeout: float, on_timeout: str) -> None:
         """Report inputs older than ``timeout`` [s wall]; ``on_timeout``: hold/emergency."""
@@ -381,6 +385,7 @@ class BrakeInputs:
     def apply(self, now: float, sim: TrainSimulator, record: Record) -> None:
         """Put the inputs received since the last call (or the fail-safe) into ``sim``."""
         self.traction.apply(now, sim, record, self.timeout, self.on_timeout == 'emergency')
+        self.ep.apply(now, sim, record, self.timeout)
         news = self._take(now)
         if news is None:
             return

@@ -231,6 +231,11 @@ class SimConfig:
         times = P_RELEASE_TIME if self.brake_regime == 'P' else G_RELEASE_TIME
         return list(times), list(P_RELEASE_FRACTION)
 
+    @property
+    def ep_commanded(self) -> bool:
+        """Return True if the train takes ``brake_ep/command`` (an EP or ECP brake system)."""
+        return self.brake_model == 'pneumatic' and self.brake_system != 'pneumatic'
+
     # -- the checks as a whole ------------------------------------------------------------
     def check(self) -> None:
         """Cross-parameter checks; raises :class:`ConfigError`."""
