@@ -112,7 +112,7 @@ class PneumaticSpec:
     accelerator_rate: float = 100000.0   # [Pa/s] filtered pipe drop rate that opens it
     accelerator_drop: float = 100000.0   # [Pa] ... with the pipe this far below the CR
     accelerator_filter: float = 0.05     # [s] time constant of the rate filter
-    accelerator_area: float = 4.9e-4     # vent to atmosphere (25 mm bore)
+    accelerator_area: float = 8.0e-4     # vent to atmosphere (the 32 mm bore)
     accelerator_close: float = 30000.0   # [Pa] local pipe below it: closes and re-arms
     # distributor first stage (inshot): fast filling up to inshot_pressure; 0 = none
     inshot_pressure: float = 0.0

@@ -177,7 +177,7 @@ _PARAMS = [
               'application).', choices=('pneumatic', 'ep', 'ecp')),
     ParamSpec('emergency_accelerator', False, BOOL,
               'Pneumatic: the vehicle has an emergency accelerator (a pipe falling more than '
-              '1 bar below its control reservoir at over 1 bar/s opens a 25 mm local vent: '
+              '1 bar below its control reservoir at over 1 bar/s opens a 32 mm local vent: '
               'the emergency carries along the train at >= 250 m/s).',
               vehicle='emergency_accelerator'),
     ParamSpec('remote', False, BOOL,
