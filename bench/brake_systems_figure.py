@@ -28,13 +28,13 @@ FIGURES = os.path.join(ROOT, 'docs', 'figures')
 BAR = 1.0e5
 
 
-def scenario(name: str, **changes) -> SimConfig:
-    """The configuration of a shipped parameter file, with changes."""
+def scenario(name: str, **changes):
+    """Return the configuration of a shipped parameter file, with changes."""
     cfg = load_param_file(os.path.join(ROOT, 'config', name))
     return cfg.replace(**changes) if changes else cfg
 
 
-def run(cfg: SimConfig, duration: float, emergency_at: float | None = 1.0, ep=(),
+def run(cfg, duration: float, emergency_at: float | None = 1.0, ep=(),
         every: float = 0.02) -> dict:
     """Sample pipe, cylinders [bar] and coupler forces [kN] every ``every`` s."""
     sim = TrainSimulator(cfg)

@@ -1,6 +1,8 @@
 """
-Brake systems of real trains on the pneumatic model: emergency accelerators, the pipe's wave
-speed, EP and ECP brakes, distributed power (remote locomotives over a radio link).
+Brake systems of real trains on the pneumatic model.
+
+Emergency accelerators, the pipe's wave speed, EP and ECP brakes, distributed power (remote
+locomotives over a radio link).
 
 Figures: UIC 540 (emergency propagation >= 250 m/s), UIC 541-5 (EP brake: electric
 application and holding at every vehicle, pneumatic back-up), AAR S-4200 (ECP: the head-end
@@ -100,7 +102,7 @@ def test_accelerators_ignore_a_full_service_application():
 
 def test_closed_pipe_step_arrives_at_l_over_c():
     """Frictionless closed pipe: a small step reaches the far end at L / c, c = sqrt(R T)."""
-    spec = dict(viscosity=1.0e-12, hose_loss=0.0)
+    spec = {'viscosity': 1.0e-12, 'hose_loss': 0.0}
     brake = make(2, length=500.0, **spec)
     brake.set_lap(True)
     dp = 0.05 * BAR

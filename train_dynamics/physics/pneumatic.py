@@ -280,8 +280,10 @@ class PneumaticBrake:
 
     def set_ep_command(self, fraction: float) -> None:
         """
-        EP / ECP command on the train line: fraction of full service (0 release, 1 full),
-        acting at every vehicle ``spec.ep_valve_delay`` seconds later.
+        Set the EP / ECP command on the train line.
+
+        A fraction of full service (0 release, 1 full), acting at every vehicle
+        ``spec.ep_valve_delay`` seconds later.
         """
         fraction = float(fraction)
         if not (math.isfinite(fraction) and 0.0 <= fraction <= 1.0):
@@ -293,7 +295,9 @@ class PneumaticBrake:
 
     def set_train_line(self, healthy: bool) -> None:
         """
-        State of the EP / ECP train line. Lost: EP vehicles brake pneumatically (the head's
+        Set the state of the EP / ECP train line.
+
+        Lost: EP vehicles brake pneumatically (the head's
         brake valve then also regulates the pipe to the EP command's service pressure); ECP
         cars make a penalty (full) application.
         """
@@ -301,12 +305,12 @@ class PneumaticBrake:
         self._head_command()
 
     def set_traction(self, command: float) -> None:
-        """The lead locomotive's traction command, sent to the remotes over the radio."""
+        """Set the lead locomotive's traction command, sent to the remotes over the radio."""
         self.lead_traction = float(command)
         self._radio_send()
 
     def _head_command(self) -> None:
-        """The head's regulated pressure: the command, or the EP fallback if lower."""
+        """Set the head's regulated pressure: the command, or the EP fallback if lower."""
         cmd = self._command
         if self.brake_system == 'ep' and not self.iv[pk.I_LINE]:
             spec = self.spec
@@ -326,7 +330,7 @@ class PneumaticBrake:
         self._events.sort(key=lambda e: (e[0], e[1]))
 
     def _radio_send(self) -> None:
-        """The lead sends its brake and traction state; lost with ``spec.radio_loss``."""
+        """Send the lead's brake and traction state; lost with ``spec.radio_loss``."""
         if not self.has_remotes:
             return
         self.radio_sent += 1
@@ -366,8 +370,10 @@ class PneumaticBrake:
     def advance(self, n_steps: int, trace: np.ndarray | None = None,
                 traction: np.ndarray | None = None) -> None:
         """
-        Advance ``n_steps`` steps; ``trace`` (n_steps, N) receives the cylinder pressures,
-        ``traction`` (n_steps,) the remotes' traction command during each step.
+        Advance ``n_steps`` steps.
+
+        ``trace`` (n_steps, N) receives the cylinder pressures, ``traction`` (n_steps,) the
+        remotes' traction command during each step.
 
         Pending actions (EP valves after their delay, radio messages) take effect at the
         first step boundary at or after their instant.

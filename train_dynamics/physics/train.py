@@ -262,8 +262,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     @property
     def locomotives(self) -> list[int]:
         """
-        Return the 0-based indices of the vehicles that take a traction command: the
-        locomotives but the remotes (they follow the lead over the radio).
+        Return the 0-based indices of the vehicles that take a traction command.
+
+        The locomotives but the remotes (they follow the lead over the radio).
         """
         return self.consist.commanded
 

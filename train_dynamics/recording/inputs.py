@@ -19,7 +19,7 @@ from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.physics.config import (ep_rejection, input_rejection, INPUT_VALUE_REASONS,
-                                          traction_rejection)
+                                           traction_rejection)
 from train_dynamics.recording.bags import bag_info, BagError, BagInfo, read_topics
 from train_dynamics.simulation.runner import (EP_INDEX, InputEvent, InputSchedule, step_of,
                                               TractionEvent)

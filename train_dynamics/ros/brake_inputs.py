@@ -53,8 +53,8 @@ from train_dynamics import topics
 from train_dynamics.physics.config import input_rejection, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
-from train_dynamics.ros.publishers import stamp
 from train_dynamics.ros.ep_inputs import EpInputs
+from train_dynamics.ros.publishers import stamp
 from train_dynamics.ros.traction_inputs import TractionInputs
 
 HEAD = topics.PIPE_HEAD

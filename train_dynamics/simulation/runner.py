@@ -43,8 +43,9 @@ class InputEvent:
 @dataclass(frozen=True)
 class TractionEvent:
     """
-    One Float64 command: from step ``step`` on, locomotive ``index`` holds ``command``; with
-    ``index`` :data:`EP_INDEX` the EP / ECP train-line command (``brake_ep/command``).
+    One Float64 command: from step ``step`` on, locomotive ``index`` holds ``command``.
+
+    With ``index`` :data:`EP_INDEX`: the EP / ECP train-line command (``brake_ep/command``).
     """
 
     step: int

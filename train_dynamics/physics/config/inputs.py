@@ -38,8 +38,10 @@ EP_VALUE_REASONS = ('non_finite', 'out_of_range')
 
 def ep_rejection(command: float) -> tuple[str, str] | None:
     """
-    Return (reason, detail) if an EP / ECP command (``brake_ep/command``, a fraction of full
-    service) is rejected, else None: ``non_finite``, ``out_of_range`` (outside [0, 1]).
+    Return (reason, detail) if an EP / ECP command is rejected, else None.
+
+    ``brake_ep/command`` is a fraction of full service: ``non_finite``, ``out_of_range``
+    (outside [0, 1]).
     """
     c = float(command)
     if not math.isfinite(c):

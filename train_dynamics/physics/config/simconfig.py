@@ -262,7 +262,7 @@ class SimConfig:
             raise ConfigError(f'angle_cock_closed: the couplings are 1..{self.n_coaches - 1} '
                               f'(0 = none), got {self.angle_cock_closed}')
         if self.remote:
-            raise ConfigError('remote is a field of a consist\'s locomotives (consist_file); '
+            raise ConfigError("remote is a field of a consist's locomotives (consist_file); "
                               'the uniform train has no remote locomotive')
         if self.brake_system != 'pneumatic' and self.brake_model != 'pneumatic':
             raise ConfigError(f'brake_system {self.brake_system} needs brake_model pneumatic')

@@ -185,7 +185,7 @@ _PARAMS = [
               'pipe at its position and its traction following the lead over the radio; the '
               'uniform train (no consist_file) has none.', vehicle='remote'),
     ParamSpec('radio_delay', 0.5, DOUBLE,
-              'Pneumatic, distributed power: radio delay [s] of the lead\'s brake and traction '
+              "Pneumatic, distributed power: radio delay [s] of the lead's brake and traction "
               'commands to the remote locomotives (consist field remote).', low=0.0, high=60.0),
     ParamSpec('radio_loss', 0.0, DOUBLE,
               'Pneumatic, distributed power: probability that a radio message is lost; the '

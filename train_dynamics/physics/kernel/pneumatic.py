@@ -127,8 +127,11 @@ def _pipe_transport(cells, faces, sc, h):
 
 @jit
 def _relay_valve(cells, c, cmd, sc, h):
-    """A brake valve on pipe cell c (the driver's at the head, a remote locomotive's):
-    regulate the cell to ``cmd`` [Pa gauge] (module docstring)."""
+    """
+    Regulate pipe cell c to ``cmd`` [Pa gauge] with a brake valve (module docstring).
+
+    The driver's at the head, or a remote locomotive's.
+    """
     rt = sc[S_RT]
     patm = sc[S_PATM]
     vol = cells[C_VOL, c]
@@ -152,7 +155,9 @@ def _relay_valve(cells, c, cmd, sc, h):
 @jit
 def _accelerator(veh, sc, i, p_l, v_l, p_cr, h):
     """
-    Emergency accelerator of vehicle i: the local pipe (p_l, volume v_l) falling faster than
+    Vent the pipe at vehicle i through its emergency accelerator.
+
+    The local pipe (p_l, volume v_l) falling faster than
     S_ACCRATE [Pa/s] (its rate low-pass filtered, time constant S_ACCTAU) while more than
     S_ACCDROP below the control reservoir p_cr (deeper than any service application) opens
     a vent of S_ACCAREA to atmosphere; it stays open until the local pipe is below
@@ -181,8 +186,9 @@ def _accelerator(veh, sc, i, p_l, v_l, p_cr, h):
 @jit
 def _distributors(cells, veh, sc, iv, external, h):
     """
-    Every vehicle's distributor (or ECP car control device), emergency accelerator,
-    reservoirs and cylinder over one step.
+    Advance every vehicle's distributor, accelerator, reservoirs and cylinder one step.
+
+    ECP cars: the car control device instead of the distributor.
     """
     rt = sc[S_RT]
     patm = sc[S_PATM]
