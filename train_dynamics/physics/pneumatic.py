@@ -266,17 +266,21 @@ class PneumaticBrake:
     # -- inputs -----------------------------------------------------------------------------
     def set_command(self, p: float) -> None:
         """Pressure [Pa gauge] the driver's brake valve regulates the pipe head to."""
+        changed = float(p) != self._command or self._lap
         self._command = float(p)
         self._lap = False
         self.iv[pk.I_LAP] = 0
         self._head_command()
-        self._radio_send()
+        if changed:        # the radio carries changes (and the periodic repeats)
+            self._radio_send()
 
     def set_lap(self, lap: bool = True) -> None:
         """Lap position: the driver's brake valve neither charges nor vents the pipe."""
+        changed = bool(lap) != self._lap
         self._lap = bool(lap)
         self.iv[pk.I_LAP] = int(bool(lap))
-        self._radio_send()
+        if changed:
+            self._radio_send()
 
     def set_ep_command(self, fraction: float) -> None:
         """
@@ -306,8 +310,10 @@ class PneumaticBrake:
 
     def set_traction(self, command: float) -> None:
         """Set the lead locomotive's traction command, sent to the remotes over the radio."""
+        changed = float(command) != self.lead_traction
         self.lead_traction = float(command)
-        self._radio_send()
+        if changed:
+            self._radio_send()
 
     def _head_command(self) -> None:
         """Set the head's regulated pressure: the command, or the EP fallback if lower."""
