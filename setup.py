@@ -88,6 +88,8 @@ setup(
         ('share/' + package_name + '/launch', sorted(glob('launch/*.py'))),
     ],
     install_requires=['setuptools'],
+    # colcon test runs pytest only for a package that declares it as a test dependency
+    extras_require={'test': ['pytest']},
     zip_safe=False,
     cmdclass={'build_py': BuildPyPrebuild, 'develop': DevelopPrebuild,
               'install_lib': InstallLibPrebuilt},

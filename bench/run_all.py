@@ -6,8 +6,9 @@ and the soak figures of the last ``make soak`` from ``bench/soak_results.md``), 
 figures to ``bench/last_run.json``. See bench/core.py and bench/node.py for what is measured.
 
 Options: ``--no-node``, ``--no-core``, ``--no-sweep`` (bench/sweep.py: cases/min on 1 and 2 Dask
-workers), ``--ref-max-n N`` (compute missing reference solutions
-only up to N coaches; cached ones are always used), ``--no-write`` (print only).
+workers), ``--no-lockstep`` (bench/lockstep.py: closed-loop periods/s over DDS),
+``--ref-max-n N`` (compute missing reference solutions only up to N coaches; cached ones are
+always used), ``--no-write`` (print only).
 """
 from __future__ import annotations
 
@@ -25,6 +26,7 @@ sys.path.insert(1, os.path.dirname(HERE))
 
 import core  # noqa: E402
 import freight  # noqa: E402  (the real-train case: 750 m freight)
+import lockstep as lockstepbench  # noqa: E402  (lockstep.py owns its section)
 from memory import MEMORY_BEGIN, MEMORY_END, MEMORY_MD  # noqa: E402  (memory.py's section)
 from results_md import saved_section  # noqa: E402
 from soak import SOAK_BEGIN, SOAK_END, SOAK_MD as SOAK  # noqa: E402  (soak.py owns its section)
@@ -342,7 +344,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None)
                       startupbench.DESCRIPTION, '',
                       startupbench.table(node_res['startup_cases']), '']
     parts += [adaptive_section(), '', soak_section(), '', sweepbench.sweep_section(), '',
-              memory_section(), '']
+              lockstepbench.lockstep_section(), '', memory_section(), '']
     return '\n'.join(parts)
 
 
@@ -351,6 +353,7 @@ def main(argv=None) -> int:
     ap.add_argument('--no-core', action='store_true')
     ap.add_argument('--no-node', action='store_true')
     ap.add_argument('--no-sweep', action='store_true', help='skip bench/sweep.py')
+    ap.add_argument('--no-lockstep', action='store_true', help='skip bench/lockstep.py')
     ap.add_argument('--no-memory', action='store_true')
     ap.add_argument('--no-freight', action='store_true')
     ap.add_argument('--ref-max-n', type=int, default=100)
@@ -414,6 +417,11 @@ def main(argv=None) -> int:
             sweepbench.run_and_write(log=log, write=not args.no_write)
         except Exception as exc:  # noqa: BLE001 - report and keep the other results
             log(f'sweep benchmark failed: {exc}')
+    if not args.no_lockstep:
+        try:
+            lockstepbench.run_and_write(log=log, write=not args.no_write)
+        except Exception as exc:  # noqa: BLE001 - report and keep the other results
+            log(f'lockstep benchmark failed: {exc}')
     if not args.no_memory:
         import memory
         text = memory.section(memory.run([60.0, 600.0], log=log))

@@ -57,7 +57,7 @@ def log(msg: str) -> None:
 
 def _files(tmp: str) -> tuple[str, str]:
     doc = yaml.safe_load(open(PAPER))
-    doc['train_dynamics']['ros__parameters']['num_coaches'] = 100
+    doc['/**/train_dynamics']['ros__parameters']['num_coaches'] = 100
     base = os.path.join(tmp, 'base100.yaml')
     with open(base, 'w') as fh:
         yaml.safe_dump(doc, fh)
@@ -106,7 +106,7 @@ def bare(base: str, sweep: str, tmp: str) -> dict:
     c = plan.cases[0]
     params = os.path.join(tmp, 'case0.yaml')
     doc = yaml.safe_load(open(base))
-    doc['train_dynamics']['ros__parameters'] = c.params
+    doc['/**/train_dynamics']['ros__parameters'] = c.params
     with open(params, 'w') as fh:
         yaml.safe_dump(doc, fh)
     sims = []

@@ -149,3 +149,64 @@ def test_the_per_vehicle_declarations_elsewhere_name_fields_of_the_table():
     assert set(consist.COUPLER_FIELDS) == connections == {*consist.HARMONIC, *consist.ARITHMETIC}
     assert set(TrainSimulator._VEHICLE_ROWS) <= set(VEHICLE_PARAMETERS)
     assert {*TrainSimulator._TRAVEL_ROWS, *TrainSimulator._COUPLER_ROWS} == connections
+
+
+#: parameters a field's consist needs to be valid (remote brake valves: the pneumatic brake)
+_CONTEXT = {'remote': {'brake_model': 'pneumatic'}}
+
+
+def _distinctive(spec):
+    """Return a valid value of the field ``spec`` declares that is not its default."""
+    if spec.choices:
+        return next(c for c in spec.choices if c != spec.default)
+    if isinstance(spec.default, bool):
+        return not spec.default
+    value = spec.default * 1.1 + 0.01
+    return value if spec.high is None or value <= spec.high else (spec.default + spec.high) / 2
+
+
+def _vehicle_fields():
+    from train_dynamics.physics.config import VEHICLE_PARAMETERS
+    return list(VEHICLE_PARAMETERS.items())
+
+
+@pytest.mark.parametrize('field, spec', _vehicle_fields(), ids=[f for f, _ in _vehicle_fields()])
+def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
+    """
+    Check that a per-vehicle field is its ParamSpec alone.
+
+    The consist takes it, the docs list it, its kernel row exists and a simulator carries a
+    consist's value of it there.
+    """
+    from pathlib import Path
+
+    from train_dynamics.physics.kernel import compiler, layout
+    from train_dynamics.physics.train import TrainSimulator
+
+    page = (Path(__file__).resolve().parents[1] / 'docs' / 'parameters.md').read_text()
+    assert f'| `{field}` | `{spec.name}` |' in page, 'the per-vehicle table of the docs'
+    value = _distinctive(spec)
+    path = write(tmp_path, f'vehicle_types: {{w: {{{field}: {value!r}}}}}\n'
+                           'vehicles: [{type: w, count: 3}]\n')
+    cfg = SimConfig.from_dict({'consist_file': path, **_CONTEXT.get(field, {})})
+    if spec.choices:
+        assert list(cfg.consist.regimes) == [value] * 3
+    else:
+        assert list(cfg.consist[field]) == [value] * 3
+    if spec.row:
+        assert spec.row in layout.VEHICLE._fields
+        assert spec.row in compiler.table_kernel_rows()      # the kernel cache's key
+        sim = TrainSimulator(cfg)
+        assert list(sim.coach[getattr(layout.VEHICLE, spec.row)]) == [value] * 3
+        sim.reset()
+        assert list(sim.coach[getattr(layout.VEHICLE, spec.row)]) == [value] * 3
+
+
+def test_the_kernel_layout_has_a_row_for_each_field_that_declares_one_and_no_other():
+    """VEHICLE = the derived rows, then the rows of the table in table order, nothing else."""
+    from train_dynamics.physics.config.table import KERNEL_ROWS
+    from train_dynamics.physics.kernel import compiler, layout
+
+    assert layout.VEHICLE._fields == (*layout.DERIVED_VEHICLE_ROWS, *KERNEL_ROWS.values())
+    assert compiler.table_kernel_rows() == list(KERNEL_ROWS.values())
+    assert not set(layout.DERIVED_VEHICLE_ROWS) & set(KERNEL_ROWS.values())

@@ -173,7 +173,7 @@ def test_the_plan_is_a_full_grid_times_a_seeded_latin_hypercube(tmp_path):
 def simulate_and_report(tmp_path, plan, case):
     """Return the train metrics of ``simulate`` + ``report`` of one case, or None."""
     params = tmp_path / f'case{case.index}.yaml'
-    valve = yaml.safe_load(open(PAPER))['brake_valve']
+    valve = yaml.safe_load(open(PAPER))['/**/brake_valve']
     params.write_text(yaml.safe_dump({'train_dynamics': {'ros__parameters': case.params},
                                       'brake_valve': valve}))
     bag, rep = tmp_path / f'bag{case.index}', tmp_path / f'rep{case.index}'

@@ -65,6 +65,12 @@ OUTPUT_TOPICS = (COUPLERS_TOPIC, COACHES_TOPIC, BRAKE_CYLINDERS_TOPIC)
 #: position = traction / dynamic-brake force, velocity = running + curve resistance,
 #: effort = gradient force; all [N] on the vehicle, forward > 0
 VEHICLE_FORCES_TOPIC = 'vehicle_forces'
+#: per-vehicle motion, JointState ``coach_1..N``, ``frame_id`` :data:`TRACK_FRAME`: position =
+#: track position of the vehicle's front [m] (``initial_position`` minus the lengths ahead at
+#: t = 0, plus x_i), velocity = v_i [m/s], effort = acceleration [m/s^2, forward > 0], the
+#: mean over the last output period (0 at t = 0)
+VEHICLE_MOTION_TOPIC = 'vehicle_motion'
+TRACK_FRAME = 'track'
 CLOCK_TOPIC = '/clock'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 

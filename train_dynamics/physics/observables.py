@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from train_dynamics.physics import couplers
-from train_dynamics.physics.kernel.layout import COUPLER, OUTPUT, STATE, TOTAL, WORK
+from train_dynamics.physics.kernel.layout import COUPLER, OUTPUT, STATE, TOTAL, VEHICLE, WORK
 
 
 class TrainOutputs:
@@ -30,6 +30,12 @@ class TrainOutputs:
     def v(self) -> np.ndarray:
         self._sync()
         return self.coach[STATE.V].copy()
+
+    @property
+    def track_position(self) -> np.ndarray:
+        """Return the track position of each vehicle's front [m]: its front at t = 0 + x_i."""
+        self._sync()
+        return self.coach[VEHICLE.FRONT0] + self.coach[STATE.X]
 
     @property
     def held(self) -> np.ndarray:

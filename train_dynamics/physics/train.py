@@ -24,6 +24,7 @@ from train_dynamics.physics.config import (ConfigError, Consist, G_FILL_TIME, G_
                                            P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
                                            P_RELEASE_TIME, SimConfig)
 from train_dynamics.physics.config.consist import check_friction_below_stiffness
+from train_dynamics.physics.config.table import KERNEL_ROWS
 from train_dynamics.physics.kernel import adaptive, brakes, couplers, fixed_step
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, COUNT, COUPLER,
                                                   INPUT, INTEGER, OPTION, PARAM, SCALAR,
@@ -52,15 +53,12 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     _TRAVEL_ROWS = {'draw_gear_slack': COUPLER.GT, 'buffer_slack': COUPLER.GC,
                     'draw_gear_stroke': COUPLER.ST, 'buffer_stroke': COUPLER.SC,
                     'blocked_stiffness': COUPLER.KB}
-    #: per-vehicle fields of the consist and their rows in ``coach``
-    _VEHICLE_ROWS = {'davis_a': VEHICLE.DAVIS_A, 'davis_b': VEHICLE.DAVIS_B,
-                     'davis_c': VEHICLE.DAVIS_C, 'length': VEHICLE.LENGTH,
-                     'max_tractive_force': VEHICLE.T_FORCE, 'max_power': VEHICLE.T_POWER,
-                     'max_dynamic_brake_force': VEHICLE.DB_FORCE,
-                     'max_dynamic_brake_power': VEHICLE.DB_POWER,
-                     'dynamic_brake_fade_speed': VEHICLE.DB_FADE,
-                     'traction_adhesion': VEHICLE.T_ADH,
-                     'traction_build_up_time': VEHICLE.T_BUILD}
+    #: per-vehicle fields of the consist that the kernel reads as is, and their rows in
+    #: ``coach``: derived from the ``row`` of their ParamSpec (config.table.KERNEL_ROWS). The
+    #: other VEHICLE rows are transforms of fields, written in ``_set_constants``: MASS
+    #: (mass, rotating_mass_factor), BMASS (mass, adhesion_coefficient), WEIGHT (mass),
+    #: FRONT0 (length, initial_position), DELAY (length, brake_propagation_speed).
+    _VEHICLE_ROWS = {field: getattr(VEHICLE, row) for field, row in KERNEL_ROWS.items()}
 
     def __init__(self, cfg: SimConfig, coupler_constants: dict | None = None):
         """

@@ -42,6 +42,8 @@ import shutil
 import threading
 from typing import Any
 
+from rosbags.interfaces import (Qos, QosDurability, QosHistory, QosLiveliness, QosReliability,
+                                QosTime)
 from rosbags.rosbag2 import StoragePlugin, Writer
 from ruamel.yaml import YAML
 
@@ -101,6 +103,18 @@ class _Open:
     first_ns: int | None = None
 
 
+#: the ROS 2 distribution the bags are written for (metadata ``ros_distro``)
+ROS_DISTRO = 'jazzy'
+
+
+def offered_qos(reliable: bool, depth: int) -> Qos:
+    """Return the offered QoS profile of a keep-last, volatile publisher, as rosbag2 stores it."""
+    zero = QosTime(0, 0)
+    return Qos(QosHistory.KEEP_LAST, depth,
+               QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+               QosDurability.VOLATILE, zero, zero, QosLiveliness.AUTOMATIC, zero, False)
+
+
 class BagRecorder:
     """
     Write a rosbag2 (version 9, MCAP) with ``rosbags``.
@@ -127,6 +141,7 @@ class BagRecorder:
         self._stem = file_stem or self.path.name
         self._lock = threading.RLock()
         self._topics: dict[str, str] = {}          # topic -> msgtype, in order of addition
+        self._qos: dict[str, Qos] = {}             # topic -> offered QoS (when known)
         self._segments: list[_Segment] = []
         self._custom: dict[str, str] = {}
         self._open: _Open | None = None
@@ -163,9 +178,11 @@ class BagRecorder:
         with self._lock:
             return sum(s.count for s in self._segments)
 
-    def add_topic(self, topic: str, msgtype: str) -> None:
+    def add_topic(self, topic: str, msgtype: str, qos: Qos | None = None) -> None:
         """
         Register ``topic`` with ``msgtype`` (e.g. ``sensor_msgs/msg/JointState``).
+
+        ``qos``: the profile its publisher offered (the metadata's ``offered_qos_profiles``).
 
         Idempotent; a different type for a known topic raises :class:`ValueError`, an
         unknown type :class:`KeyError`.
@@ -180,6 +197,8 @@ class BagRecorder:
             if msgtype not in typestore().types:
                 raise KeyError(f'unknown message type {msgtype!r}')
             self._topics[topic] = msgtype
+            if qos is not None:
+                self._qos[topic] = qos
             if self._open is not None:
                 self._add_connection(self._open, topic, msgtype)
 
@@ -284,7 +303,9 @@ class BagRecorder:
             raise BagError(f'bag {self.path} is closed')
 
     def _add_connection(self, seg: _Open, topic: str, msgtype: str) -> None:
-        seg.connections[topic] = seg.writer.add_connection(topic, msgtype, typestore=typestore())
+        qos = self._qos.get(topic)
+        seg.connections[topic] = seg.writer.add_connection(
+            topic, msgtype, typestore=typestore(), offered_qos_profiles=[qos] if qos else ())
 
     def _start_segment(self) -> _Open:
         name = f'{self._stem}_{len(self._segments)}'
@@ -350,7 +371,7 @@ class BagRecorder:
                        'duration': {'nanoseconds': s.end_ns - s.start_ns},
                        'message_count': s.count} for s in segs],
             'custom_data': dict(self._custom) or None,
-            'ros_distro': 'rosbags',
+            'ros_distro': ROS_DISTRO,
         }
         yaml = YAML(typ='safe')
         yaml.default_flow_style = False

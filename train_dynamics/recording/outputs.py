@@ -14,6 +14,10 @@ writes them to its bag. One definition of what each output topic carries:
 - ``vehicle_forces`` (a train with resistance, gradients, curves or traction only):
   JointState ``coach_1..N``: position = traction / dynamic-brake force, velocity = running
   + curve resistance, effort = gradient force [N, on the vehicle, forward > 0].
+- ``vehicle_motion``: JointState ``coach_1..N``, ``frame_id`` ``track``: position = track
+  position of the vehicle's front [m], velocity = v [m/s], effort = acceleration [m/s^2,
+  forward > 0]: (v(t_k) - v(t_{k-1})) / (t_k - t_{k-1}) over the last output period (exact
+  as a mean: the integrator's speed change), 0 at t = 0.
 """
 from __future__ import annotations
 
@@ -49,6 +53,8 @@ class OutputEncoder:
         self._couplers = JointStateEncoder(topics.coupler_names(n_coaches))
         self._coaches = JointStateEncoder(topics.coach_names(n_coaches))
         self.reservoirs = bool(reservoirs)
+        self._motion = JointStateEncoder(topics.coach_names(n_coaches), topics.TRACK_FRAME)
+        self._last_motion: tuple[int, Any] | None = None    # (t_ns, v) of the last call
         self.topics = topics.OUTPUT_TOPICS + (
             (topics.BRAKE_RESERVOIRS_TOPIC,) if reservoirs else ())
 
@@ -73,6 +79,22 @@ class OutputEncoder:
         effort = gradient force; each [N] on the vehicle, forward > 0.
         """
         return self._coaches(t_ns, sim.traction_force, sim.resistance_force, sim.gradient_force)
+
+    def encode_motion(self, t_ns: int, sim: Any) -> bytes:
+        """
+        Return ``vehicle_motion`` of ``sim``'s present state (call it at every output).
+
+        The acceleration is the mean over the time since the previous call (0 at the first,
+        or when the time went back: a reset).
+        """
+        v = sim.v
+        last = self._last_motion
+        if last is None or t_ns <= last[0]:
+            accel = v * 0.0
+        else:
+            accel = (v - last[1]) / ((t_ns - last[0]) * 1e-9)
+        self._last_motion = (t_ns, v)
+        return self._motion(t_ns, sim.track_position, v, accel)
 
 
 def run_metadata(cfg: Any, generator: str, **extra: str) -> dict[str, str]:

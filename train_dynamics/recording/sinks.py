@@ -35,7 +35,7 @@ class BagSink:
         self.rec = rec
         self.atm = float(cfg.atmospheric_pressure)
         self.encoder = OutputEncoder(cfg.n_coaches, has_reservoirs(cfg))
-        for topic in self.encoder.topics:
+        for topic in self.encoder.topics + (topics.VEHICLE_MOTION_TOPIC,):
             rec.add_topic(topic, topics.JOINT_STATE)
         self.forces = bool(cfg.external_forces)
         if self.forces:
@@ -47,6 +47,7 @@ class BagSink:
         t_ns = time_ns(s.t)
         for topic, data in zip(self.encoder.topics, self.encoder.encode(t_ns, s.sim)):
             write(topic, t_ns, data)
+        write(topics.VEHICLE_MOTION_TOPIC, t_ns, self.encoder.encode_motion(t_ns, s.sim))
         if self.forces:
             write(topics.VEHICLE_FORCES_TOPIC, t_ns, self.encoder.encode_forces(t_ns, s.sim))
         if s.head_gauge is not None:

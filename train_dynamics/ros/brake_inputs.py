@@ -9,7 +9,13 @@ both connect:
 - ``coach_<i>/brake_pipe/pressure`` (``pipe_per_coach``), ``coach_<i>/brake_cylinder/pressure``
   (``cylinder_per_coach``), i = 1..N.
 
-A message takes effect at the next integration step (zero-order hold). Rejected and counted per
+A message takes effect at the next integration step (zero-order hold); with ``input_timing``
+``stamp`` it is held until the simulation reaches its header stamp and takes effect at the
+first integration step at or after it (one a whole step or more in the past: at once, counted
+in :attr:`BrakeInputs.late`). The header stamps of the values the simulator holds tell the
+lock-step whether every input has answered an output (:meth:`BrakeInputs.answered`). Active
+input topics with more than one publisher are found by the graph scan and warned about
+(:attr:`BrakeInputs.multiple_publishers`). Rejected and counted per
 reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning naming the topic):
 ``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute
 pressure > :data:`MAX_ABSOLUTE_PRESSURE` = 20 bar), ``wrong_mode`` (a topic of another
@@ -84,8 +90,12 @@ class Rejected(Exception):
         self.reason = reason
 
 
-def absolute_pressure(data: bytes) -> float:
-    """Return the pressure [Pa absolute] of a raw FluidPressure; raise :class:`Rejected`."""
+def absolute_pressure(data: bytes) -> tuple[float, int]:
+    """
+    Return (pressure [Pa absolute], header stamp [ns]) of a raw FluidPressure.
+
+    Raises :class:`Rejected`.
+    """
     try:
         msg = deserialize_message(data, FluidPressure)
     except Exception as exc:  # noqa: BLE001
@@ -94,7 +104,7 @@ def absolute_pressure(data: bytes) -> float:
     why = input_rejection(p)       # the offline replay applies the same rule
     if why is not None:
         raise Rejected(*why)
-    return p
+    return p, msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
 
 
 class Throttle:
@@ -137,6 +147,10 @@ class InputBuffer:
         self.arrival = np.full(slots, time.monotonic())  # [s wall] when it arrived
         self.dirty = False                  # a value arrived since the simulator took them
         self.records: list[tuple[str, bytes]] = []      # accepted since, to record
+        self.stamp = np.full(slots, -1, dtype=np.int64)  # [ns] header stamp of ``value``
+        #: ``input_timing`` stamp: accepted messages waiting for their stamp, in arrival
+        #: order: (stamp [ns], slot, value [Pa gauge], raw CDR, topic)
+        self.pending: list[tuple[int, int, float, bytes, str]] = []
 
 
 class BrakeInputs:
@@ -182,6 +196,15 @@ class BrakeInputs:
         self._stale_count = 0
         self._wait_since: float | None = None
         self._wait_ready: float | None = None
+        #: ``input_timing`` stamp: hold messages until the simulation reaches their stamp
+        self.by_stamp = False
+        #: called (executor thread) after each accepted message: wakes a waiting simulation
+        self.on_input: Callable[[], None] | None = None
+        self.late = 0                          # input_timing stamp: applied after their stamp
+        #: active input topics with more than one publisher (resolved name -> count)
+        self.multiple_publishers: dict[str, int] = {}
+        # simulation lock: the header stamps of the values the simulator holds
+        self._applied_stamp = np.zeros(0, dtype=np.int64)
         #: the locomotives' traction commands (same validation counts, timeout and policy)
         self.traction = TractionInputs(node, INPUT_QOS, self._reject_traction)
         #: the EP / ECP train-line command (same validation counts and timeout)
@@ -226,6 +249,8 @@ class BrakeInputs:
         self._stale_names = []
         self._stale_count = 0
         self._wait_since = None
+        self.late = 0
+        self._applied_stamp = buffer.stamp.copy()
         self._update_subscriptions(mode, n)
         self.traction.start(cfg.consist.commanded if cfg.external_forces else [])
         self.ep.start(cfg.ep_commanded)
@@ -276,6 +301,7 @@ class BrakeInputs:
         except Exception:  # noqa: BLE001 - shutting down
             return
         self.wrong_type = self._wrong_type(found, ns)
+        self._check_publishers()
         for name, types in found:
             if name in self._subs or not name.startswith(ns):
                 continue
@@ -297,6 +323,19 @@ class BrakeInputs:
                 i = int(m.group(1))
                 self._subscribe(name, (rel, family if 1 <= i <= n else None, None))
                 break
+
+    def _check_publishers(self) -> None:
+        """Warn when an active input topic has more than one publisher (their values mix)."""
+        multiple = {}
+        for sub in self._active:
+            count = sub.get_publisher_count()
+            if count > 1:
+                multiple[sub.topic_name] = count
+                if self._throttle(('publishers', sub.topic_name), time.monotonic()) is not None:
+                    self._log.warning(
+                        f'{count} publishers on the active brake input {sub.topic_name}: '
+                        'their values mix, the latest message of either wins')
+        self.multiple_publishers = multiple
 
     def _subscribe_traction(self, resolved: str, vehicle: int, n: int) -> None:
         """Count and reject the commands of a traction topic no locomotive of ours has."""
@@ -345,21 +384,28 @@ class BrakeInputs:
             if family != buffer.mode:
                 raise Rejected('wrong_mode', f'topic of brake_input {family}, the node runs '
                                              f'{buffer.mode}')
-            p = absolute_pressure(data)
+            p, stamp_ns = absolute_pressure(data)
         except Rejected as exc:
             self._reject(resolved, exc)
             return
         slot = 0 if index is None else index
+        gauge, raw = p - buffer.atm, bytes(data)
         with self._in_lock:
             if self._buffer is not buffer:      # a reset replaced the run meanwhile
                 return
-            buffer.value[slot] = p - buffer.atm
-            buffer.raw[slot] = bytes(data)
             buffer.arrival[slot] = time.monotonic()
-            buffer.dirty = True
-            if buffer.recording:
-                buffer.records.append((rel, bytes(data)))
+            if self.by_stamp:       # takes effect at its stamp (apply)
+                buffer.pending.append((stamp_ns, slot, gauge, raw, rel))
+            else:
+                buffer.stamp[slot] = stamp_ns
+                buffer.value[slot] = gauge
+                buffer.raw[slot] = raw
+                buffer.dirty = True
+                if buffer.recording:
+                    buffer.records.append((rel, raw))
         self._accepted += 1
+        if self.on_input is not None:
+            self.on_input()
 
     def _reject(self, resolved: str, exc: Rejected) -> None:
         self.rejected[exc.reason] += 1
@@ -386,10 +432,12 @@ class BrakeInputs:
         """Put the inputs received since the last call (or the fail-safe) into ``sim``."""
         self.traction.apply(now, sim, record, self.timeout, self.on_timeout == 'emergency')
         self.ep.apply(now, sim, record, self.timeout)
+        if self.by_stamp:
+            self._release_due(sim)
         news = self._take(now)
         if news is None:
             return
-        dirty, stale, values, raws, records = news
+        dirty, stale, values, raws, records, stamps = news
         t_ns = time_ns(sim.t)
         if stale != self._stale:
             self._report_stale(stale)
@@ -409,6 +457,7 @@ class BrakeInputs:
             return
         if dirty:
             self._set(sim, values)
+            self._applied_stamp = stamps
             for topic, raw in records:
                 record(topic, topics.FLUID_PRESSURE, t_ns, raw)
 
@@ -431,7 +480,51 @@ class BrakeInputs:
                 return None
             buffer.dirty = False
             records, buffer.records = buffer.records, []
-            return dirty, stale, buffer.value.copy(), list(buffer.raw), records
+            return (dirty, stale, buffer.value.copy(), list(buffer.raw), records,
+                    buffer.stamp.copy())
+
+    def _release_due(self, sim: TrainSimulator) -> None:
+        """
+        ``input_timing`` stamp: make the held messages stamped up to ``sim.t`` the latest.
+
+        In stamp order (arrival order among equal stamps); one whose stamp lies a whole
+        integration step or more in the past is counted late (it is applied now).
+        """
+        t_ns = time_ns(sim.t)
+        late_ns = t_ns - time_ns(sim.h)
+        with self._in_lock:
+            buffer = self._buffer
+            if not buffer.pending:
+                return
+            due = [e for e in buffer.pending if e[0] <= t_ns]
+            if not due:
+                return
+            buffer.pending = [e for e in buffer.pending if e[0] > t_ns]
+            due.sort(key=lambda e: e[0])
+            for stamp_ns, slot, gauge, raw, rel in due:
+                buffer.stamp[slot] = stamp_ns
+                buffer.value[slot] = gauge
+                buffer.raw[slot] = raw
+                if buffer.recording:
+                    buffer.records.append((rel, raw))
+                if stamp_ns <= late_ns:
+                    self.late += 1
+            buffer.dirty = True
+
+    def next_stamp_ns(self) -> int | None:
+        """``input_timing`` stamp: return the earliest stamp [ns] of a held message, or None."""
+        with self._in_lock:
+            pending = self._buffer.pending
+            return min(e[0] for e in pending) if pending else None
+
+    def answered(self, t_ns: int) -> bool:
+        """Lock-step: return True if every input the simulator holds is stamped ``t_ns``."""
+        stamps = self._applied_stamp
+        return bool(stamps.size) and bool(np.all(stamps == t_ns))
+
+    def connected(self) -> bool:
+        """Return True if every active brake-input topic has a publisher."""
+        return all(s.get_publisher_count() > 0 for s in self._active)
 
     def _report_stale(self, stale: bool) -> None:
         self._stale = stale
@@ -485,7 +578,7 @@ class BrakeInputs:
             self._log.info(f'waiting up to {limit:g} s for publishers on the '
                            f'{len(self._active)} brake-input topic(s) of {self._buffer.mode} '
                            'before starting the clock')
-        if all(s.get_publisher_count() > 0 for s in self._active):
+        if self.connected():
             if self._wait_ready is None:
                 self._wait_ready = now
             if now - self._wait_ready < INPUT_SETTLE:

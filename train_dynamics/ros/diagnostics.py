@@ -10,7 +10,13 @@
 - ``train_dynamics: brake input``: input age, staleness, emergency (the fail-safe), accepted
   and rejected counts per reason, of the brake inputs and the locomotives' traction commands
   (``coach_<i>/traction/command``) together, publishers of a wrong message type on an input
-  topic (``wrong_type``: their number; ``wrong_type_topics``: which, with their types; WARN).
+  topic (``wrong_type``: their number; ``wrong_type_topics``: which, with their types; WARN),
+  active input topics with more than one publisher (``multiple_publishers``; WARN: their values
+  mix), inputs applied after their stamp (``late_inputs``, ``input_timing`` stamp).
+
+The status names start with the node's full name without the leading slash
+(:func:`status_name`): ``train_dynamics: simulation`` for the node in the root namespace,
+``train1/train_dynamics: simulation`` under ``/train1``, so two trains' statuses stay apart.
 
 The node fills a :class:`SimulationReport` and an :class:`InputReport` under the simulation
 lock; building the message needs no lock.
@@ -58,6 +64,12 @@ class SimulationReport:
     record_error: str | None = None
     #: the simulator's integration_stats (error-controlled stepping), None: not given
     integration: dict | None = None
+    #: the run control's values (sync_mode, paused, lock-step waits), in this order
+    control: dict[str, str] = field(default_factory=dict)
+    #: lock-step: why the simulation waits ('' when it does not)
+    waiting: str = ''
+    #: parameter files with no section for the node (WARN), '' when none
+    parameter_file_warning: str = ''
 
 
 def integration_values(stats: dict | None) -> dict[str, str]:
@@ -98,6 +110,13 @@ class InputReport:
     rejected: dict[str, int]
     last_rejected: str
     wrong_type: dict[str, list[str]] = field(default_factory=dict)   # topic -> publisher types
+    multiple_publishers: dict[str, int] = field(default_factory=dict)  # topic -> publishers
+    late: int = 0               # input_timing stamp: applied a step or more after their stamp
+
+
+def status_name(hardware_id: str, what: str) -> str:
+    """Return the status name of ``what`` for the node ``hardware_id`` (its full name)."""
+    return f'{hardware_id.lstrip("/") or NODE_NAME}: {what}'
 
 
 def _level_message(r: SimulationReport) -> tuple[bytes, str]:
@@ -108,6 +127,10 @@ def _level_message(r: SimulationReport) -> tuple[bytes, str]:
         return DiagnosticStatus.ERROR, f'recording failed: {r.record_error}'
     if r.finished:
         return DiagnosticStatus.OK, 'finished (duration reached)'
+    if r.waiting:
+        return DiagnosticStatus.WARN, r.waiting
+    if r.parameter_file_warning:
+        return DiagnosticStatus.WARN, r.parameter_file_warning
     if rtf > 0 and r.behind > r.behind_warn:
         return DiagnosticStatus.WARN, (f'behind real time by {r.behind:.3f} s (rtf {rtf:g}, '
                                        f'achieved {achieved:.3g})')
@@ -133,7 +156,10 @@ def simulation_status(r: SimulationReport, hardware_id: str) -> DiagnosticStatus
         'record_backlog': str(r.backlog), 'record_backlog_bytes': str(r.backlog_bytes),
     }
     kv.update(integration_values(r.integration))
-    return DiagnosticStatus(level=level, name=SIMULATION, message=message,
+    kv.update(r.control)
+    kv['parameter_file_warning'] = r.parameter_file_warning
+    return DiagnosticStatus(level=level, name=status_name(hardware_id, 'simulation'),
+                            message=message,
                             hardware_id=hardware_id,
                             values=[KeyValue(key=k, value=v) for k, v in kv.items()])
 
@@ -155,6 +181,10 @@ def input_status(r: InputReport, hardware_id: str) -> DiagnosticStatus:
     elif rejected:
         level = DiagnosticStatus.WARN
         message = f'{rejected} input message(s) rejected (last: {r.last_rejected})'
+    elif r.multiple_publishers:
+        level = DiagnosticStatus.WARN
+        message = ('more than one publisher on an active input (their values mix): '
+                   + _publishers_list(r))
     else:
         level, message = DiagnosticStatus.OK, 'ok'
     kv = {'brake_input': r.mode, 'input_timeout': f'{r.timeout:g}',
@@ -166,9 +196,18 @@ def input_status(r: InputReport, hardware_id: str) -> DiagnosticStatus:
     kv['last_rejected'] = r.last_rejected
     kv['wrong_type'] = str(_wrong_type_count(r))
     kv['wrong_type_topics'] = _wrong_type_list(r)
-    return DiagnosticStatus(level=level, name=BRAKE_INPUT, message=message,
+    kv['multiple_publishers'] = _publishers_list(r)
+    kv['late_inputs'] = str(r.late)
+    return DiagnosticStatus(level=level, name=status_name(hardware_id, 'brake input'),
+                            message=message,
                             hardware_id=hardware_id,
                             values=[KeyValue(key=k, value=v) for k, v in kv.items()])
+
+
+def _publishers_list(r: InputReport) -> str:
+    """Return 'topic (k publishers), ...' of the active inputs with more than one."""
+    return ', '.join(f'{topic} ({k} publishers)'
+                     for topic, k in sorted(r.multiple_publishers.items()))
 
 
 def _wrong_type_count(r: InputReport) -> int:
@@ -185,7 +224,8 @@ def metrics_status(metrics: tuple[str, str, list[tuple[str, str]]],
                    hardware_id: str) -> DiagnosticStatus:
     """Build the run-metrics status from ``RunMetrics.diagnostic()`` (level, message, values)."""
     level, message, values = metrics
-    return DiagnosticStatus(level=_LEVELS[level], name=RUN_METRICS, message=message,
+    return DiagnosticStatus(level=_LEVELS[level], name=status_name(hardware_id, 'run metrics'),
+                            message=message,
                             hardware_id=hardware_id,
                             values=[KeyValue(key=k, value=v) for k, v in values])
 

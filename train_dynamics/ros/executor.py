@@ -16,6 +16,7 @@ from collections.abc import Sequence
 from dataclasses import dataclass
 import functools
 import os
+import re
 import signal
 import sys
 import threading
@@ -108,6 +109,36 @@ def check_params_files(prog: str, args: Sequence[str], node_name: str,
             print(f'{prog}: warning: {path}: {node_name} has no parameter(s) '
                   f'{", ".join(extra)}; ignored', file=sys.stderr)
     return 0
+
+
+def section_matches(key: str, full_name: str) -> bool:
+    """
+    Return True if the parameter-file section ``key`` applies to the node ``full_name``.
+
+    rcl's rule: a key without a leading '/' is taken from the root namespace; ``/**`` stands
+    for any number of namespace levels (none too), ``*`` for one name.
+    """
+    parts = [p for p in key.strip().strip('/').split('/') if p]
+    pattern = ''
+    for part in parts:
+        pattern += {'**': '(/[^/]+)*', '*': '/[^/]+'}.get(part, '/' + re.escape(part))
+    return re.fullmatch(pattern or '/', full_name) is not None
+
+
+def unmatched_params_files(args: Sequence[str], full_name: str) -> list[str]:
+    """Return a warning for each ``--params-file`` of ``args`` with no section for the node."""
+    out = []
+    for path in params_files(args):
+        try:
+            keys = list(read_param_sections(path))
+        except ConfigError:
+            continue                      # reported before the start
+        if not any(section_matches(k, full_name) for k in keys):
+            name = full_name.rsplit('/', 1)[-1]
+            out.append(f'parameter file {path}: no section applies to {full_name} (sections: '
+                       f'{", ".join(keys) or "none"}); its values are ignored. A section '
+                       f'/**/{name} applies to the node in any namespace')
+    return out
 
 
 def file_input_args(args: Sequence[str], node_name: str,
@@ -217,6 +248,10 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
     code = 0
     try:
         node = create()
+        for warning in unmatched_params_files(argv, node.get_fully_qualified_name()):
+            node.get_logger().warning(warning)
+            if hasattr(node, 'parameter_file_warnings'):
+                node.parameter_file_warnings.append(warning)
         executor = executor_factory()
         executor.add_node(node)
         while not getattr(node, 'finished', False) and not stop.is_set():

@@ -26,6 +26,7 @@ from typing import Any, Iterator
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.ros.brake_inputs import BrakeInputs
 from train_dynamics.ros.publishers import Outputs
+from train_dynamics.ros.run_control import EXIT_LOCKSTEP_TIMEOUT, WAIT_POLL
 from train_dynamics.simulation.runner import end_step
 
 MIN_SLEEP = 0.001        # [s wall] shortest pause between two pacing iterations
@@ -39,6 +40,11 @@ YIELD = 0.0002           # [s wall] pause that lets a waiting thread take the lo
 #: waiting thread gets the GIL within about this; 40 s runs of bench/node.py, p99 output
 #: jitter 4.1 / 3.1 / 1.6 ms at the default, 2.4 / 1.6 / 1.7 ms at 0.5 ms (interleaved)
 GIL_SWITCH_INTERVAL = 0.0005
+
+
+def step_at(t_ns: int, h: float) -> int:
+    """Return the first integration step (of ``h`` [s]) at or after ``t_ns`` [ns]."""
+    return int(math.ceil(t_ns * 1e-9 / h - 1e-9))
 
 
 class SimulationLock:
@@ -121,6 +127,14 @@ class Pacer:
         self._fault_reported = False
         self.fallback_periods = 0       # output periods over the integration_max_steps budget
         self._output_slack = 0.0        # [s wall] to the next output at the last iteration
+        #: how far the run may go (pause, step, lock-step): set by the node before the thread
+        #: starts (:class:`train_dynamics.ros.run_control.RunControl`)
+        self.control: Any = None
+        self._held = False              # the control held the run at the last iteration
+
+    def wake(self) -> None:
+        """Wake the simulation thread (an input arrived, the run control changed)."""
+        self._wake.set()
 
     # -- control (other threads, lock held) -------------------------------------------------
     def start(self, sim: TrainSimulator, real_time_factor: float) -> None:
@@ -223,7 +237,12 @@ class Pacer:
         if self.finished or sim.fault is not None:
             self._inputs.discard_records()     # nothing acts any more: nothing to record
             return now + IDLE
+        if self.control.stop_requested:
+            self._finish('lockstep timeout', code=EXIT_LOCKSTEP_TIMEOUT)
+            return now + IDLE
         self._inputs.apply(now, sim, self._outputs.record)
+        if not self._outputs.published and self.control.hold_start(now):
+            return now + WAIT_POLL / 2         # lock-step: t = 0 waits for the controller
         self._outputs.publish_due(sim)         # t = 0 (and right after a reset)
         if self._need_anchor:
             if self._inputs.hold_for_input(now):
@@ -232,9 +251,14 @@ class Pacer:
             now = time.monotonic()
             self._anchor(now)
             self._rtf_window = (now, sim.t)
+        if self._held and self.control.limit(now) != sim.steps:
+            self._held = False                 # released: pace from here, no catching up
+            self._anchor(now)
         done = self._integrate(self._target_step(now), now + CHUNK_BUDGET)
         if self.finished or sim.fault is not None:
             return now + IDLE
+        if self._held:
+            return now + WAIT_POLL             # paused or waiting: an input or service wakes
         if not done or self.real_time_factor <= 0.0:
             return None
         # Next wake-up: the next output's wall time, or the next step's (>= MIN_SLEEP away).
@@ -285,6 +309,15 @@ class Pacer:
                 stop = min(stop, target)
             if self.end_step is not None:
                 stop = min(stop, self.end_step)
+            due = self._inputs.next_stamp_ns() if self._inputs.by_stamp else None
+            if due is not None:     # input_timing stamp: stop at the step of the next stamp
+                stop = min(stop, max(sim.steps + 1, step_at(due, self._h)))
+            limit = self.control.limit(time.monotonic())
+            if limit is not None and sim.steps >= limit:
+                self._held = True
+                return True
+            if limit is not None:
+                stop = min(stop, limit)
             if sim.steps >= stop:
                 if self.end_step is not None and sim.steps >= self.end_step:
                     self._finish('duration reached')
@@ -346,5 +379,6 @@ class Pacer:
             return
         self.finished = True
         self.exit_code = code
+        figures = self.control.summary() if self.control is not None else ''
         self._log.info(f'{why} at t = {self.sim.t:.3f} s ({self.sim.steps} steps); '
-                       'simulation stopped')
+                       'simulation stopped' + (f'; {figures}' if figures else ''))

@@ -9,6 +9,8 @@ simulation time, at the integration steps nearest to k / publish_rate
 - ``coaches``: JointState ``coach_1..N``: position x [m], velocity v [m/s], effort Fb [N];
 - ``brake_cylinders``: JointState ``coach_1..N``: position = brake-cylinder gauge pressure [Pa],
   effort = local brake-pipe gauge pressure [Pa] (as the offline command writes);
+- ``vehicle_motion``: JointState ``coach_1..N`` (``frame_id`` ``track``): position = track
+  position [m], velocity v [m/s], effort = acceleration [m/s^2] over the last output period;
 - ``vehicle_forces`` (a train with resistance, track or traction): JointState ``coach_1..N``:
   position = traction / dynamic-brake force, velocity = running + curve resistance, effort =
   gradient force [N, on the vehicle, forward > 0];
@@ -20,6 +22,8 @@ filling JointState objects whose N names rclpy converts again on every publish (
 thread holds the GIL meanwhile: output jitter).
 """
 from __future__ import annotations
+
+import time
 
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
@@ -64,6 +68,8 @@ class Outputs:
         self._pubs = [node.create_publisher(JointState, topic, OUTPUT_QOS)
                       for topic in topics.OUTPUT_TOPICS + (topics.BRAKE_RESERVOIRS_TOPIC,)]
         self._pub_clock = node.create_publisher(Clock, topics.CLOCK_TOPIC, OUTPUT_QOS)
+        self._pub_motion = node.create_publisher(JointState, topics.VEHICLE_MOTION_TOPIC,
+                                                 OUTPUT_QOS)
         self._node = node
         self._pub_forces = None         # vehicle_forces, created for a train that has them
         self._forces = False
@@ -74,6 +80,10 @@ class Outputs:
         self._h = 0.0
         self._index = 0                 # number of the next output, t = index / rate
         self._encoder: OutputEncoder | None = None
+        self.published = 0              # outputs published in this run
+        self.last_step = -1             # integration step of the last output
+        self.last_t_ns = -1             # [ns] its stamp
+        self.last_wall = 0.0            # [s wall, monotonic] when it was published
         self.metrics = LiveMetrics()    # the run's metrics, fed every output
 
     def start(self, n: int, rate: float, h: float, publish_clock: bool,
@@ -99,6 +109,13 @@ class Outputs:
         self.writer = writer
         self._index = 0
         self.next_step = 0
+        self.published = 0
+        self.last_step = -1
+        self.last_t_ns = -1
+
+    def subscribed(self) -> bool:
+        """Return True if a subscriber is matched on one of the JointState outputs."""
+        return any(pub.get_subscription_count() > 0 for pub in self._pubs)
 
     def take_writer(self) -> BagWriter | None:
         """Return the run's writer and stop recording (to close it, or at a reset)."""
@@ -126,6 +143,8 @@ class Outputs:
         encoded = self._encoder.encode(t_ns, sim)
         for pub, data in zip(self._pubs, encoded):
             pub.publish(data)
+        motion = self._encoder.encode_motion(t_ns, sim)
+        self._pub_motion.publish(motion)
         forces = self._encoder.encode_forces(t_ns, sim) if self._forces else None
         if forces is not None:
             self._pub_forces.publish(forces)
@@ -138,7 +157,12 @@ class Outputs:
         if w is not None:
             for topic, data in zip(self._encoder.topics, encoded):
                 w.write(topic, topics.JOINT_STATE, t_ns, data)
+            w.write(topics.VEHICLE_MOTION_TOPIC, topics.JOINT_STATE, t_ns, motion)
             if forces is not None:
                 w.write(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE, t_ns, forces)
             if clock is not None:
                 w.write(topics.CLOCK_TOPIC, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
+        self.published += 1
+        self.last_step = sim.steps
+        self.last_t_ns = t_ns
+        self.last_wall = time.monotonic()

@@ -1,7 +1,9 @@
 """
 ``record_bag``: the bags of a ``sim_node`` run and the thread that writes them.
 
-Inputs (raw CDR as received, bag time = simulation time of the step at which the message took
+Topics are recorded under the node's resolved names (namespace and remapping applied, e.g.
+``/train1/couplers``), the node's own publications with the QoS they offer. Inputs (raw CDR as
+received, bag time = simulation time of the step at which the message took
 effect, so ``train-dynamics simulate --input BAG`` replays the run) and outputs (bag time =
 header stamp) go to a rosbag2 (MCAP) written by :class:`BagWriter` on its own thread: bag I/O
 never delays the simulation. The MCAP file is finished every ``record_flush_period`` s (wall):
@@ -19,7 +21,7 @@ from pathlib import Path
 import shutil
 import threading
 import time
-from typing import Any
+from typing import Any, Callable, Mapping
 
 from train_dynamics import topics
 from train_dynamics.physics.config import SimConfig
@@ -50,19 +52,27 @@ def reset_bag_path(base: str, k: int) -> Path:
 
 
 def open_bag(path: Path, cfg: SimConfig, node_name: str, logger: Any,
-             flush_period: float) -> BagWriter:
-    """Create the bag of a run of ``cfg`` (metadata, output topics) and its writer thread."""
+             flush_period: float, resolve: Callable[[str], str] = str,
+             offered: Mapping[str, Any] | None = None) -> BagWriter:
+    """
+    Create the bag of a run of ``cfg`` (metadata, output topics) and its writer thread.
+
+    ``resolve``: a topic's name as recorded (the node's resolved name: namespace and
+    remapping applied); ``offered``: topic (as the node writes it) -> the QoS its publisher
+    offers, for the topics the node publishes.
+    """
     rec = BagRecorder(path)
+    offered = dict(offered or {})
     try:
         info = run_metadata(cfg, 'sim_node', node=node_name, parameters=parameters_json(cfg))
         for key, value in info.items():
             rec.set_custom_data(key, value)
         for topic in output_topics(cfg):
-            rec.add_topic(topic, topics.JOINT_STATE)
+            rec.add_topic(resolve(topic), topics.JOINT_STATE, offered.get(topic))
     except Exception:
         rec.abort()
         raise
-    return BagWriter(rec, logger, flush_period)
+    return BagWriter(rec, logger, flush_period, resolve, offered)
 
 
 class BagWriter:
@@ -81,8 +91,13 @@ class BagWriter:
     memory; a single message larger than the bound is still queued when the queue is empty.
     """
 
-    def __init__(self, recorder: BagRecorder, logger: Any, flush_period: float) -> None:
+    def __init__(self, recorder: BagRecorder, logger: Any, flush_period: float,
+                 resolve: Callable[[str], str] = str,
+                 offered: Mapping[str, Any] | None = None) -> None:
         self.recorder = recorder
+        self._resolve = resolve
+        self._offered = dict(offered or {})
+        self._names: dict[str, str] = {}      # topic as written -> as recorded
         self.path = Path(recorder.path)
         self.written = 0
         self.error: str | None = None
@@ -93,7 +108,6 @@ class BagWriter:
         self._bytes = 0
         self._stop = False
         self._discard = False
-        self._known: set[str] = set()
         self._thread = threading.Thread(target=self._run, name='train_dynamics_bag',
                                         daemon=True)
         self._thread.start()
@@ -156,10 +170,15 @@ class BagWriter:
 
     def _store(self, item: tuple[str, str, int, bytes]) -> None:
         topic, msgtype, t_ns, data = item
-        if topic not in self._known:
-            self.recorder.add_topic(topic, msgtype)
-            self._known.add(topic)
-        self.recorder.write(topic, t_ns, data)
+        name = self._names.get(topic)
+        if name is None:
+            name = self._names[topic] = self._resolve(topic)
+            qos = self._offered.get(topic)
+            if qos is None:
+                self.recorder.add_topic(name, msgtype)
+            else:
+                self.recorder.add_topic(name, msgtype, qos)
+        self.recorder.write(name, t_ns, data)
         self.written += 1
 
     def _next(self) -> tuple[tuple[str, str, int, bytes] | None, bool]:

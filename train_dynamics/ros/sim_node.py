@@ -14,7 +14,10 @@ behaviour and owns its state:
 - :mod:`train_dynamics.ros.recorder`: ``record_bag`` (inputs and outputs, a rosbag2 MCAP
   written on its own thread);
 - :mod:`train_dynamics.ros.diagnostics`: ``/diagnostics`` (~1 Hz wall);
-- :mod:`train_dynamics.ros.parameters`: descriptors and the set callbacks.
+- :mod:`train_dynamics.ros.parameters`: descriptors and the set callbacks;
+- :mod:`train_dynamics.ros.run_control`: the ``~/pause``, ``~/resume`` and ``~/step``
+  services and the lock-step with a controller (``sync_mode``, ``lockstep_timeout``);
+  ``input_timing`` is the brake inputs'.
 
 Threads and locks: the executor thread runs the subscription callbacks, the timers, the
 parameter callbacks and the ``reset`` service; the simulation thread (:class:`Pacer`) runs the
@@ -38,6 +41,7 @@ with the current parameter values and says in its response (and the log) what ch
 recording continues in a new bag ``<record_bag>_reset<k>``.
 
 Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``duration``);
+4 lock-step timeout (``lockstep_on_timeout`` stop);
 1 other errors (e.g. the bag cannot be created, or writing it failed: a full disk).
 """
 from __future__ import annotations
@@ -47,9 +51,11 @@ import time
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
+from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 import rclpy.logging
 from rclpy.node import Node
+from rclpy.qos import ReliabilityPolicy
 from rclpy.serialization import serialize_message
 from std_srvs.srv import Trigger
 
@@ -57,7 +63,7 @@ from train_dynamics import topics
 from train_dynamics.physics.config import ConfigError, PARAMETERS, SIM_NODE_PARAMETERS, SimConfig
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
-from train_dynamics.recording.bags import BagError
+from train_dynamics.recording.bags import BagError, offered_qos
 from train_dynamics.recording.outputs import has_reservoirs, time_ns
 from train_dynamics.ros import parameters as ros_parameters
 from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INPUT_QOS,
@@ -68,6 +74,7 @@ from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
 from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
                                          open_bag, reset_bag_path)
+from train_dynamics.ros.run_control import RunControl
 
 __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
            'MAX_ABSOLUTE_PRESSURE', 'MAX_RECORD_BACKLOG', 'REJECT_REASONS']
@@ -78,6 +85,9 @@ DIAGNOSTICS_PERIOD = 1.0  # [s wall]
 EXIT_RECORD_FAILED = 1
 #: every parameter the node declares: the simulator's and its own
 SPECS = {**PARAMETERS, **SIM_NODE_PARAMETERS}
+#: the node parameters of the run control (pause/step, lock-step, input timing)
+CONTROL_PARAMETERS = frozenset({'sync_mode', 'input_timing', 'lockstep_timeout',
+                                'lockstep_on_timeout', 'step_periods'})
 
 
 def _fmt(value: Any) -> str:
@@ -96,6 +106,8 @@ class SimNode(Node):
         self._destroyed = False
         self._record_failed = False      # a bag closed after a write failure (exit 1)
         self._resets = 0                 # executor thread only
+        #: parameter files with no section for this node (``main`` fills it; /diagnostics)
+        self.parameter_file_warnings: list[str] = []
         ros_parameters.declare_parameters(self, SPECS)
         cfg = SimConfig.from_dict(self._parameter_values())   # raises ConfigError (main: 2)
         #: the configuration of the node's current parameter values (the running one plus
@@ -113,6 +125,10 @@ class SimNode(Node):
         self._pacer = Pacer(self._lock, self.get_logger(), self.context, self._inputs,
                             self._outputs)
         self._pacer.duration = float(self.get_parameter('duration').value)
+        self._control = RunControl(self, self._lock, self._inputs, self._outputs,
+                                   self._pacer.wake)
+        self._pacer.control = self._control
+        self._configure_control()
         self._inputs.wait_for_input = float(self.get_parameter('wait_for_input').value)
         self._pub_diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
                                                OUTPUT_QOS)
@@ -123,10 +139,12 @@ class SimNode(Node):
                 self._start(cfg, writer, first=True)
             ros_parameters.watch_parameters(self, SPECS, self._check_parameters,
                                             self._apply_parameters)
+            # on a steady clock: with use_sim_time and no /clock they would never fire
+            steady = Clock(clock_type=ClockType.STEADY_TIME)
             self._diag_timer = self.create_timer(
-                DIAGNOSTICS_PERIOD, shutdown_safe(self, self._publish_diagnostics))
+                DIAGNOSTICS_PERIOD, shutdown_safe(self, self._publish_diagnostics), clock=steady)
             self._scan_timer = self.create_timer(
-                GRAPH_SCAN_PERIOD, shutdown_safe(self, self._inputs.scan_graph))
+                GRAPH_SCAN_PERIOD, shutdown_safe(self, self._inputs.scan_graph), clock=steady)
         except BaseException:
             if writer is not None:       # a failed start leaves no bag behind
                 self._outputs.take_writer()
@@ -135,6 +153,17 @@ class SimNode(Node):
         self._pacer.start_thread()
 
     # -- parameters ------------------------------------------------------------------------
+    def _configure_control(self) -> None:
+        """Hand the run-control parameters to their parts (simulation lock held or unstarted)."""
+        value = self.get_parameter
+        sync_mode = value('sync_mode').value
+        self._control.configure(sync_mode, value('lockstep_timeout').value,
+                                value('lockstep_on_timeout').value, value('step_periods').value)
+        self._inputs.by_stamp = value('input_timing').value == 'stamp'
+        # wake the simulation thread on each input only where it waits for them
+        self._inputs.on_input = (self._pacer.wake if sync_mode == 'lockstep'
+                                 or self._inputs.by_stamp else None)
+
     def _parameter_values(self) -> dict[str, Any]:
         return ros_parameters.parameter_values(self, PARAMETERS)
 
@@ -176,6 +205,8 @@ class SimNode(Node):
                 self._pacer.set_duration(changes['duration'])
             if 'wait_for_input' in changes:
                 self._inputs.wait_for_input = changes['wait_for_input']
+            if CONTROL_PARAMETERS & set(changes):
+                self._configure_control()
         if 'record_flush_period' in changes:
             self._flush_period = changes['record_flush_period']
         structural = [n for n in changes if not SPECS[n].dynamic]
@@ -207,6 +238,7 @@ class SimNode(Node):
                             has_reservoirs(cfg), forces=cfg.external_forces,
                             metrics=RunMetrics.for_run(cfg, sim))
         self._inputs.start(cfg, sim.n, recording=writer is not None)
+        self._control.start(sim)
         self._pacer.start(sim, cfg.real_time_factor)
         rtf, duration = cfg.real_time_factor, self._pacer.duration
         where = f'; recording to {writer.path.resolve()}' if writer else ''
@@ -228,7 +260,16 @@ class SimNode(Node):
             return None
         path = cfg.record_bag if first else reset_bag_path(cfg.record_bag, self._resets)
         return open_bag(path, cfg, self.get_fully_qualified_name(), self.get_logger(),
-                        self._flush_period)
+                        self._flush_period, self.resolve_topic_name, self._offered())
+
+    @staticmethod
+    def _offered() -> dict[str, Any]:
+        """Return topic -> the QoS the node offers on it (what a bag records)."""
+        qos = offered_qos(OUTPUT_QOS.reliability == ReliabilityPolicy.RELIABLE, OUTPUT_QOS.depth)
+        return dict.fromkeys(topics.OUTPUT_TOPICS + (
+            topics.BRAKE_RESERVOIRS_TOPIC, topics.VEHICLE_FORCES_TOPIC,
+            topics.VEHICLE_MOTION_TOPIC, topics.CLOCK_TOPIC,
+            topics.DIAGNOSTICS_TOPIC), qos)
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response):
         """``reset``: restart from t = 0 with the current (incl. pending) parameter values."""
@@ -271,6 +312,8 @@ class SimNode(Node):
             self._pub_diag.publish(msg)
         except Exception:  # noqa: BLE001 - shutting down
             return
+        if self._control.lockstep:
+            return   # not in the bag: a lock-step bag holds only what the loop determines
         with self._lock.held():
             self._outputs.record(topics.DIAGNOSTICS_TOPIC, topics.DIAGNOSTIC_ARRAY,
                                  time_ns(self._pacer.sim.t), serialize_message(msg))
@@ -286,7 +329,9 @@ class SimNode(Node):
             lag_events=pacer.lag_events, model_type=cfg.model_type,
             scale_factor=cfg.scale_factor, h=sim.h, rate=self._outputs.rate,
             duration=pacer.duration, behind_warn=BEHIND_WARN, pending=pending,
-            integration=sim.integration_stats)
+            integration=sim.integration_stats, control=self._control.report(),
+            waiting=self._control.waiting(now),
+            parameter_file_warning='; '.join(self.parameter_file_warnings))
         if writer is not None:
             report.recording, report.recorded = str(writer.path), writer.written
             report.backlog, report.record_error = writer.backlog, writer.error
@@ -301,7 +346,8 @@ class SimNode(Node):
             max_age=inputs.max_age(now), stale=inputs.stale, emergency=inputs.emergency,
             stale_names=', '.join(inputs.stale_names), accepted=inputs.accepted,
             rejected=dict(inputs.rejected), last_rejected=inputs.last_rejected,
-            wrong_type={k: list(v) for k, v in inputs.wrong_type.items()})
+            wrong_type={k: list(v) for k, v in inputs.wrong_type.items()},
+            multiple_publishers=dict(inputs.multiple_publishers), late=inputs.late)
 
     # -- public, read-only -----------------------------------------------------------------
     @property
@@ -311,7 +357,7 @@ class SimNode(Node):
 
     @property
     def exit_code(self) -> int:
-        """Return the exit status: 0, 3 after a numerical fault, 1 after a failed recording."""
+        """Return the exit status: 0; 3 numerical fault; 4 lock-step timeout; 1 failed record."""
         writer = self._outputs.writer if hasattr(self, '_outputs') else None
         if self._pacer.exit_code == 0 and (self._record_failed or (
                 writer is not None and writer.error is not None)):
@@ -366,8 +412,8 @@ def main(args: list[str] | None = None) -> int:
     """
     Run ``ros2 run train_dynamics sim_node``; SIGINT/SIGTERM stop it with the bag closed.
 
-    Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 1 other
-    errors (a recording that failed included).
+    Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 4 lock-step
+    timeout (``lockstep_on_timeout`` stop), 1 other errors (a recording that failed included).
     """
     return run_node('sim_node', SimNode, args, node_name=NODE_NAME, specs=SPECS, exits=(
         ExitOn((ConfigError, ParameterException, FileExistsError, ValueError),

@@ -14,10 +14,20 @@ from train_dynamics.physics.kernel import layout
 
 #: [bytes] largest simulator state a configuration may need (delay line + per-coach arrays)
 MAX_SIMULATOR_MEMORY = 1 << 30
-#: [bytes] upper estimate of the simulator's arrays per coach: the kernel's packed rows
-#: (state, coupler constants, workspace; from the layout) and 32 more float rows for the
-#: per-vehicle vectors and the error-controlled stepping's tick buffers
-SIMULATOR_BYTES_PER_COACH = 8 * (len(layout.COACH) + len(layout.COUPLER) + len(layout.WORK) + 32)
+
+
+def simulator_bytes_per_coach() -> int:
+    """
+    Return an upper estimate [bytes] of the simulator's arrays per coach.
+
+    The kernel's packed rows (state, coupler constants, workspace; from the layout) and 32
+    more float rows for the per-vehicle vectors and the error-controlled stepping's tick
+    buffers. Read when called: the layout takes its per-vehicle rows from the parameter table,
+    so this module (imported with the table) must not use the layout while it is imported.
+    """
+    return 8 * (len(layout.COACH) + len(layout.COUPLER) + len(layout.WORK) + 32)
+
+
 #: [bytes] the simulator's arrays whatever the train (cylinder tables, scalars)
 SIMULATOR_FIXED_BYTES = 1 << 16
 #: [bytes] MCAP record and index overhead per message (opcode, length, channel, sequence,
@@ -35,7 +45,7 @@ def delay_line_length(n_coaches: int, coach_length: float, speed: float, h: floa
 def simulator_memory(n_coaches: int, coach_length: float, speed: float, h: float) -> int:
     """Return an upper estimate [bytes] of the simulator's arrays."""
     return (8 * delay_line_length(n_coaches, coach_length, speed, h)
-            + SIMULATOR_BYTES_PER_COACH * n_coaches + SIMULATOR_FIXED_BYTES)
+            + simulator_bytes_per_coach() * n_coaches + SIMULATOR_FIXED_BYTES)
 
 
 def _joint_state_bytes(joints: int, name_len: int) -> int:
@@ -45,11 +55,15 @@ def _joint_state_bytes(joints: int, name_len: int) -> int:
 
 
 def output_bytes_per_sample(n_coaches: int) -> int:
-    """Return the bag bytes of one output instant: couplers, coaches, brake_cylinders."""
+    """
+    Return the bag bytes of one output instant.
+
+    couplers, coaches, brake_cylinders and vehicle_motion (its frame_id ``track``: 8 bytes).
+    """
     digits = len(str(n_coaches))
     msgs = (_joint_state_bytes(n_coaches - 1, 8 + digits)
-            + 2 * _joint_state_bytes(n_coaches, 6 + digits))
-    return msgs + 3 * BAG_BYTES_PER_MESSAGE
+            + 3 * _joint_state_bytes(n_coaches, 6 + digits) + 8)
+    return msgs + 4 * BAG_BYTES_PER_MESSAGE
 
 
 def output_disk(cfg: Any, duration: float) -> int:

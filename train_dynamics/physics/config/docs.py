@@ -1,15 +1,27 @@
 """
-The parameter table of the documentation, generated from the table (:data:`PARAMETERS`).
+The parameter tables of the documentation, generated from the table (:data:`PARAMETERS`).
 
-``python -m train_dynamics.physics.config.docs`` prints it; a test checks that the README holds
-it as printed.
+The parameters, then the per-vehicle fields of a consist (:data:`VEHICLE_PARAMETERS`).
+``python -m train_dynamics.physics.config.docs`` prints them; a test checks that
+docs/parameters.md holds them as printed.
 """
 from __future__ import annotations
 
 from typing import Any
 
-from train_dynamics.physics.config.spec import ParamSpec
-from train_dynamics.physics.config.table import PARAMETERS
+from train_dynamics.physics.config.spec import ARITHMETIC, HARMONIC, ParamSpec
+from train_dynamics.physics.config.table import PARAMETERS, VEHICLE_PARAMETERS
+
+
+#: the heading of the per-vehicle table (the text before it is docs/parameters.md's own)
+VEHICLE_HEADING = """\
+### Per-vehicle fields
+
+A consist file (`consist_file`) may set these per vehicle; a vehicle that leaves one out takes
+the parameter named. Range and unit are the parameter's. A field with a kernel row reaches the
+kernel as is (`layout.VEHICLE`); mass, rotating mass factor, adhesion coefficient and length also
+make the derived rows (inertia, braking mass, weight, track position, pipe delay).\
+"""
 
 
 def fmt_default(v: Any) -> str:
@@ -32,8 +44,23 @@ def fmt_range(s: ParamSpec) -> str:
     return ', '.join(s.bounds())
 
 
+#: how a connection field joins two vehicles, in words
+_CONNECTION_WORDS = {HARMONIC: 'harmonic mean', ARITHMETIC: 'arithmetic mean'}
+
+
+def vehicle_table() -> str:
+    """Return the table of the per-vehicle fields: default, coupler rule, kernel row."""
+    lines = ['| consist field | default: parameter | coupler between two vehicles | kernel row |',
+             '| --- | --- | --- | --- |']
+    for field, s in VEHICLE_PARAMETERS.items():
+        row = f'`{s.row}`' if s.row else ''
+        lines.append(f'| `{field}` | `{s.name}` | {_CONNECTION_WORDS.get(s.connection, "")} '
+                     f'| {row} |')
+    return '\n'.join(lines)
+
+
 def markdown_table() -> str:
-    """Return the README's parameter table, generated from :data:`PARAMETERS`."""
+    """Return the docs' parameter tables: :data:`PARAMETERS`, then :func:`vehicle_table`."""
     lines = ['| name | type | default | range | when | meaning |',
              '| --- | --- | --- | --- | --- | --- |']
     for s in PARAMETERS.values():
@@ -41,8 +68,8 @@ def markdown_table() -> str:
         meaning = s.description.replace('|', '/')
         lines.append(f'| `{s.name}` | {s.kind} | {fmt_default(s.default)} | {fmt_range(s)} '
                      f'| {when} | {meaning} |')
-    return '\n'.join(lines)
+    return '\n'.join(lines) + '\n\n' + VEHICLE_HEADING + '\n\n' + vehicle_table()
 
 
-if __name__ == '__main__':   # python -m train_dynamics.physics.config.docs: the README table
+if __name__ == '__main__':   # python -m train_dynamics.physics.config.docs: the docs' tables
     print(markdown_table())

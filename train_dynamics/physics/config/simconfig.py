@@ -312,12 +312,6 @@ class SimConfig:
             if remotes and self.brake_model != 'pneumatic':
                 raise ConfigError(f'{self.consist_file}: remote locomotives (vehicles '
                                   f'{[i + 1 for i in remotes]}) need brake_model pneumatic')
-            if set(remotes) - set(self.consist.locomotives):
-                raise ConfigError(f'{self.consist_file}: remote must be a locomotive (with '
-                                  'max_tractive_force or max_dynamic_brake_force)')
-            if remotes and not [i for i in self.consist.commanded if i < remotes[0]]:
-                raise ConfigError(f'{self.consist_file}: remote locomotives need a lead '
-                                  'locomotive ahead of them (not remote)')
 
 
 def check_output_grid(rate: float, h: float) -> None:

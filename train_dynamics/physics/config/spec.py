@@ -42,7 +42,11 @@ class ParamSpec:
     ``vehicle``: the field of a consist's vehicle this parameter is the default of (its name
     in a consist file), '' when not per vehicle; ``connection``: how the field of two
     vehicles makes the value of the coupler between them (:data:`HARMONIC`,
-    :data:`ARITHMETIC`), '' when it is no connection constant.
+    :data:`ARITHMETIC`), '' when it is no connection constant; ``row``: the name of the
+    per-vehicle constant row of the kernel (``layout.VEHICLE``) that holds the field's value
+    of each vehicle as is, '' when the kernel has no such row. A per-vehicle field is this one
+    declaration: the consist field list, the docs' tables, the kernel row and the copy into
+    it are derived from it.
     """
 
     name: str
@@ -57,6 +61,7 @@ class ParamSpec:
     file_input: bool = False
     vehicle: str = ''
     connection: str = ''
+    row: str = ''
 
     def bounds(self) -> list[str]:
         """Return the numeric range in words, e.g. ``['> 0', '<= 1e+07']`` (docs, descriptors)."""

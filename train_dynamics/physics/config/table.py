@@ -6,8 +6,8 @@ range and whether it may change while the simulation runs; ``sim_node`` and the 
 command share the table, the docs' parameter table is generated from it
 (:mod:`~train_dynamics.physics.config.docs`). The per-vehicle fields of a consist are the
 entries with ``vehicle`` set (:data:`VEHICLE_PARAMETERS`): name in a consist file, unit, range,
-default and connection rule in one place. Pressures in parameters are GAUGE pressures [Pa],
-except :data:`ATMOSPHERIC_PRESSURE`.
+default, connection rule and kernel row (:data:`KERNEL_ROWS`) in one place. Pressures in
+parameters are GAUGE pressures [Pa], except :data:`ATMOSPHERIC_PRESSURE`.
 """
 from __future__ import annotations
 
@@ -59,7 +59,8 @@ _PARAMS = [
               'coach_mass. Bounds as coach_mass.', low=500.0, high=1.0e6),
     ParamSpec('coach_length', 25.0, DOUBLE,
               'Coach length [m]: brake-pipe length per coach. Bounds: a trolley (1 m) to '
-              'twice the longest rail vehicles (~50 m).', low=1.0, high=100.0, vehicle='length'),
+              'twice the longest rail vehicles (~50 m).', low=1.0, high=100.0, vehicle='length',
+              row='LENGTH'),
     ParamSpec('buffer_stiffness', 2.8e6, DOUBLE,
               'Buffer stiffness k_e [N/m] (paper eq. 2). Real buffers: 0.5-50 MN/m; the '
               'bounds allow two decades either side.', low=1.0e4, high=1.0e10,
@@ -213,11 +214,11 @@ _PARAMS = [
               'Rotating-mass allowance: the inertia of a vehicle is m (1 + factor).',
               low=0.0, high=2.0, vehicle='rotating_mass_factor'),
     ParamSpec('davis_a', 0.0, DOUBLE, 'Running resistance (Davis) constant term A [N].',
-              low=0.0, high=1.0e6, vehicle='davis_a'),
+              low=0.0, high=1.0e6, vehicle='davis_a', row='DAVIS_A'),
     ParamSpec('davis_b', 0.0, DOUBLE, 'Running resistance (Davis) B |v| term [N s/m].',
-              low=0.0, high=1.0e6, vehicle='davis_b'),
+              low=0.0, high=1.0e6, vehicle='davis_b', row='DAVIS_B'),
     ParamSpec('davis_c', 0.0, DOUBLE, 'Running resistance (Davis) C v^2 term [N s^2/m^2].',
-              low=0.0, high=1.0e5, vehicle='davis_c'),
+              low=0.0, high=1.0e5, vehicle='davis_c', row='DAVIS_C'),
     ParamSpec('buffer_stroke', 0.105, DOUBLE,
               'Buffer stroke S_c [m] before blocking (UIC 526-1: 105 mm).',
               low=0.0, high=10.0, low_exclusive=True,
@@ -238,27 +239,27 @@ _PARAMS = [
               vehicle='blocked_stiffness', connection=HARMONIC),
     ParamSpec('max_tractive_force', 0.0, DOUBLE,
               'Locomotive: starting tractive effort [N] (0: not a traction unit).',
-              low=0.0, high=1.0e7, vehicle='max_tractive_force'),
+              low=0.0, high=1.0e7, vehicle='max_tractive_force', row='T_FORCE'),
     ParamSpec('max_power', 0.0, DOUBLE, 'Locomotive: power at the wheel rim in traction [W].',
-              low=0.0, high=1.0e8, vehicle='max_power'),
+              low=0.0, high=1.0e8, vehicle='max_power', row='T_POWER'),
     ParamSpec('max_dynamic_brake_force', 0.0, DOUBLE,
               'Locomotive: maximum dynamic (electric) braking force [N].', low=0.0, high=1.0e7,
-              vehicle='max_dynamic_brake_force'),
+              vehicle='max_dynamic_brake_force', row='DB_FORCE'),
     ParamSpec('max_dynamic_brake_power', 0.0, DOUBLE,
               'Locomotive: maximum dynamic braking power [W].', low=0.0, high=1.0e8,
-              vehicle='max_dynamic_brake_power'),
+              vehicle='max_dynamic_brake_power', row='DB_POWER'),
     ParamSpec('traction_build_up_time', 4.0, DOUBLE,
               'Locomotive: time [s] for the tractive/dynamic-brake force to go from 0 to the '
               'full command (rate limit); 0 = immediate.', low=0.0, high=600.0,
-              vehicle='traction_build_up_time'),
+              vehicle='traction_build_up_time', row='T_BUILD'),
     ParamSpec('traction_adhesion', 0.33, DOUBLE,
               'Locomotive: wheel-rail adhesion at standstill for traction and dynamic braking; '
               'falls with speed as Curtius-Kniffler.', low=0.0, high=1.0, low_exclusive=True,
-              vehicle='traction_adhesion'),
+              vehicle='traction_adhesion', row='T_ADH'),
     ParamSpec('dynamic_brake_fade_speed', 1.4, DOUBLE,
               'Locomotive: below this speed [m/s] the dynamic braking force fades linearly '
               'to 0.', low=0.0, high=50.0, low_exclusive=True,
-              vehicle='dynamic_brake_fade_speed'),
+              vehicle='dynamic_brake_fade_speed', row='DB_FADE'),
     ParamSpec('initial_position', 0.0, DOUBLE,
               'Position along the track [m] of the front of vehicle 1 at t = 0.',
               low=-1.0e7, high=1.0e7),
@@ -308,6 +309,29 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'wall seconds until a publisher is connected to every brake-input topic of '
               'brake_input (the state stays at t = 0 meanwhile); 0 = start at once.',
               low=0.0, high=3600.0, dynamic=True),
+    ParamSpec('sync_mode', 'free', STRING,
+              'free: the simulation runs at real_time_factor whatever the controller does; '
+              'lockstep: after each output the node waits until every active brake input has '
+              "answered with a message stamped with that output's stamp, then advances one "
+              'output period (and starts only when the controller is connected both ways).',
+              choices=('free', 'lockstep'), dynamic=True),
+    ParamSpec('input_timing', 'arrival', STRING,
+              'arrival: a brake input takes effect at the next integration step after it '
+              'arrives; stamp: at the first integration step at or after its header stamp '
+              '(simulation time); a stamp already past is applied at once and counted late.',
+              choices=('arrival', 'stamp'), dynamic=True),
+    ParamSpec('lockstep_timeout', 5.0, DOUBLE,
+              'lockstep: wall seconds without the answer to an output after which the node '
+              'reports it (log, /diagnostics) and then does what lockstep_on_timeout says; '
+              '0 = wait silently.',
+              low=0.0, high=3600.0, dynamic=True),
+    ParamSpec('lockstep_on_timeout', 'wait', STRING,
+              'lockstep, after lockstep_timeout: wait (keep waiting for the answer) or stop '
+              '(end the run; sim_node exits with status 4).',
+              choices=('wait', 'stop'), dynamic=True),
+    ParamSpec('step_periods', 1, INTEGER,
+              'Output periods the ~/step service advances a paused simulation by.',
+              low=1, high=1000000000, dynamic=True),
     ParamSpec('record_flush_period', 10.0, DOUBLE,
               'Wall-clock period [s] at which the record_bag MCAP file is finished and a new '
               'one started: a SIGKILL loses at most this much of the recording.',
@@ -316,6 +340,8 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
 
 #: per-vehicle field name (as in a consist file) -> its parameter, in table order
 VEHICLE_PARAMETERS: dict[str, ParamSpec] = {p.vehicle: p for p in _PARAMS if p.vehicle}
+#: per-vehicle field -> the kernel row (``layout.VEHICLE``) that holds it as is, in table order
+KERNEL_ROWS: dict[str, str] = {f: p.row for f, p in VEHICLE_PARAMETERS.items() if p.row}
 
 
 def validate_value(name: str, value: Any,

@@ -31,6 +31,7 @@ from __future__ import annotations
 import hashlib
 import os
 import pickle
+import re
 import shutil
 import sys
 import tempfile
@@ -55,6 +56,8 @@ _CACHE_API = HAVE_NUMBA and all(hasattr(_caching, name) for name in (
 _FASTMATH = {'afn', 'contract', 'arcp', 'nsz'}
 
 _HERE = os.path.dirname(os.path.abspath(__file__))
+#: the parameter table, where the per-vehicle kernel rows are declared
+_TABLE = os.path.join(os.path.dirname(_HERE), 'config', 'table.py')
 
 
 def kernel_sources(folder: str | None = None) -> tuple[str, ...]:
@@ -99,7 +102,23 @@ def source_digest(folder: str = _HERE) -> str:
                 getattr(llvmlite, '__version__', '') if HAVE_NUMBA else '',
                 getattr(numpy, '__version__', '') if HAVE_NUMBA else '')
     digest.update(repr(versions).encode())
+    digest.update(repr(table_kernel_rows()).encode())
     return digest.hexdigest()
+
+
+def table_kernel_rows(table: str = _TABLE) -> list[str]:
+    """
+    Return the kernel rows the parameter table declares (``row='...'``), in table order.
+
+    The layout's per-vehicle rows come from the table, outside this folder, and numba freezes
+    the row indices into the machine code, so the digest covers them. Read from the source,
+    not imported: the digest is taken while the kernel modules are being imported.
+    """
+    try:
+        with open(table, encoding='utf-8') as fh:
+            return re.findall(r"\brow='(\w+)'", fh.read())
+    except OSError:
+        return ['missing']
 
 
 def _digest() -> str:

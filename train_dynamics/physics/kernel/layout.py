@@ -15,9 +15,10 @@ Each group below says what it holds and who writes it.
 
 ``coach``: float, shape (len(COACH), N), one column per vehicle (front = column 0)
 
-- ``VEHICLE``: per-vehicle constants (masses, length, track position, pipe delay, resistance,
-  traction); written by ``TrainSimulator.__init__`` only. First, so ``coach[len(VEHICLE):]``
-  is everything ``reset()`` rewrites.
+- ``VEHICLE``: per-vehicle constants (masses, track position, pipe delay, then the consist
+  fields the kernel reads as is: length, resistance, traction; their rows are declared with
+  the fields in the parameter table); written by ``TrainSimulator.__init__`` only. First,
+  so ``coach[len(VEHICLE):]`` is everything ``reset()`` rewrites.
 - ``STATE``: integrated state (position, speed, pipe, distributor, cylinder, available
   braking force, holding, traction ramp); ``reset()``, then the kernel each step.
 - ``INPUT``: inputs held until the next ``set_*`` call (local pipe, cylinder, traction
@@ -68,6 +69,8 @@ from __future__ import annotations
 
 from collections import namedtuple
 
+from train_dynamics.physics.config.table import KERNEL_ROWS
+
 
 def _group(name: str, fields: list, after=()):
     """Return the named tuple ``name`` of ``fields``, numbered on after the groups ``after``."""
@@ -76,24 +79,17 @@ def _group(name: str, fields: list, after=()):
 
 
 # -- coach: one column per vehicle ---------------------------------------------------------
-VEHICLE = _group('VehicleRows', [
+#: rows whose value is derived from fields (written by ``TrainSimulator._set_constants``)
+DERIVED_VEHICLE_ROWS = [
     'MASS',         # mass for inertia, m (1 + rotating_mass_factor) [kg]
     'BMASS',        # m mu_i / mu_a [kg]: eq. (13) with the vehicle's own adhesion coefficient
     'WEIGHT',       # m g [N]: gravity, curve resistance, traction adhesion
-    'LENGTH',       # vehicle length [m]
     'FRONT0',       # track position of the vehicle's front at t = 0 [m]
     'DELAY',        # brake-pipe delay of the vehicle [steps]
-    'DAVIS_A',      # running resistance A [N]
-    'DAVIS_B',      # running resistance B [N s/m]
-    'DAVIS_C',      # running resistance C [N s^2/m^2]
-    'T_FORCE',      # locomotive: maximum tractive force [N]
-    'T_POWER',      # locomotive: traction power [W]
-    'DB_FORCE',     # locomotive: maximum dynamic braking force [N]
-    'DB_POWER',     # locomotive: dynamic braking power [W]
-    'DB_FADE',      # locomotive: dynamic brake fade speed [m/s]
-    'T_ADH',        # locomotive: traction adhesion at rest
-    'T_BUILD',      # locomotive: force build-up time [s]
-])
+]
+#: then one row per per-vehicle field that the kernel reads as is, in table order: the
+#: ``row`` of its ParamSpec (config/table.py, :data:`KERNEL_ROWS`: name, unit, range there)
+VEHICLE = _group('VehicleRows', DERIVED_VEHICLE_ROWS + list(KERNEL_ROWS.values()))
 STATE = _group('StateRows', [
     'X',            # position, distance travelled since t = 0 [m]
     'V',            # speed [m/s]

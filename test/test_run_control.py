@@ -1,0 +1,159 @@
+"""
+The run control of ``sim_node``, in-process: pause/resume/step, lock-step, input timing.
+
+Also the node's ROS conventions: status names from its full name, per-train ``/clock``,
+diagnostics under ``use_sim_time``, a WARN for two publishers on the active input.
+"""
+from __future__ import annotations
+
+from rclpy.parameter import Parameter
+from rclpy.qos import QoSProfile, ReliabilityPolicy
+from sensor_msgs.msg import FluidPressure, JointState
+from sim_node_helpers import diag_values, fluid, stamp_s
+from std_srvs.srv import Trigger
+from train_dynamics.ros.sim_node import SimNode
+
+ATM = 101325.0
+PERIOD = 0.01     # [s] output period at the default publish_rate
+
+
+def _call(harness, name: str, node='train_dynamics'):
+    resp = harness.call(Trigger, f'/{node}/{name}', Trigger.Request())
+    assert resp.success, resp.message
+    return resp.message
+
+
+def test_pause_stops_time_step_advances_exactly_n_periods_resume_goes_on(harness):
+    coaches = harness.collect(JointState, 'coaches')
+    node = harness.start(real_time_factor=2.0)
+    assert harness.wait(lambda: node.sim_time > 0.3, 10.0)
+    assert 'paused at t =' in _call(harness, 'pause')
+    t_paused, n_paused = node.sim_time, len(coaches)
+    harness.spin_for(0.5)
+    assert node.sim_time == t_paused                 # the time does not move while paused
+    n_before = len(coaches)
+    assert n_before - n_paused <= 1                  # (one in flight at the pause)
+    node.set_parameters([Parameter('step_periods', value=7)])
+    assert 'stepping 7 output period(s)' in _call(harness, 'step')
+    assert harness.wait(lambda: len(coaches) >= n_before + 7, 5.0)
+    harness.spin_for(0.4)
+    stepped = coaches[n_before:]
+    assert len(stepped) == 7                         # exactly N outputs, then paused again
+    t = [stamp_s(m) for m in stepped]
+    assert all(abs(b - a - PERIOD) < 1e-9 for a, b in zip(t, t[1:]))
+    assert node.sim_time == t[-1]
+    harness.spin_for(0.3)
+    assert node.sim_time == t[-1]
+    assert 'resumed' in _call(harness, 'resume')
+    assert harness.wait(lambda: node.sim_time > t[-1] + 0.2, 5.0)
+
+
+def _controller(harness, answer: bool):
+    """Return a probe controller on coaches; it answers each with its stamp if ``answer``."""
+    pub = harness.probe.create_publisher(
+        FluidPressure, 'brake_pipe/pressure',
+        QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE))
+    seen = []
+
+    def on_coaches(msg):
+        seen.append(msg)
+        if answer:
+            out = fluid(4.5e5 + ATM)
+            out.header.stamp = msg.header.stamp
+            pub.publish(out)
+    harness.probe.create_subscription(
+        JointState, 'coaches', on_coaches,
+        QoSProfile(depth=100, reliability=ReliabilityPolicy.RELIABLE))
+    return pub, seen
+
+
+def test_lockstep_waits_for_the_controller_and_advances_one_period_per_answer(harness):
+    node = harness.start(sync_mode='lockstep', real_time_factor=0.0, duration=0.5)
+    harness.spin_for(0.5)
+    assert node.sim_time == 0.0                      # nobody connected: t = 0 holds
+    pub, seen = _controller(harness, answer=True)
+    assert harness.wait(lambda: node.finished, 20.0)
+    t = [stamp_s(m) for m in seen]
+    assert t[0] == 0.0                               # the first output is not lost
+    assert len(t) == 51 and all(abs(b - a - PERIOD) < 1e-9 for a, b in zip(t, t[1:]))
+
+
+def test_lockstep_timeout_reports_and_waits(harness):
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    diags = harness.collect(DiagnosticArray, '/diagnostics')
+    pub, seen = _controller(harness, answer=False)
+    node = harness.start(sync_mode='lockstep', real_time_factor=0.0, lockstep_timeout=0.3)
+    assert harness.wait(lambda: seen, 10.0)
+    assert harness.wait(lambda: (diag_values(diags, 'train_dynamics: simulation') or {})
+                        .get('lockstep_timeouts') == '1', 5.0)
+    d = diag_values(diags, 'train_dynamics: simulation')
+    assert d['_level'] == 1 and 'waiting' in d['_message'] and d['sync_mode'] == 'lockstep'
+    assert node.sim_time == 0.0 and not node.finished and len(seen) == 1
+    # a late answer lets it go on
+    out = fluid(5e5 + ATM)
+    out.header.stamp = seen[0].header.stamp
+    pub.publish(out)
+    assert harness.wait(lambda: len(seen) >= 2, 5.0)
+    assert stamp_s(seen[1]) == PERIOD
+
+
+def test_input_timing_stamp_applies_a_command_at_its_stamp(harness, tmp_path):
+    from train_dynamics.recording.bags import read_topics
+
+    bag = tmp_path / 'bag'
+    pub = harness.publisher('brake_pipe/pressure')
+    node = harness.start(input_timing='stamp', real_time_factor=1.0, record_bag=str(bag))
+    assert harness.wait_for_subscriber(pub)
+    assert harness.wait(lambda: node.sim_time > 0.2, 10.0)
+    msg = fluid(3.5e5 + ATM)
+    msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 700_000_000   # t = 0.7 s
+    pub.publish(msg)
+    late = fluid(4.0e5 + ATM)                                           # t = 0: late
+    pub.publish(late)
+    assert harness.wait(lambda: node.sim_time > 1.0, 10.0)
+    assert node._inputs.late == 1
+    harness.stop(node)
+    times = {round(m.fluid_pressure): t
+             for topic, t, m in read_topics(bag, ['brake_pipe/pressure'])}
+    assert times[round(3.5e5 + ATM)] == 700_000_000                     # exactly at its stamp
+
+
+def test_namespaced_trains_keep_their_own_clock_and_status_names(harness):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rosgraph_msgs.msg import Clock
+
+    diags = harness.collect(DiagnosticArray, '/diagnostics')
+    clocks = {ns: harness.collect(Clock, f'/{ns}/clock') for ns in ('train1', 'train2')}
+    nodes = {}
+    for ns, rtf in (('train1', 1.0), ('train2', 3.0)):
+        nodes[ns] = SimNode(namespace=ns, cli_args=['--ros-args', '-r', '/clock:=clock'],
+                            parameter_overrides=[Parameter('publish_clock', value=True),
+                                                 Parameter('real_time_factor', value=rtf)])
+        harness.add(nodes[ns])
+    assert harness.wait(lambda: all(diag_values(diags, f'{ns}/train_dynamics: simulation')
+                                    for ns in nodes) and nodes['train2'].sim_time > 1.0, 10.0)
+    last = {ns: clocks[ns][-1].clock.sec + clocks[ns][-1].clock.nanosec * 1e-9 for ns in nodes}
+    assert last['train2'] > 1.5 * last['train1'] > 0      # each its own time
+    assert diag_values(diags, 'train_dynamics: simulation') is None
+
+
+def test_diagnostics_run_under_use_sim_time_without_a_clock(harness):
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    diags = harness.collect(DiagnosticArray, '/diagnostics')
+    harness.start(use_sim_time=True)
+    assert harness.wait(lambda: diag_values(diags, 'train_dynamics: simulation'), 5.0)
+
+
+def test_two_publishers_on_the_active_input_raise_a_warn(harness):
+    from diagnostic_msgs.msg import DiagnosticArray
+
+    diags = harness.collect(DiagnosticArray, '/diagnostics')
+    harness.publisher('brake_pipe/pressure')
+    harness.publisher('brake_pipe/pressure')
+    harness.start()
+    assert harness.wait(lambda: 'brake_pipe/pressure (2 publishers)' in (diag_values(
+        diags, 'train_dynamics: brake input') or {}).get('multiple_publishers', ''), 10.0)
+    d = diag_values(diags, 'train_dynamics: brake input')
+    assert d['_level'] == 1 and 'more than one publisher' in d['_message']

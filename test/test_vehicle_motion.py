@@ -1,0 +1,43 @@
+"""
+``vehicle_motion``: track position, speed and acceleration per vehicle, offline and live.
+
+The offline command and ``sim_node`` write the same bytes (one encoder); the acceleration is
+the speed change over the last output period, the position the front's place on the track.
+"""
+from __future__ import annotations
+
+import numpy as np
+from sensor_msgs.msg import JointState
+
+from train_dynamics.cli import offline as cli
+from train_dynamics.recording.bags import read_topics
+
+
+def test_offline_motion_is_track_position_speed_and_acceleration(tmp_path):
+    out = tmp_path / 'run'
+    assert cli.main(['simulate', '--params', 'config/paper_3coach.yaml', '--duration', '2',
+                     '--output', str(out), '-q']) == 0
+    motion = [m for _, _, m in read_topics(out, ['vehicle_motion'])]
+    coaches = [m for _, _, m in read_topics(out, ['coaches'])]
+    assert len(motion) == len(coaches) == 201
+    assert all(m.header.frame_id == 'track' and m.header.stamp == c.header.stamp
+               for m, c in zip(motion, coaches))
+    x = np.array([c.position for c in coaches])
+    v = np.array([c.velocity for c in coaches])
+    pos = np.array([m.position for m in motion])
+    acc = np.array([m.effort for m in motion])
+    # initial_position 0: the fronts of the 25 m coaches start at 0, -25 and -50 m
+    assert np.array_equal(pos, x + np.array([0.0, -25.0, -50.0]))
+    assert np.array_equal(np.array([m.velocity for m in motion]), v)
+    assert np.all(acc[0] == 0.0)
+    assert np.allclose(acc[1:], np.diff(v, axis=0) / 0.01, rtol=1e-12, atol=1e-12)
+    assert acc[-1, 0] < -0.2                # braking: the emergency applied at t = 1 s
+
+
+def test_the_node_publishes_vehicle_motion(harness):
+    motion = harness.collect(JointState, 'vehicle_motion')
+    node = harness.start(real_time_factor=2.0)
+    assert harness.wait(lambda: len(motion) >= 20, 10.0)
+    assert motion[0].header.frame_id == 'track'
+    assert list(motion[0].name) == ['coach_1', 'coach_2', 'coach_3']
+    assert node.sim_time > 0

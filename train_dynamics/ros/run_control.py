@@ -1,0 +1,224 @@
+"""
+How far ``sim_node`` may integrate: pause, resume and step, and the lock-step with a controller.
+
+Services (``std_srvs/srv/Trigger``, beside ``~/reset``):
+
+- ``~/pause``: the simulation time stops where it is (mid-period too); outputs stop;
+- ``~/resume``: it goes on (paced from now at ``real_time_factor``: no catching up);
+- ``~/step``: advance ``step_periods`` output periods (publishing that many outputs), then
+  stay paused; a running simulation is paused first. The response returns at once, with the
+  simulation time it starts from and the output number it stops at.
+
+``sync_mode`` ``lockstep``: the node holds t = 0 until the controller is connected both ways
+(a publisher on every active brake-input topic, and a subscriber on one of the JointState
+outputs, then :data:`CONNECT_SETTLE` s for the other direction's discovery), publishes the
+outputs of t = 0, and advances to the next output only once every active brake-input topic has
+delivered a message whose ``header.stamp`` equals the stamp of the last output (the answer; a
+controller with nothing new to say answers with its last command re-stamped: that is "ready").
+Answers take effect at that output's instant, so the closed loop does not depend on the wall
+clock: its outputs, inputs and bag are the same on every run, at any ``real_time_factor``
+(0: as fast as both sides can go; > 0: at most that fast). Without an answer for
+``lockstep_timeout`` wall seconds the node says so (a warning, ``/diagnostics`` WARN and the
+count ``lockstep_timeouts``), then keeps waiting (``lockstep_on_timeout`` ``wait``) or ends
+the run (``stop``: ``sim_node`` exits with status :data:`EXIT_LOCKSTEP_TIMEOUT`).
+
+Threads: the services run on the executor thread and take the simulation lock; :meth:`limit`
+and :meth:`hold_start` run on the simulation thread under it. Every attribute is guarded by
+the simulation lock.
+"""
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from std_srvs.srv import Trigger
+
+from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.ros.brake_inputs import BrakeInputs
+from train_dynamics.ros.publishers import Outputs
+
+CONNECT_SETTLE = 0.3       # [s wall] lock-step start: pause after both directions matched
+EXIT_LOCKSTEP_TIMEOUT = 4  # sim_node's exit status after a lock-step timeout with ``stop``
+WAIT_POLL = 0.05           # [s wall] longest sleep of a waiting simulation thread
+
+
+class RunControl:
+    """Pause/resume/step and the lock-step gate of one node (see the module documentation)."""
+
+    def __init__(self, node: Any, lock: Any, inputs: BrakeInputs, outputs: Outputs,
+                 wake: Callable[[], None]) -> None:
+        self._lock = lock
+        self._inputs = inputs
+        self._outputs = outputs
+        self._wake = wake
+        self._log = node.get_logger()
+        self.sync_mode = 'free'
+        self.timeout = 5.0              # [s wall] lockstep_timeout, 0 = never
+        self.on_timeout = 'wait'
+        self.step_periods = 1
+        self.paused = False
+        self.step_to: int | None = None     # paused: run until this many outputs are out
+        self.sim: TrainSimulator | None = None
+        self.stop_requested = False     # lock-step timeout with ``stop``: end the run
+        self._connected_since: float | None = None
+        self._waiting_since: float | None = None
+        self._timed_out = False
+        self._counted = 0               # outputs whose answer is counted
+        self.timeouts = 0
+        self.periods = 0                # lock-step periods answered in this run
+        self.round_trip_sum = 0.0       # [s wall] output published -> answer applied
+        self.round_trip_max = 0.0
+        for name, callback in (('pause', self._on_pause), ('resume', self._on_resume),
+                               ('step', self._on_step)):
+            node.create_service(Trigger, f'~/{name}', callback)
+
+    @property
+    def lockstep(self) -> bool:
+        """Return True in ``sync_mode`` lockstep."""
+        return self.sync_mode == 'lockstep'
+
+    def configure(self, sync_mode: str, timeout: float, on_timeout: str,
+                  step_periods: int) -> None:
+        """Take the parameters (lock held)."""
+        self.sync_mode = sync_mode
+        self.timeout = float(timeout)
+        self.on_timeout = on_timeout
+        self.step_periods = int(step_periods)
+        self._wake()
+
+    def start(self, sim: TrainSimulator) -> None:
+        """Begin a run at t = 0 (lock held): a paused node stays paused."""
+        self.sim = sim
+        self.step_to = None
+        self.stop_requested = False
+        self._connected_since = None
+        self._waiting_since = None
+        self._timed_out = False
+        self._counted = 0               # outputs whose answer is counted
+        self.timeouts = 0
+        self.periods = 0
+        self.round_trip_sum = 0.0
+        self.round_trip_max = 0.0
+
+    # -- the simulation thread (lock held) --------------------------------------------------
+    def hold_start(self, now: float) -> bool:
+        """Lock-step: return True while t = 0 waits for the controller (both directions)."""
+        if not self.lockstep:
+            return False
+        if not (self._inputs.connected() and self._outputs.subscribed()):
+            if self._connected_since is None and self._waiting_since is None:
+                self._waiting_since = now
+                self._log.info('lockstep: waiting for the controller (a publisher on the brake '
+                               'input, a subscriber on the outputs) before t = 0')
+            self._connected_since = None
+            return True
+        if self._connected_since is None:
+            self._connected_since = now
+        if now - self._connected_since < CONNECT_SETTLE:
+            return True
+        self._waiting_since = None
+        self._log.info('lockstep: controller connected; starting')
+        return False
+
+    def limit(self, now: float) -> int | None:
+        """Return the integration step the run may reach now (None: no limit)."""
+        sim, out = self.sim, self._outputs
+        lim = None
+        if self.lockstep and out.published and sim.steps == out.last_step:
+            if not self._inputs.answered(out.last_t_ns):
+                self._wait(now)
+                return sim.steps
+            if self._counted != out.published:
+                self._counted = out.published
+                self._answered(now)
+            lim = out.next_step
+        if self.paused:
+            if self.step_to is None or out.published >= self.step_to:
+                self.step_to = None
+                return sim.steps
+            lim = out.next_step if lim is None else min(lim, out.next_step)
+        return lim
+
+    def _wait(self, now: float) -> None:
+        if self._waiting_since is None:
+            self._waiting_since = now
+            self._timed_out = False
+            return
+        if self.timeout > 0 and not self._timed_out and now - self._waiting_since > self.timeout:
+            self._timed_out = True
+            self.timeouts += 1
+            stop = self.on_timeout == 'stop'
+            self._log.warning(
+                f'lockstep: no answer stamped t = {self.sim.t:.6f} s on every brake input for '
+                f'{self.timeout:g} s; ' + ('stopping the run' if stop else 'still waiting'))
+            if stop:
+                self.stop_requested = True
+
+    def _answered(self, now: float) -> None:
+        """Count an answered period and its round trip (output published -> answer seen)."""
+        rtt = max(now - self._outputs.last_wall, 0.0)
+        self.periods += 1
+        self.round_trip_sum += rtt
+        self.round_trip_max = max(self.round_trip_max, rtt)
+        self._waiting_since = None
+
+    def waiting(self, now: float) -> str:
+        """Return why the simulation waits for the controller ('' when it does not)."""
+        if not self.lockstep or self._waiting_since is None:
+            return ''
+        what = ('the controller to connect' if not self._outputs.published
+                else f'the answer stamped t = {self.sim.t:.6f} s')
+        return f'lockstep: waiting {now - self._waiting_since:.1f} s for {what}'
+
+    def summary(self) -> str:
+        """Return the lock-step figures of the run ('' in free mode): periods, round trip."""
+        if not self.lockstep:
+            return ''
+        mean = self.round_trip_sum / self.periods if self.periods else 0.0
+        return (f'lockstep: {self.periods} periods answered, round trip mean '
+                f'{mean * 1e3:.3f} ms, max {self.round_trip_max * 1e3:.3f} ms')
+
+    def report(self) -> dict[str, str]:
+        """Return the ``/diagnostics`` values of the run control."""
+        mean = self.round_trip_sum / self.periods if self.periods else 0.0
+        return {'sync_mode': self.sync_mode, 'paused': str(self.paused).lower(),
+                'lockstep_periods': str(self.periods),
+                'lockstep_timeouts': str(self.timeouts),
+                'lockstep_round_trip_mean_ms': f'{mean * 1e3:.3f}',
+                'lockstep_round_trip_max_ms': f'{self.round_trip_max * 1e3:.3f}'}
+
+    # -- services (executor thread) ---------------------------------------------------------
+    def _on_pause(self, request: Trigger.Request, response: Trigger.Response):
+        with self._lock.held():
+            already = self.paused
+            self.paused = True
+            self.step_to = None
+            t = self.sim.t
+        response.success = True
+        response.message = f'{"already " if already else ""}paused at t = {t:.6f} s'
+        self._log.info(f'pause service: {response.message}')
+        return response
+
+    def _on_resume(self, request: Trigger.Request, response: Trigger.Response):
+        with self._lock.held():
+            was = self.paused
+            self.paused = False
+            self.step_to = None
+            t = self.sim.t
+            self._wake()
+        response.success = True
+        response.message = f'resumed at t = {t:.6f} s' if was else f'running (t = {t:.6f} s)'
+        self._log.info(f'resume service: {response.message}')
+        return response
+
+    def _on_step(self, request: Trigger.Request, response: Trigger.Response):
+        with self._lock.held():
+            self.paused = True
+            base = self._outputs.published if self.step_to is None else self.step_to
+            self.step_to = base + self.step_periods
+            t = self.sim.t
+            self._wake()
+        response.success = True
+        response.message = (f'stepping {self.step_periods} output period(s) from t = {t:.6f} s '
+                            f'(until output {self.step_to}), then paused')
+        self._log.info(f'step service: {response.message}')
+        return response
