@@ -99,16 +99,12 @@ def test_replayed_cylinder_bag_gives_the_core_histories(tmp_path):
     t, y, ydot, force = coupler_arrays(tmp_path / 'out')
 
     # the physics core driven directly: a message at bag time tau (relative to the bag's
-    # first message) is held from the first step k with k*h >= tau
+    # first message) is held from tau itself (the step that spans tau is split there)
     sim = TrainSimulator(load_param_file(str(params)))
-    h_ns = 1_000_000
-    by_step: dict[int, list] = {}
     for t_ns, i, p in events:
-        by_step.setdefault(-(-t_ns // h_ns), []).append((i, p))
+        sim.schedule(t_ns * 1e-9, lambda i=i, p=p: sim.set_cylinder_pressure(p, i))
     exp_t, exp_y, exp_v, exp_f, exp_cyl = [], [], [], [], []
     for k in range(2501):
-        for i, p in by_step.get(k, []):
-            sim.set_cylinder_pressure(p, i)
         if k % 10 == 0:
             exp_t.append(sim.t)
             exp_y.append(sim.y)

@@ -21,37 +21,39 @@ def test_library_holds_the_required_types_and_the_papers_coach_exactly():
                  'freight_wagon_loaded', 'freight_wagon_empty'):
         assert name in lib
     assert lib['paper_coach'] == {
-        'mass': 45000.0, 'length': 25.0, 'buffer_stiffness': 2.8e6, 'buffer_friction': 1.4e6,
-        'draw_gear_stiffness': 5.46e6, 'draw_gear_friction': 2.43e6,
+        'mass': 45000.0, 'length': 25.0, 'buffer_stiffness': 5.6e6, 'buffer_friction': 2.8e6,
+        'draw_gear_stiffness': 10.92e6, 'draw_gear_friction': 4.86e6,
         'adhesion_coefficient': 0.1, 'max_cylinder_pressure': 380000.0, 'brake_regime': 'P'}
 
 
-def test_connection_rule_for_a_mixed_pair(tmp_path):
+def test_coupling_rule_for_a_mixed_pair_of_ends(tmp_path):
     path = write(tmp_path, """
 vehicle_types:
   a: {buffer_stiffness: 2.0e6, buffer_friction: 1.0e6, draw_gear_stiffness: 6.0e6,
-      draw_gear_friction: 3.0e6, blocked_stiffness: 1.0e8, buffer_stroke: 0.10,
+      draw_gear_friction: 0.0, blocked_stiffness: 1.0e8, buffer_stroke: 0.10,
       draw_gear_stroke: 0.05, buffer_slack: 0.0, draw_gear_slack: 0.02}
-  b: {buffer_stiffness: 3.0e6, buffer_friction: 2.0e6, draw_gear_stiffness: 3.0e6,
-      draw_gear_friction: 1.0e6, blocked_stiffness: 3.0e8, buffer_stroke: 0.12,
+  b: {buffer_stiffness: 3.0e6, buffer_friction: 1.0e6, draw_gear_stiffness: 3.0e6,
+      draw_gear_friction: 0.0, blocked_stiffness: 3.0e8, buffer_stroke: 0.12,
       draw_gear_stroke: 0.07, buffer_slack: 0.01, draw_gear_slack: 0.0}
 vehicles: [{type: a}, {type: b}, {type: b}]
 """)
     c = consist.load_consist(path, values())
-    # harmonic: 2 k_a k_b / (k_a + k_b), by hand
-    assert c.coupler('buffer_stiffness')[0] == pytest.approx(2.4e6)
-    assert c.coupler('buffer_friction')[0] == pytest.approx(4.0e6 / 3.0)
-    assert c.coupler('draw_gear_stiffness')[0] == pytest.approx(4.0e6)
-    assert c.coupler('draw_gear_friction')[0] == pytest.approx(1.5e6)
-    assert c.coupler('blocked_stiffness')[0] == pytest.approx(1.5e8)
-    # arithmetic
-    assert c.coupler('buffer_stroke')[0] == pytest.approx(0.11)
-    assert c.coupler('draw_gear_stroke')[0] == pytest.approx(0.06)
-    assert c.coupler('buffer_slack')[0] == pytest.approx(0.005)
-    assert c.coupler('draw_gear_slack')[0] == pytest.approx(0.01)
-    # two identical vehicles: their own values, exactly
+    # loading branches 3e6 and 4e6 in series: 12/7e6; unloading 1e6 and 2e6: 2/3e6
+    load, unload = 12.0e6 / 7.0, 2.0e6 / 3.0
+    assert c.coupler('buffer_stiffness')[0] == pytest.approx(0.5 * (load + unload))
+    assert c.coupler('buffer_friction')[0] == pytest.approx(0.5 * (load - unload))
+    assert c.coupler('draw_gear_stiffness')[0] == pytest.approx(2.0e6)      # 6e6 + 3e6 in series
+    assert c.coupler('draw_gear_friction')[0] == 0.0
+    assert c.coupler('blocked_stiffness')[0] == pytest.approx(0.75e8)
+    # travels add
+    assert c.coupler('buffer_stroke')[0] == pytest.approx(0.22)
+    assert c.coupler('draw_gear_stroke')[0] == pytest.approx(0.12)
+    assert c.coupler('buffer_slack')[0] == pytest.approx(0.01)
+    assert c.coupler('draw_gear_slack')[0] == pytest.approx(0.02)
+    # two identical ends: half their stiffness and friction, twice their travel, exactly
     for f in consist.COUPLER_FIELDS:
-        assert c.coupler(f)[1] == c[f][2]
+        factor = 0.5 if f in consist.SERIES else 2.0
+        assert c.coupler(f)[1] == factor * c[f][2]
     assert c.coupler_array().shape == (9, 2)
 
 
@@ -108,8 +110,14 @@ def test_relative_path_resolves_against_base_dir_then_config(tmp_path, monkeypat
     ('vehicles: [{type: paper_coach, count: 0}, {type: paper_coach}]', ['vehicles[1]', 'count']),
     ('vehicles: [{type: paper_coach}, {type: paper_coach, brake_regime: X}]',
      ['vehicles[2]', 'brake_regime']),
-    ('vehicles: [{type: paper_coach}, {type: paper_coach, buffer_friction: 3.0e6}]',
+    ('vehicles: [{type: paper_coach}, {type: paper_coach, buffer_friction: 6.0e6}]',
      ['vehicle 2', 'buffer_friction']),
+    ('vehicles: [{type: paper_coach}, {type: paper_coach, rear: {buffer_friction: 6.0e6}}]',
+     ['vehicle 2', 'rear end', 'buffer_friction']),
+    ('vehicles: [{type: paper_coach}, {type: paper_coach, front: {mass: 1.0}}]',
+     ['vehicles[2]', 'front', 'mass']),
+    ('couplings: {davis_a: 1.0}\nvehicles: [{type: paper_coach}, {type: paper_coach}]',
+     ['couplings', 'davis_a']),
     ('vehicle_types: {w: {length: 0.0}}\nvehicles: [{type: w}, {type: w}]',
      ["vehicle type 'w'", 'length']),
     ('vehicles: [{type: paper_coach}]', ['at least 2']),
@@ -133,9 +141,9 @@ def test_missing_consist_file_is_a_clear_error(tmp_path):
         SimConfig.from_dict({'consist_file': 'nowhere.yaml'})
 
 
-def test_connection_harmonic_mean_with_zero_friction():
-    out = consist.connection_harmonic(np.array([0.0, 2.0]), np.array([1.0, 2.0]))
-    assert list(out) == [0.0, 2.0]
+def test_series_of_springs_with_zero_stiffness():
+    out = consist.series(np.array([0.0, 2.0, 2.0]), np.array([1.0, 2.0, 6.0]))
+    assert list(out) == [0.0, 1.0, 1.5]
 
 
 def test_the_per_vehicle_declarations_elsewhere_name_fields_of_the_table():
@@ -146,7 +154,7 @@ def test_the_per_vehicle_declarations_elsewhere_name_fields_of_the_table():
     assert consist.VEHICLE_FIELDS == tuple(VEHICLE_PARAMETERS)
     assert consist.PARAM_OF == {'mass': 'coach_mass', 'length': 'coach_length'}
     connections = {f for f, s in VEHICLE_PARAMETERS.items() if s.connection}
-    assert set(consist.COUPLER_FIELDS) == connections == {*consist.HARMONIC, *consist.ARITHMETIC}
+    assert set(consist.COUPLER_FIELDS) == connections == {*consist.SERIES, *consist.ADDED}
     assert set(TrainSimulator._VEHICLE_ROWS) <= set(VEHICLE_PARAMETERS)
     assert {*TrainSimulator._TRAVEL_ROWS, *TrainSimulator._COUPLER_ROWS} == connections
 
@@ -186,7 +194,10 @@ def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
     page = (Path(__file__).resolve().parents[1] / 'docs' / 'parameters.md').read_text()
     assert f'| `{field}` | `{spec.name}` |' in page, 'the per-vehicle table of the docs'
     value = _distinctive(spec)
-    path = write(tmp_path, f'vehicle_types: {{w: {{{field}: {value!r}}}}}\n'
+    # a force limit needs its power limit (consist.check_traction_power)
+    power = dict(consist._POWER_PAIRS).get(field)
+    extra = f', {power}: 1.0e6' if power else ''
+    path = write(tmp_path, f'vehicle_types: {{w: {{{field}: {value!r}{extra}}}}}\n'
                            'vehicles: [{type: w, count: 3}]\n')
     cfg = SimConfig.from_dict({'consist_file': path, **_CONTEXT.get(field, {})})
     if spec.choices:

@@ -18,7 +18,7 @@ from train_dynamics.cli.scenario import valve_from_param_file
 from train_dynamics.physics.config import load_param_file
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.recording.plots import png_size
-from train_dynamics.simulation.runner import InputSchedule, run_simulation
+from train_dynamics.simulation.runner import InputSchedule, run_simulation, traction_schedule
 import yaml
 
 PAPER = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config',
@@ -117,3 +117,24 @@ def test_report_of_a_bag_recorded_by_sim_node(tmp_path):
     assert main(['report', str(replay), '--output', str(out2), '--params', str(params),
                  '-q']) == 0
     same_numbers(json.loads((out2 / 'summary.json').read_text())['train'], tr, rel=1e-6)
+
+
+def test_report_reads_slack_and_strokes_from_the_consist_as_the_simulator_does(tmp_path):
+    """The slack run-in scenario: the report counts the simulator's own free-play impacts."""
+    from train_dynamics.physics.train import TrainSimulator
+
+    params = os.path.join(os.path.dirname(PAPER), 'slack_runin.yaml')
+    bag, out = tmp_path / 'run', tmp_path / 'report'
+    assert main(['simulate', '--params', params, '--duration', '25', '--output', str(bag),
+                 '-q']) == 0
+    assert main(['report', str(bag), '--output', str(out), '--params', params, '-q']) == 0
+    doc = json.loads((out / 'summary.json').read_text())
+    cfg = load_param_file(params)
+    live = RunMetrics.for_run(cfg, TrainSimulator(cfg))
+    inputs = InputSchedule(topics.PIPE_HEAD, [], valve_from_param_file(params, cfg), 'valve')
+    inputs.traction = traction_schedule(cfg)
+    run_simulation(cfg, 25.0, inputs, on_sample=live.sample)
+    expected = live.result()['train']
+    assert expected['impact_count'] > 0
+    assert doc['train']['impact_count'] == expected['impact_count']
+    assert doc['train']['blocking_count'] == expected['blocking_count']

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 from collections.abc import Iterator
 import contextlib
-import reprlib
 import signal
 import sys
 import threading
@@ -92,28 +91,3 @@ def warn(text: str) -> None:
 def error(text: str) -> None:
     """Print ``train-dynamics: error: <text>`` on stderr."""
     print(f'{PROG}: error: {text}', file=sys.stderr)
-
-
-#: the most characters of a value an error message quotes
-QUOTE_CHARS = 60
-_QUOTE = reprlib.Repr()           # (Python 3.11 has no keyword arguments for these)
-_QUOTE.maxlevel = 2
-for _name in ('maxtuple', 'maxlist', 'maxarray', 'maxdict', 'maxset', 'maxfrozenset',
-              'maxdeque'):
-    setattr(_QUOTE, _name, 4)
-_QUOTE.maxstring = _QUOTE.maxlong = _QUOTE.maxother = QUOTE_CHARS
-
-
-def quote(value: object) -> str:
-    """
-    Return a bounded repr of ``value`` for a message: at most :data:`QUOTE_CHARS` characters.
-
-    Never the full repr: a value read from a file may be a YAML alias bomb (a few hundred
-    bytes that stand for gigabytes of nested lists); :mod:`reprlib` looks at a bounded part.
-    """
-    return clip(_QUOTE.repr(value), QUOTE_CHARS)
-
-
-def clip(text: str, limit: int = 300) -> str:
-    """Return ``text`` cut to ``limit`` characters (an error message of another module)."""
-    return text if len(text) <= limit else text[:limit - 3] + '...'

@@ -9,7 +9,8 @@ depend on the bag's length, the figures' curves are bounded) and writes
 :func:`train_dynamics.recording.metrics_report.write_report`'s files. The run's parameters
 (limits, strokes and slacks, coupler stiffness for the dissipated energy) come from
 ``--params``, else from the bag's ``custom_data`` ``parameters`` (recorded by the node), else
-the limits are off and the dissipated energy is not given.
+the limits are off and the dissipated energy is not given. Strokes and slacks are those of the
+parameters' consist (its vehicle ends in series), read as the simulator reads them.
 """
 from __future__ import annotations
 
@@ -22,11 +23,12 @@ import shutil
 from typing import Any
 
 from train_dynamics import topics
-from train_dynamics.cli.errors import CliError, clip, EXIT_ERROR, EXIT_OK
+from train_dynamics.cli.errors import CliError, EXIT_ERROR, EXIT_OK
 from train_dynamics.cli.output import output_dir, remove_created
 from train_dynamics.cli.scenario import load_config
 from train_dynamics.physics.config import ConfigError, SimConfig
 from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
+from train_dynamics.quoting import clip
 from train_dynamics.recording.bags import bag_info, BagError
 from train_dynamics.recording.history import History, stream_history
 from train_dynamics.recording.metrics_report import MetricsFeed, write_report

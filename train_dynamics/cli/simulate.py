@@ -14,17 +14,21 @@ stopped by SIGINT / SIGTERM: then the bag holds the whole samples up to there (i
 second signal aborts at once, leaving nothing. The bag's size
 is estimated before the run (:func:`train_dynamics.physics.config.output_disk`): more
 than the free space is refused, more than :data:`LARGE_BAG` needs ``--allow-large``. Memory
-does not grow with the duration (the samples stream to the bag).
+does not grow with the duration (the samples stream to the bag). A bag estimated larger than
+:data:`FILE_BYTES` is written as several MCAP files (rosbag2's splitting, whole samples per
+file); when the disk fills up all the same, the finished files are kept as a closed,
+readable bag (``custom_data`` ``incomplete``) and the command exits 1 with one line.
 """
 from __future__ import annotations
 
 import argparse
+import errno
 from pathlib import Path
 import shutil
 
 from train_dynamics import topics
-from train_dynamics.cli.errors import (CliError, deferred_signals, error, EXIT_FAULT,
-                                       EXIT_INTERRUPT, EXIT_OK, Interrupted, PROG)
+from train_dynamics.cli.errors import (CliError, deferred_signals, error, EXIT_ERROR,
+                                       EXIT_FAULT, EXIT_INTERRUPT, EXIT_OK, Interrupted, PROG)
 from train_dynamics.cli.output import remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
@@ -37,6 +41,11 @@ from train_dynamics.simulation.runner import InputSchedule, run_simulation
 #: [bytes] a bag estimated larger than this needs ``--allow-large`` (10 GB: ~2.5 h of the
 #: paper's 3 coaches, ~20 min of 100 coaches at 100 Hz)
 LARGE_BAG = 10 ** 10
+#: [bytes] about the largest MCAP file of a bag: a full disk loses at most the file being
+#: written (a bag estimated smaller is one file)
+FILE_BYTES = 128 * 2 ** 20
+#: errors of a write that found no room
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -72,8 +81,9 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         raise CliError(f'{parent} is not a directory')
     cfg = load_config(args.params)
     inputs = brake_inputs(args, cfg)
-    _check_disk(cfg, duration, inputs, parent, args.allow_large)
-    created, rec = _open_recorder(out, parent)
+    need = _check_disk(cfg, duration, inputs, parent, args.allow_large)
+    split = duration * FILE_BYTES / need if need > FILE_BYTES else None
+    created, rec = _open_recorder(out, parent, split)
     last = [0.0]                                         # [s] of the last sample written
     try:
         rec.update_custom_data(_model_info(cfg, inputs, duration))
@@ -96,6 +106,12 @@ def cmd_simulate(args: argparse.Namespace) -> int:
         rec.close()
     except Interrupted as stop:
         _keep_interrupted(rec, out, created, stop, last[0])
+    except OSError as exc:
+        if exc.errno not in DISK_FULL:
+            rec.abort()
+            remove_created(created)
+            raise
+        _keep_disk_full(rec, out, created, exc, last[0])
     except BaseException:
         rec.abort()
         remove_created(created)
@@ -124,11 +140,31 @@ def _keep_interrupted(rec: BagRecorder, out: Path, created: list[Path], stop: In
                    stop.code)
 
 
+def _keep_disk_full(rec: BagRecorder, out: Path, created: list[Path], exc: OSError,
+                    t: float) -> None:
+    """Keep the finished files of a bag whose disk filled up at ``t`` [s]; raise (exit 1)."""
+    what = exc.strerror or str(exc)
+    try:
+        rec.keep(f'{what} at t = {t!r} s')
+    except BaseException:
+        remove_created(created)
+        raise CliError(f'{what} at t = {t:.3f} s: nothing could be kept of {out}',
+                       EXIT_ERROR) from None
+    raise CliError(f'{what} at t = {t:.3f} s: {out} holds the run up to t = '
+                   f'{rec.saved_until_ns * 1e-9:.3f} s ({rec.saved} messages); free some space '
+                   'or shorten the run', EXIT_ERROR)
+
+
 def _check_disk(cfg: SimConfig, duration: float, inputs: InputSchedule, parent: Path,
-                allow_large: bool) -> None:
-    """Refuse a run whose bag would not fit, or exceed :data:`LARGE_BAG` unconfirmed."""
-    need = output_disk(cfg, duration) + sum(len(e.msg.header.frame_id) + 80
-                                            for e in inputs.events)
+                allow_large: bool) -> int:
+    """
+    Return the bag's estimated size [bytes].
+
+    Refuse a run whose bag would not fit, or exceed :data:`LARGE_BAG` unconfirmed.
+    """
+    need = output_disk(cfg, duration, head_input=inputs.valve is not None,
+                       traction_commands=len(inputs.traction)) + sum(
+        len(e.msg.header.frame_id) + 80 for e in inputs.events)
     where = parent
     while not where.exists():
         where = where.parent
@@ -141,10 +177,12 @@ def _check_disk(cfg: SimConfig, duration: float, inputs: InputSchedule, parent: 
         raise CliError(f'the bag would need about {fmt_bytes(need)} ({duration:g} s of '
                        f'{cfg.n_coaches} coaches at {cfg.publish_rate:g} Hz), more than '
                        f'{fmt_bytes(LARGE_BAG)}: add --allow-large to write it anyway')
+    return need
 
 
-def _open_recorder(out: Path, parent: Path) -> tuple[list[Path], BagRecorder]:
-    """Create the missing parent folders and an atomic recorder; return both."""
+def _open_recorder(out: Path, parent: Path, split: float | None = None
+                   ) -> tuple[list[Path], BagRecorder]:
+    """Create the missing parent folders and an atomic recorder (files of ``split`` s)."""
     created = []            # parent folders to create (and to remove again on failure)
     p = parent
     while not p.exists():
@@ -153,7 +191,7 @@ def _open_recorder(out: Path, parent: Path) -> tuple[list[Path], BagRecorder]:
     try:
         for d in reversed(created):
             d.mkdir()
-        return created, BagRecorder(out, atomic=True, file_stem=out.name)
+        return created, BagRecorder(out, atomic=True, file_stem=out.name, split_seconds=split)
     except (BagError, FileExistsError, OSError) as exc:
         remove_created(created)
         raise CliError(str(exc)) from None

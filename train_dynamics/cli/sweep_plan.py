@@ -55,12 +55,13 @@ from typing import Any
 import numpy as np
 from scipy.stats import qmc
 
-from train_dynamics.cli.errors import CliError, clip, quote
+from train_dynamics.cli.errors import CliError
 from train_dynamics.cli.scenario import brake_inputs, load_config
 from train_dynamics.physics.config import (ConfigError, DOUBLE, INTEGER, PARAMETERS,
                                            read_param_file, resolve_path, validate_value)
 from train_dynamics.physics.config.consist import LIBRARY
 from train_dynamics.physics.config.files import config_dirs, RosParamLoader
+from train_dynamics.quoting import clip, quote
 from train_dynamics.simulation.runner import InputSchedule
 from train_dynamics.topics import VALVE_NODE_NAME
 import yaml

@@ -45,11 +45,12 @@ import pandas as pd
 import psutil
 from tqdm import tqdm
 
-from train_dynamics.cli.errors import CliError, clip, error, EXIT_ERROR, EXIT_OK, quote
+from train_dynamics.cli.errors import CliError, error, EXIT_ERROR, EXIT_OK
 from train_dynamics.cli.sweep_case import failed_row, run_case
 from train_dynamics.cli.sweep_plan import make_plan, Plan
 from train_dynamics.physics.config import fmt_bytes
 from train_dynamics.physics.metrics import FLAT_KEYS
+from train_dynamics.quoting import clip, quote
 from train_dynamics.recording.metrics_report import sweep_figures
 
 RESULTS = 'results.parquet'

@@ -39,6 +39,7 @@ from train_dynamics.physics.config import (ATMOSPHERIC_PRESSURE, DOUBLE, FULL_SE
                                            read_param_file, ROS_BUILTIN_PARAMETERS,
                                            SIM_NODE_PARAMETERS, STRING, STRING_ARRAY,
                                            validate_value)
+from train_dynamics.quoting import quote
 
 #: [s] latest schedule time: the longest run (``sim_node``'s ``duration`` bound, ~32 years)
 MAX_SCHEDULE_TIME = SIM_NODE_PARAMETERS['duration'].high
@@ -148,7 +149,7 @@ def target_pressure(position: str, settings: Mapping[str, Any]) -> float:
             first = float(settings['first_service_drop'])
             frac = 0.0 if n == 1 else (k - 1) / (n - 1)
             return nominal - (first + frac * ((nominal - full) - first))
-    raise ValueError(f'unknown handle position {position!r}; valid: release, running, '
+    raise ValueError(f'unknown handle position {quote(position)}; valid: release, running, '
                      f'service_1..service_{n}, full_service, emergency')
 
 
@@ -156,7 +157,7 @@ def validate_position(position: Any, settings: Mapping[str, Any]) -> str:
     """Return ``position`` if it is a valid handle position, else raise ``ValueError``."""
     if not isinstance(position, str):
         raise ValueError(f'position: expected a string, got {type(position).__name__} '
-                         f'{position!r}')
+                         f'{quote(position)}')
     target_pressure(position, settings)
     return position
 
@@ -170,28 +171,29 @@ def parse_schedule(entries: Any, settings: Mapping[str, Any] | None = None) -> l
     """
     settings = validate_settings(settings or {})
     if isinstance(entries, (str, bytes)) or not isinstance(entries, Iterable):
-        raise ValueError(f'schedule: expected a list of "TIME:POSITION" strings, got {entries!r}')
+        raise ValueError('schedule: expected a list of "TIME:POSITION" strings, got '
+                         f'{quote(entries)}')
     out: list[ScheduleEntry] = []
     for k, item in enumerate(entries):
         if not isinstance(item, str) or ':' not in item:
             raise ValueError(f'schedule[{k}]: expected "TIME:POSITION" (e.g. "1.0:emergency"), '
-                             f'got {item!r}')
+                             f'got {quote(item)}')
         time_text, position = (part.strip() for part in item.split(':', 1))
         try:
             t = float(time_text)
         except ValueError:
             raise ValueError(
-                f'schedule[{k}] {item!r}: time {time_text!r} is not a number') from None
+                f'schedule[{k}] {quote(item)}: time {quote(time_text)} is not a number') from None
         if not math.isfinite(t) or not 0.0 <= t <= MAX_SCHEDULE_TIME:
-            raise ValueError(f'schedule[{k}] {item!r}: time must be finite, >= 0 and <= '
+            raise ValueError(f'schedule[{k}] {quote(item)}: time must be finite, >= 0 and <= '
                              f'{MAX_SCHEDULE_TIME:g} s')
         if out and not t > out[-1].time:
-            raise ValueError(f'schedule[{k}] {item!r}: times must strictly increase '
+            raise ValueError(f'schedule[{k}] {quote(item)}: times must strictly increase '
                              f'({t:g} after {out[-1].time:g})')
         try:
             target_pressure(position, settings)
         except ValueError as exc:
-            raise ValueError(f'schedule[{k}] {item!r}: {exc}') from None
+            raise ValueError(f'schedule[{k}] {quote(item)}: {exc}') from None
         out.append(ScheduleEntry(t, position))
     return out
 
@@ -252,7 +254,7 @@ class BrakeValveModel:
             return parse_schedule(schedule, self.settings)    # raises with the reason
         schedule = list(schedule)
         if schedule and all(isinstance(e, ScheduleEntry) for e in schedule):
-            schedule = [f'{e.time!r}:{e.position}' for e in schedule]
+            schedule = [f'{quote(e.time)}:{e.position}' for e in schedule]
         return parse_schedule(schedule, self.settings)
 
     # -- state -------------------------------------------------------------------------
@@ -396,11 +398,11 @@ def check_live_change(model: BrakeValveModel, changes: Mapping[str, Any], *,
     try:
         target_pressure(model.position, settings)
     except ValueError as exc:
-        raise ValueError(f'the handle is at {model.position!r}, which would become invalid: '
+        raise ValueError(f'the handle is at {quote(model.position)}, which would become invalid: '
                          f'{exc}') from None
     for entry in (model.pending if check_pending else []):
         try:
             target_pressure(entry.position, settings)
         except ValueError as exc:
-            raise ValueError(f'pending schedule entry {entry.position!r} would become invalid: '
-                             f'{exc}') from None
+            raise ValueError(f'pending schedule entry {quote(entry.position)} would become '
+                             f'invalid: {exc}') from None

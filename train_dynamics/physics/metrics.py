@@ -479,21 +479,29 @@ class RunMetrics:
         Return the accumulator for a run of ``cfg`` (limits, strokes, slacks, stiffness).
 
         Strokes and slacks are taken, per coupler, from ``sim`` (attributes
-        ``buffer_stroke`` ...) or else from ``cfg``'s parameters of the same names when
-        present and > 0; the elastic energy from ``sim``'s coupler constants (paper eqs.
-        2-3) or else ``cfg``'s uniform ones.
+        ``buffer_stroke`` ...) or else from ``cfg``'s consist (:meth:`Consist.coupler`, the
+        reader the simulator builds its couplers with: a consist's ends in series), or else
+        from ``cfg``'s parameters of the same names when present and > 0; the elastic energy
+        from ``sim``'s coupler constants (paper eqs. 2-3), else the consist's, else ``cfg``'s
+        uniform ones.
         """
         values = getattr(cfg, 'values', {})
+        consist = getattr(cfg, 'consist', None)
         opts: dict[str, Any] = {
             'coupler_force_limit': float(values.get('coupler_force_limit', 0.0) or 0.0),
             'jerk_limit': float(values.get('jerk_limit', 0.0) or 0.0)}
         for name in ('buffer_stroke', 'draw_gear_stroke', 'buffer_slack', 'draw_gear_slack'):
             value = getattr(sim, name, None) if sim is not None else None
+            if value is None and consist is not None:
+                value = consist.coupler(name)
             if value is None and _positive(values.get(name)):
                 value = values[name]
             opts[name] = value
         if sim is not None and hasattr(sim, 'ke'):
             ke, kec = np.asarray(sim.ke), np.asarray(sim.kec)
+        elif consist is not None:
+            ke = consist.coupler('buffer_stiffness')
+            kec = consist.coupler('draw_gear_stiffness')
         else:
             ke = np.asarray(float(values.get('buffer_stiffness', 0.0)))
             kec = np.asarray(float(values.get('draw_gear_stiffness', 0.0)))

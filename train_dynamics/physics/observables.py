@@ -15,6 +15,7 @@ from __future__ import annotations
 import numpy as np
 
 from train_dynamics.physics import couplers
+from train_dynamics.physics.kernel.couplers import coupler_force_travel
 from train_dynamics.physics.kernel.layout import COUPLER, OUTPUT, STATE, TOTAL, VEHICLE, WORK
 
 
@@ -57,10 +58,17 @@ class TrainOutputs:
 
     @property
     def coupler_force(self) -> np.ndarray:
-        """F_i [N] at the present state: F at the end of the last step."""
+        """F_i [N] at the present state: F at the end of the last step (t = 0: the law at y)."""
         self._sync()
         if self.steps == 0:
-            return np.zeros(self.n - 1)
+            y = self.y
+            if not np.any(y):
+                return np.zeros(self.n - 1)
+            c = self.cpl
+            return coupler_force_travel(y, self.ydot, c[COUPLER.KE], c[COUPLER.KF],
+                                        c[COUPLER.KEC], c[COUPLER.KFC], c[COUPLER.GT],
+                                        c[COUPLER.GC], c[COUPLER.ST], c[COUPLER.SC],
+                                        c[COUPLER.KB], self.model, self.u)
         return self.ws[WORK.F, :self.n - 1].copy()
 
     @property

@@ -17,10 +17,14 @@ coach chain under zero-order-hold brake inputs.
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+import heapq
+import itertools
+
 import numpy as np
 
-from train_dynamics.physics import pneumatic
-from train_dynamics.physics.config import (ConfigError, Consist, G_FILL_TIME, G_RELEASE_TIME,
+from train_dynamics.physics import equilibrium, pneumatic
+from train_dynamics.physics.config import (Consist, G_FILL_TIME, G_RELEASE_TIME,
                                            P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
                                            P_RELEASE_TIME, SimConfig)
 from train_dynamics.physics.config.consist import check_friction_below_stiffness
@@ -29,9 +33,12 @@ from train_dynamics.physics.kernel import adaptive, brakes, couplers, fixed_step
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, COUNT, COUPLER,
                                                   INPUT, INTEGER, OPTION, PARAM, SCALAR,
                                                   SCALAR_INPUT, STATE, VEHICLE, WORK)
+from train_dynamics.physics.kernel.resistance import running_resistance
 from train_dynamics.physics.kernel.step import make_workspace, OK, STATUS_TEXT
+from train_dynamics.physics.kernel.traction import traction_force
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.resistance import equivalent_mass
+from train_dynamics.quoting import quote
 
 
 class TrainSimulator(TrainOutputs, TrainBalances):
@@ -39,9 +46,12 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     Train, brake system and fixed-step integrator (eqs. 5-9, 12-16).
 
     Inputs are gauge pressures [Pa] held constant until the next ``set_*`` call; a new value
-    takes effect at the next integration step. Outputs are numpy arrays (copies). The state
-    lives in the packed arrays of :mod:`train_dynamics.physics.kernel.layout` (``coach``, ``cpl``,
-    ``sc``, ``iv``, ``ws``) that :func:`fixed_step.advance_chain` advances in place.
+    takes effect at once (zero-order hold). An input due at a simulation time t [s] between
+    two steps is handed to :meth:`schedule`: the step that spans t is split there
+    (:attr:`exact_inputs`), so a 1 kHz input reaches the model at 1 kHz whatever the step.
+    Outputs are numpy arrays (copies). The state lives in the packed arrays of
+    :mod:`train_dynamics.physics.kernel.layout` (``coach``, ``cpl``, ``sc``, ``iv``, ``ws``)
+    that :func:`fixed_step.advance_chain` advances in place.
     """
 
     #: per-coupler constants that ``coupler_constants`` may override (arrays of N-1) and
@@ -97,6 +107,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self._set_constants()
         self.reset()
         self.set_model(self.model_type, self.u)
+        #: inputs are applied at their own instants, splitting a step (cylinder_per_coach,
+        #: pipe_per_coach); the pipe-head delay line and the pneumatic brake run on the
+        #: tick h: there an input at t acts from the first step k with k h >= t
+        self.exact_inputs = self.pneu is None and self.mode != brakes.PIPE_HEAD
 
     def _build_couplers(self, consist: Consist, coupler_constants: dict | None) -> None:
         """Fill ``cpl``: each connection's constants (eqs. 2-3, free play, strokes, K_b)."""
@@ -181,10 +195,22 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         iv[OPTION.BUDGET] = int(cfg.integration_max_steps)
 
     def reset(self) -> None:
-        """Go back to t = 0: coaches at ``initial_speed``, couplers undeformed, brakes released."""
+        """
+        Go back to t = 0: coaches at ``initial_speed``, brakes released, couplers unstressed.
+
+        ``initial_state: equilibrium``: the couplers then take their quasi-static deflections
+        (:meth:`_settle`).
+        """
         cfg = self.cfg
         p_nom = float(cfg.pipe_nominal_pressure)
         self.steps = 0
+        #: inputs waiting for their instant: heap of (t [s], order, apply)
+        self._pending: list = []
+        self._order = itertools.count()
+        #: [s] time past ``steps`` h reached inside a split step (0 between steps)
+        self._within = 0.0
+        #: cylinder inputs were set since the last step (:meth:`_hold_cylinders` due)
+        self._cylinders_set = False
         c = self.coach
         c[len(VEHICLE):] = 0.0          # state, inputs, outputs; the constants stay
         c[STATE.V] = float(cfg.initial_speed)
@@ -206,14 +232,55 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             self.pneu.reset()
             c[INPUT.CYL] = self.pneu.cylinder_pressure
         self.fault: str | None = None
+        self._settle()
+
+    def _settle(self) -> None:
+        """
+        At t = 0 with ``initial_state: equilibrium``: put the couplers at their static deflections.
+
+        The vehicles' forces at t = 0 (gradient, curve and running resistance at
+        ``initial_speed``, traction at its command, brakes released) in the chain of
+        :mod:`~train_dynamics.physics.equilibrium`; STATE.X takes the deflections (x_1 = 0).
+        Nothing changes when every coupler force is 0 (a level train without resistance and
+        traction: the paper's start).
+        """
+        if self.cfg.initial_state != 'equilibrium' or self.steps != 0:
+            return
+        c = self.coach
+        n = self.n
+        v0 = float(self.cfg.initial_speed)
+        grade, curve = self.track.forces(np.zeros(n), c[VEHICLE.LENGTH], self.masses,
+                                         float(self.cfg.gravity))
+        external = grade.copy()
+        if v0 != 0.0:
+            res = running_resistance(np.full(n, v0), c[VEHICLE.DAVIS_A], c[VEHICLE.DAVIS_B],
+                                     c[VEHICLE.DAVIS_C], np.empty(n))
+            external -= np.sign(v0) * (res + curve)
+        for i in self.consist.locomotives:
+            if c[STATE.T_EFF, i] != 0.0:
+                external[i] += traction_force(
+                    c[STATE.T_EFF, i], v0, c[VEHICLE.T_FORCE, i], c[VEHICLE.T_POWER, i],
+                    c[VEHICLE.DB_FORCE, i], c[VEHICLE.DB_POWER, i], c[VEHICLE.DB_FADE, i],
+                    c[VEHICLE.T_ADH, i], c[VEHICLE.WEIGHT, i])
+        force = equilibrium.chain_forces(external, self.inertia)
+        if not np.any(force):
+            c[STATE.X] = 0.0
+            return
+        cpl = self.cpl
+        y = equilibrium.static_deflection(force, cpl[COUPLER.KE], cpl[COUPLER.KEC],
+                                          cpl[COUPLER.GT], cpl[COUPLER.GC], cpl[COUPLER.ST],
+                                          cpl[COUPLER.SC], cpl[COUPLER.KB])
+        c[STATE.X] = equilibrium.positions(y)
+        self.ws[WORK.XKEY] = np.nan      # the static resistance at the new positions
+        self.iv[CACHE.WS_VALID] = 0
 
     def set_model(self, model_type: str, scale_factor: float) -> None:
         """Switch the coupler friction law live (state untouched)."""
         if model_type not in couplers.MODEL_CODES:
-            raise ValueError(f'model_type must be sign or tanh, got {model_type!r}')
+            raise ValueError(f'model_type must be sign or tanh, got {quote(model_type)}')
         u = float(scale_factor)
         if not np.isfinite(u) or u <= 0.0:
-            raise ValueError(f'scale_factor must be > 0, got {scale_factor!r}')
+            raise ValueError(f'scale_factor must be > 0, got {quote(scale_factor)}')
         self._sync()      # the chain reaches the present tick under the old law
         self.model_type = model_type
         self.model = couplers.MODEL_CODES[model_type]
@@ -227,7 +294,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     def _finite(p, what):
         arr = np.asarray(p, dtype=float)
         if not np.all(np.isfinite(arr)):
-            raise ValueError(f'{what}: pressure must be finite, got {p!r}')
+            raise ValueError(f'{what}: pressure must be finite, got {quote(p)}')
         return arr
 
     def set_head_pipe_pressure(self, p: float) -> None:
@@ -256,6 +323,27 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             self.coach[INPUT.CYL] = arr
         else:
             self.coach[INPUT.CYL, index] = float(arr)
+        if self.pneu is None and self.mode == brakes.CYLINDER_PER_COACH:
+            self._cylinders_set = True       # held from now: _hold_cylinders, next step
+
+    def _hold_cylinders(self) -> None:
+        """
+        Make the cylinder inputs act from now: a step on the braking force (zero-order hold).
+
+        The step's braking force is the mean of eq. (13) at its two ends; an input that steps
+        here sets the start value too, so a staircase input gives a staircase force (not a
+        ramp over the next step). Error control: the chain is brought to the present tick
+        first and the tick's force row restarts at the new value. Done once for all the inputs
+        set at an instant, before the next step (the chain has not moved since they were set).
+        """
+        self._cylinders_set = False
+        self._sync()
+        c = self.coach
+        c[STATE.PCYL] = c[INPUT.CYL]
+        brakes.braking_force(c[STATE.PCYL], self.sc[PARAM.PMAX], self.sc[PARAM.MU],
+                             c[VEHICLE.BMASS], self.sc[PARAM.G], c[STATE.FB_AVAIL])
+        if self.adaptive and self.iv[CACHE.WS_VALID]:
+            self.tick_fb[self.iv[CLOCK.TICK] % self.tick_fb.shape[0]] = c[STATE.FB_AVAIL]
 
     @property
     def locomotives(self) -> list[int]:
@@ -270,13 +358,19 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         """Set the traction command of locomotive ``index`` (0-based), in [-1, 1]."""
         c = float(command)
         if not (np.isfinite(c) and -1.0 <= c <= 1.0):
-            raise ValueError(f'traction command must be in [-1, 1], got {command!r}')
+            raise ValueError(f'traction command must be in [-1, 1], got {quote(command)}')
         if index in self._remotes:
             raise ValueError(f'vehicle {index + 1} is a remote locomotive: it follows the '
                              'lead over the radio')
         if index not in self.consist.locomotives:
             raise ValueError(f'vehicle {index + 1} is not a locomotive (no traction)')
         self.coach[INPUT.T_CMD, index] = c
+        if (self.steps == 0 and self.cfg.initial_state == 'equilibrium'
+                and float(self.cfg.initial_speed) != 0.0):
+            # a train running at t = 0 runs at this setting: its force is built up, in the
+            # balance (a train at rest notches up from 0 through the build-up time)
+            self.coach[STATE.T_EFF, index] = c
+            self._settle()
         if self.remotes and index == self.lead:
             self.pneu.set_traction(c)
 
@@ -291,14 +385,14 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         return next(iter(self.locomotives), None)
 
     def set_ep_command(self, fraction: float) -> None:
-        """EP / ECP train-line command, fraction of full service (``brake_system``)."""
+        """Set the EP / ECP train-line command, fraction of full service (``brake_system``)."""
         if self.pneu is None or self.pneu.brake_system == 'pneumatic':
             raise ValueError('brake_ep/command needs brake_model pneumatic and brake_system '
                              'ep or ecp')
         self.pneu.set_ep_command(fraction)
 
     def set_train_line(self, healthy: bool) -> None:
-        """State of the EP / ECP train line (lost: the documented fallback)."""
+        """Set the state of the EP / ECP train line (lost: the documented fallback)."""
         if self.pneu is not None:
             self.pneu.set_train_line(healthy)
 
@@ -306,12 +400,132 @@ class TrainSimulator(TrainOutputs, TrainBalances):
     @property
     def t(self) -> float:
         """Return the simulation time [s]."""
-        return self.steps * self.h
+        return self.steps * self.h + self._within
+
+    def schedule(self, t: float, apply: Callable[[], None]) -> None:
+        """
+        Apply an input at simulation time ``t`` [s]: call ``apply()`` when the run reaches t.
+
+        ``apply`` sets inputs (``set_*``). With :attr:`exact_inputs` the step that spans t is
+        split at t (:meth:`advance`); else the input acts from the first step k with
+        k h >= t. An instant already reached (within 1e-6 h) applies now. Inputs due at the
+        same instant apply in the order they were scheduled.
+        """
+        t = float(t)
+        if not np.isfinite(t):
+            raise ValueError(f'input time must be finite, got {t!r}')
+        if t <= self.t + _INSTANT * self.h:
+            apply()
+            return
+        heapq.heappush(self._pending, (t, next(self._order), apply))
+
+    def _due_tick(self, t: float) -> int:
+        """Return the first step k with k h >= t [s] (within 1e-6 h)."""
+        return max(0, int(np.ceil(t / self.h - _INSTANT)))
+
+    def _apply_due(self) -> None:
+        """Apply the scheduled inputs due now."""
+        pending = self._pending
+        limit = self.t + _INSTANT * self.h
+        while pending and (pending[0][0] <= limit or (
+                not self.exact_inputs and self._due_tick(pending[0][0]) <= self.steps)):
+            heapq.heappop(pending)[2]()
 
     def advance(self, n_steps: int) -> int:
-        """Integrate ``n_steps`` fixed steps; return the steps done (fewer after a fault)."""
+        """
+        Integrate ``n_steps`` steps of h; return the steps done (fewer after a fault).
+
+        A step that spans scheduled inputs (:meth:`schedule`, :attr:`exact_inputs`) is done
+        in pieces ending at their instants; the inputs due at the end are applied.
+        """
         if self.fault is not None or n_steps <= 0:
             return 0
+        if not self._pending:
+            return self._advance_ticks(int(n_steps))
+        target = self.steps + int(n_steps)
+        start = self.steps
+        while self.fault is None and self.steps < target:
+            self._apply_due()
+            if not self._pending:
+                self._advance_ticks(target - self.steps)
+                break
+            t_next = self._pending[0][0]
+            if self.exact_inputs:
+                k = int(np.floor(t_next / self.h + _INSTANT))   # the step that spans it
+            else:
+                k = self._due_tick(t_next)
+            if k > self.steps:
+                self._advance_ticks(min(k, target) - self.steps)
+            else:
+                self._split_step()
+        if self.fault is None:
+            self._apply_due()
+        return self.steps - start
+
+    def _split_step(self) -> None:
+        """
+        Do the next step of h in pieces that end at the scheduled inputs inside it.
+
+        Each piece is one step of the driver with its length in PARAM.H: fixed step, one
+        ROS2 step (the couplers' stage rows evaluated again for it); error control, one
+        brake-system tick of the piece's length and the chain under error control to its
+        end. The tick counters then count the whole step once.
+        """
+        self._sync()
+        if self.fault is not None:
+            return
+        h = self.h
+        t_end = (self.steps + 1) * h
+        eps = _INSTANT * h
+        pending = self._pending
+        tick0 = int(self.iv[CLOCK.TICK])
+        while True:
+            t_piece = pending[0][0] if pending and pending[0][0] < t_end - eps else t_end
+            dt = t_piece - self.t
+            if dt > eps:
+                status = self._piece(dt, tick0)
+                if status != OK:
+                    self.fault = STATUS_TEXT[status].format(t=self.t)
+                    return
+                self._within += dt
+            if t_piece >= t_end:
+                break
+            while pending and pending[0][0] <= self.t + eps:
+                heapq.heappop(pending)[2]()
+        self._within = 0.0
+        self.steps += 1
+        if self.adaptive:
+            self.iv[CLOCK.TICK] = self.iv[CLOCK.CHAIN_TICK] = tick0 + 1
+            self.iv[CACHE.WS_VALID] = 0     # the tick ring restarts from the state here
+
+    def _piece(self, dt: float, tick0: int) -> int:
+        """Run one driver step of length ``dt`` [s] (< h) from tick ``tick0``; the status."""
+        if self._cylinders_set:
+            self._hold_cylinders()
+        sc, iv = self.sc, self.iv
+        sc[PARAM.H] = dt
+        iv[CACHE.WS_VALID] = 0           # the couplers' rows (and tick ring) for this length
+        try:
+            if self.adaptive:
+                iv[CLOCK.TICK] = iv[CLOCK.CHAIN_TICK] = tick0
+                _, status = adaptive.advance_adaptive(
+                    1, True, self.coach, self.cpl, sc, iv, self.fill, self.rel, self.ring,
+                    self.ws, self.gprof, self.cprof, self.tick_fb, self.tick_te)
+            else:
+                _, status = fixed_step.advance_chain(1, self.coach, self.cpl, sc, iv,
+                                                     self.fill, self.rel, self.ring, self.ws,
+                                                     self.gprof, self.cprof)
+        finally:
+            sc[PARAM.H] = self.h
+            iv[CACHE.WS_VALID] = 0
+        return status
+
+    def _advance_ticks(self, n_steps: int) -> int:
+        """Integrate ``n_steps`` whole steps of h; return the steps done."""
+        if n_steps <= 0:
+            return 0
+        if self._cylinders_set:
+            self._hold_cylinders()
         if self.pneu is not None:
             return self._advance_pneumatic(int(n_steps))
         done, status = self._kernel(int(n_steps))
@@ -400,6 +614,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         return self.advance(target - self.steps)
 
 
+#: [steps of h] instants closer than this are the same instant (rounding of t = k h)
+_INSTANT = 1e-6
+
+
 def _landing_ticks(rate: float, h: float) -> int:
     """Return the output period in ticks of h [s] when whole (the chain lands there), else 1."""
     k = int(np.floor(1.0 / (rate * h) + 0.5))
@@ -410,14 +628,12 @@ def _cylinder_tables(cfg: SimConfig, consist: Consist) -> tuple[np.ndarray, np.n
     """
     Return the filling and release tables of the train's brake regime.
 
-    The parameters' own tables when set; else the regime of the vehicles (all the same:
-    one regime per train for now) or of ``brake_regime``.
+    The parameters' own tables when set; else the regime of the vehicles (all the same: a
+    train of mixed regimes gives both tables) or of ``brake_regime``.
     """
     regimes = set(consist.regimes)
-    if len(regimes) > 1 and not cfg.cylinder_fill_time:
-        raise ConfigError('brake_regime: the vehicles mix regimes '
-                          f'({", ".join(sorted(regimes))}); one regime per train')
-    regime = regimes.pop() if regimes else cfg.brake_regime
+    # vehicles of mixed regimes have both tables given (SimConfig refuses them otherwise)
+    regime = regimes.pop() if len(regimes) == 1 else cfg.brake_regime
     fill_t = P_FILL_TIME if regime == 'P' else G_FILL_TIME
     rel_t = P_RELEASE_TIME if regime == 'P' else G_RELEASE_TIME
     fill = (list(cfg.cylinder_fill_time), list(cfg.cylinder_fill_fraction)) \

@@ -272,6 +272,44 @@ class BagRecorder:
                 raise
             self._closed = True
 
+    @property
+    def saved_until_ns(self) -> int:
+        """Return the bag time [ns] of the last message in finished MCAP files (0: none)."""
+        with self._lock:
+            return max((s.end_ns for s in self._segments if s.count), default=0)
+
+    def keep(self, note: str = '') -> None:
+        """
+        Stop after a failed write (a full disk), keeping the finished MCAP files.
+
+        The current file is dropped (freeing its space), ``metadata.yaml`` lists the finished
+        files (``note`` in ``custom_data`` ``incomplete``); with ``atomic`` the directory
+        then appears at ``path``: a closed, readable bag of what was finished. Raises (and
+        aborts, removing everything with ``atomic``) if even that cannot be written.
+        """
+        with self._lock:
+            if self._closed:
+                return
+            seg, self._open = self._open, None
+            if seg is not None:
+                try:
+                    seg.writer.abort()
+                except Exception:  # noqa: BLE001 - best effort: the file is dropped anyway
+                    pass
+            try:
+                shutil.rmtree(self._staging, ignore_errors=True)
+                if note:
+                    self._custom['incomplete'] = note
+                self._write_metadata()
+                if self._atomic:
+                    if self.path.exists() or self.path.is_symlink():
+                        raise FileExistsError(f'{self.path} exists already, not overwriting')
+                    os.rename(self._dir, self.path)
+            except BaseException:
+                self.abort()
+                raise
+            self._closed = True
+
     def abort(self) -> None:
         """Stop without finishing the current file. With ``atomic``, remove everything."""
         with self._lock:

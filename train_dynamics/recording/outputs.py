@@ -25,18 +25,13 @@ import json
 from typing import Any
 
 from train_dynamics import topics
+from train_dynamics.physics.config.budgets import has_reservoirs
 from train_dynamics.recording.cdr import JointStateEncoder
 
 
 def time_ns(t: float) -> int:
     """Return simulation time ``t`` [s] as the integer nanoseconds of stamps and bag times."""
     return int(round(t * 1e9))
-
-
-def has_reservoirs(cfg: Any) -> bool:
-    """Return whether a run of ``cfg`` has reservoirs to publish (pneumatic brake)."""
-    return (getattr(cfg, 'brake_model', 'empirical') == 'pneumatic'
-            and cfg.brake_input != topics.CYLINDER_PER_COACH)
 
 
 def output_topics(cfg: Any) -> tuple[str, ...]:

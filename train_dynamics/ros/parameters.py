@@ -21,8 +21,12 @@ from rclpy.parameter import Parameter
 
 from train_dynamics.physics.config import (ARRAY_KINDS, BOOL, DOUBLE, DOUBLE_ARRAY, INTEGER,
                                            ParamSpec, STRING, STRING_ARRAY, validate_value)
+from train_dynamics.quoting import clip
 
 Specs = Mapping[str, ParamSpec]
+
+#: the most characters of a rejection's reason (the set's reply and the log line)
+MAX_REASON = 500
 
 _ROS_TYPE = {DOUBLE: ParameterType.PARAMETER_DOUBLE, INTEGER: ParameterType.PARAMETER_INTEGER,
              STRING: ParameterType.PARAMETER_STRING, BOOL: ParameterType.PARAMETER_BOOL,
@@ -147,6 +151,20 @@ def validated(params: list[Parameter], specs: Specs) -> dict[str, Any]:
     return {p.name: validate_value(p.name, p.value, specs) for p in params if p.name in specs}
 
 
+def rejection_reason(exc: Exception) -> str:
+    """
+    Return the one-line reason of a refused parameter change, at most :data:`MAX_REASON` chars.
+
+    A ``ValueError`` (ConfigError) or ``OSError`` says why; anything else (a ``MemoryError``,
+    a bug) is named by its type too, so that the set is refused instead of raising on the
+    executor.
+    """
+    text = ' '.join(str(exc).split())
+    if not isinstance(exc, (ValueError, OSError)) or not text:
+        text = f'{type(exc).__name__}: {text}' if text else type(exc).__name__
+    return clip(text, MAX_REASON)
+
+
 def watch_parameters(node: Node, specs: Specs, check: Callable[[dict[str, Any]], None],
                      apply: Callable[[dict[str, Any]], None],
                      skip: Callable[[], bool] = lambda: False) -> None:
@@ -155,8 +173,9 @@ def watch_parameters(node: Node, specs: Specs, check: Callable[[dict[str, Any]],
 
     ``check(changes)`` is the node's whole-batch validation (no side effects): it raises
     ``ValueError`` (or ``OSError``) with the reason to reject the batch, which then changes
-    nothing. ``apply(changes)`` runs after rclpy has stored an accepted batch. ``changes``
-    holds the validated values of the batch's parameters of ``specs``; others (e.g.
+    nothing; any other exception rejects the batch too (:func:`rejection_reason`), never
+    reaching the executor. ``apply(changes)`` runs after rclpy has stored an accepted batch.
+    ``changes`` holds the validated values of the batch's parameters of ``specs``; others (e.g.
     ``use_sim_time``) are left to rclpy. While ``skip()`` is true (the node setting a
     parameter itself) neither runs.
     """
@@ -170,8 +189,8 @@ def watch_parameters(node: Node, specs: Specs, check: Callable[[dict[str, Any]],
             return SetParametersResult(successful=True)
         try:
             check(validated(params, specs))
-        except (ValueError, OSError) as exc:     # ConfigError, FileExistsError, ...
-            reason = str(exc)
+        except Exception as exc:  # noqa: BLE001 - every failure of a check is a rejection
+            reason = rejection_reason(exc)
             log.warning(f'parameter change rejected: {reason}')
             return SetParametersResult(successful=False, reason=reason)
         return SetParametersResult(successful=True)

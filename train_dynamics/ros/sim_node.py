@@ -63,6 +63,7 @@ from train_dynamics import topics
 from train_dynamics.physics.config import ConfigError, PARAMETERS, SIM_NODE_PARAMETERS, SimConfig
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.quoting import quote
 from train_dynamics.recording.bags import BagError, offered_qos
 from train_dynamics.recording.outputs import has_reservoirs, time_ns
 from train_dynamics.ros import parameters as ros_parameters
@@ -90,12 +91,20 @@ CONTROL_PARAMETERS = frozenset({'sync_mode', 'input_timing', 'lockstep_timeout',
                                 'lockstep_on_timeout', 'step_periods'})
 
 
+#: the most values of an array a log line, the reset reply or /diagnostics shows
+FMT_ITEMS = 6
+
+
 def _fmt(value: Any) -> str:
+    """Return a value for a log line: floats as %g, arrays cut to :data:`FMT_ITEMS` values."""
     if isinstance(value, float):
         return f'{value:g}'
     if isinstance(value, (list, tuple)):
-        return '[' + ', '.join(_fmt(v) for v in value) + ']'
-    return repr(value) if isinstance(value, str) else str(value)
+        shown = [_fmt(v) for v in value[:FMT_ITEMS]]
+        if len(value) > FMT_ITEMS:
+            shown.append(f'... ({len(value)} values)')
+        return '[' + ', '.join(shown) + ']'
+    return quote(value) if isinstance(value, str) else str(value)
 
 
 class SimNode(Node):
@@ -281,7 +290,8 @@ class SimNode(Node):
             writer = self._open_bag(cfg, first=False)
         except Exception as exc:  # noqa: BLE001 - e.g. the new bag cannot be created
             response.success = False
-            response.message = f'reset refused, nothing changed: {exc}'
+            reason = ros_parameters.rejection_reason(exc)
+            response.message = f'reset refused, nothing changed: {reason}'
             log.error(f'reset service: {response.message}')
             return response
         with self._lock.held():

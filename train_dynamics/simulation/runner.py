@@ -3,11 +3,13 @@ The offline run loop: one simulator, its brake inputs, samples at the output ins
 
 ``train-dynamics simulate`` and ``compare`` (:mod:`train_dynamics.cli`) run the model through
 :func:`run_simulation`; ``sim_node`` takes the same output grid (:func:`output_step`) and
-input timing (:func:`step_of`). Simulation time advances in whole integration steps of ``h``
-[s]: an output t_j = j / rate is taken at the nearest step, an input at bag time t acts from
-the first step k with k h >= t (zero-order hold). No ROS, no bag I/O: the input events come
-from :mod:`train_dynamics.recording.inputs` or a brake-valve model, the samples go to the
-sinks of :mod:`train_dynamics.recording.sinks`.
+input timing (:func:`step_of`). Simulation time advances in integration steps of ``h`` [s]:
+an output t_j = j / rate is taken at the nearest step. An input at bag time t acts from t
+itself (zero-order hold; the step that spans t is split there, ``TrainSimulator.schedule``)
+when the simulator takes inputs at their instants (``exact_inputs``: ``cylinder_per_coach``,
+``pipe_per_coach``), else from the first step k with k h >= t. No ROS, no bag I/O: the input
+events come from :mod:`train_dynamics.recording.inputs` or a brake-valve model, the samples go
+to the sinks of :mod:`train_dynamics.recording.sinks`.
 """
 from __future__ import annotations
 
@@ -175,10 +177,22 @@ class _DueEvents:
         """Apply (and report to ``on_input``) every event due at step ``k`` or before."""
         events = self._events
         while self._next < len(events) and events[self._next].step <= k:
-            self._apply(events[self._next])
-            if self._on_input is not None:
-                self._on_input(events[self._next])
+            self._apply_one(events[self._next])
             self._next += 1
+
+    def schedule_until(self, k: int, sim: TrainSimulator) -> None:
+        """Hand ``sim`` every event due by step ``k``, to apply at its own bag time."""
+        events = self._events
+        while self._next < len(events) and events[self._next].step <= k:
+            sim.schedule(events[self._next].t_ns * 1e-9,
+                         lambda e=events[self._next]: self._apply_one(e))
+            self._next += 1
+
+    def _apply_one(self, event: Any) -> None:
+        """Apply ``event`` and report it to ``on_input``."""
+        self._apply(event)
+        if self._on_input is not None:
+            self._on_input(event)
 
     def next_step(self, default: int) -> int:
         """Return the step of the next event, ``default`` when none is left."""
@@ -219,9 +233,14 @@ def run_simulation(cfg, duration: float, inputs: InputSchedule, *,
     k = 0
     head: float | None = None
     last_progress = time.monotonic()
+    exact = sim.exact_inputs
     while True:
-        brake_events.apply_until(k)
-        traction.apply_until(k)
+        if exact:
+            brake_events.schedule_until(k, sim)
+            traction.schedule_until(k, sim)
+        else:
+            brake_events.apply_until(k)
+            traction.apply_until(k)
         valve_next = k_end
         if valve is not None:
             head, valve_next = _drive_head(valve, sim, k, head, k_end)
@@ -231,10 +250,14 @@ def run_simulation(cfg, duration: float, inputs: InputSchedule, *,
             next_sample = next(samples, None)
         if k >= k_end:
             break
-        nxt = min(k_end, valve_next, brake_events.next_step(k_end),
-                  traction.next_step(k_end),
-                  next_sample if next_sample is not None else k_end)
-        nxt = max(nxt, k + 1)
+        nxt = min(k_end, valve_next, next_sample if next_sample is not None else k_end)
+        if exact:           # the inputs inside the span go to the simulator, at their instants
+            nxt = max(nxt, k + 1)
+            brake_events.schedule_until(nxt, sim)
+            traction.schedule_until(nxt, sim)
+        else:
+            nxt = max(min(nxt, brake_events.next_step(k_end), traction.next_step(k_end)),
+                      k + 1)
         done = sim.advance(nxt - k)
         if sim.fault is not None or done != nxt - k:
             break

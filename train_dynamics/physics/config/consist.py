@@ -14,12 +14,21 @@ The fields a vehicle may set are the parameters with ``vehicle`` in the table
 ``length`` is ``coach_length``): the parameter's value is the field of the uniform train (no
 consist file) and the default of a type that leaves the field out; its range is the field's.
 
-Couplings. A vehicle's buffer and draw-gear constants describe a connection between two such
-vehicles, as the paper's constants do. Coupler i joins vehicles i and i+1 (a, b); it takes
-the harmonic mean 2 k_a k_b / (k_a + k_b) of each stiffness and friction constant and of the
-blocked stiffness (springs in series), and the arithmetic mean of each stroke and slack (the
-``connection`` of each field in the table). Two identical vehicles give their own values
-(exactly).
+Couplings: two vehicle ends in series. A vehicle's buffer and draw-gear fields are those of
+each of its ends (its datasheet: stiffness and friction constant [N/m] of the paper's law,
+stroke, free play, blocked stiffness); ``front:`` and ``rear:`` mappings in a type or a vehicle
+entry give one end its own values. Coupler i joins the rear end of vehicle i to the front end
+of vehicle i+1 (:func:`coupling_of_ends`): the springs are in series, so the compliances of the
+loading branches (k + k_friction) add and so do those of the unloading branches
+(k - k_friction); strokes add and free play adds (the ``connection`` of each field in the
+table). Two identical ends give a coupling of half their stiffness and friction and twice
+their travel, exactly.
+
+Whole-coupling constants, where a user has only those: the parameters of the uniform train (no
+consist file) are the constants of each coupling (the paper's measured constants are), and a
+consist's ``couplings:`` mapping sets constants of every coupling as is. A vehicle type that
+leaves an end field out takes the end whose coupling with an identical end is the parameter's
+(:func:`end_of_coupling`).
 
 Errors (unknown field, missing type, non-physical value) raise
 :class:`~train_dynamics.physics.config.spec.ConfigError` naming the file, the vehicle and the
@@ -29,13 +38,16 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 from train_dynamics.physics.config import spec
-from train_dynamics.physics.config.files import config_dirs, resolve_path, RosParamLoader
+from train_dynamics.physics.config.budgets import fmt_bytes
+from train_dynamics.physics.config.files import config_dirs, FastRosParamLoader, resolve_path
 from train_dynamics.physics.config.spec import ConfigError
-from train_dynamics.physics.config.table import PARAMETERS, validate_value, VEHICLE_PARAMETERS
+from train_dynamics.physics.config.table import (MAX_VEHICLES, PARAMETERS, validate_value,
+                                                 VEHICLE_PARAMETERS)
+from train_dynamics.quoting import clip, quote
 import yaml
 
 #: the fields a vehicle type may set (each a simulator parameter, see PARAM_OF)
@@ -44,9 +56,12 @@ VEHICLE_FIELDS = tuple(VEHICLE_PARAMETERS)
 #: vehicle field -> simulator parameter, where the names differ
 PARAM_OF = {f: s.name for f, s in VEHICLE_PARAMETERS.items() if f != s.name}
 
-#: connection constants: harmonic mean (springs in series) and arithmetic mean
-HARMONIC = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.HARMONIC)
-ARITHMETIC = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.ARITHMETIC)
+#: coupling constants: ends in series (compliances add) and travels that add
+SERIES = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.SERIES)
+ADDED = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.ADDED)
+
+#: the keys of a type or vehicle entry that hold one end's own fields
+END_KEYS = ('front', 'rear')
 
 #: per-coupler constants in the order the kernel stores them
 COUPLER_FIELDS = ('buffer_stiffness', 'buffer_friction', 'draw_gear_stiffness',
@@ -62,15 +77,33 @@ CONSIST_PARAMETERS = frozenset({'consist_file', 'num_coaches', 'masses',
 _FRICTION_PAIRS = (('buffer_stiffness', 'buffer_friction', 'k_f < k_e'),
                    ('draw_gear_stiffness', 'draw_gear_friction', 'k_fc < k_ec'))
 
+#: a locomotive's force limits and their power limits: (force, power)
+_POWER_PAIRS = (('max_tractive_force', 'max_power'),
+                ('max_dynamic_brake_force', 'max_dynamic_brake_power'))
+
 LIBRARY = 'vehicles.yaml'
 
+#: [bytes] the largest consist file read (~20000 lines, ~0.5 s to parse): a parameter set
+#: naming a file reads it on the node's executor, so its cost is bounded
+MAX_FILE_BYTES = 1 << 20
 
-def check_friction_below_stiffness(fields: Mapping[str, Any], where: str = '') -> None:
+
+def _at(i: int, size: int, unit: str, labels: Sequence[str] | None) -> str:
+    """Return ' at <unit> <label>' of element ``i`` of arrays of ``size`` ('' for one value)."""
+    if size <= 1:
+        return ''
+    return f' at {unit} {labels[i] if labels is not None else i + 1}'
+
+
+def check_friction_below_stiffness(fields: Mapping[str, Any], where: str = '',
+                                   unit: str = 'coupler',
+                                   labels: Sequence[str] | None = None) -> None:
     """
     Raise :class:`ConfigError` unless friction < stiffness for buffers and draw gear (eqs. 2-3).
 
     Otherwise the force would change sign on unloading. ``fields``: numbers or arrays (one
-    value per coupler; the first failing one is named); ``where`` prefixes the message.
+    value per ``unit``; the first failing one is named, by ``labels`` when given, else by its
+    1-based index); ``where`` prefixes the message.
     """
     for stiff, fric, rule in _FRICTION_PAIRS:
         k = np.atleast_1d(np.asarray(fields[stiff], dtype=float))
@@ -78,24 +111,61 @@ def check_friction_below_stiffness(fields: Mapping[str, Any], where: str = '') -
         bad = np.flatnonzero(~(f < k))
         if bad.size:
             i = bad[0]
-            at = f' at coupler {i + 1}' if k.size > 1 else ''
             raise ConfigError(f'{where}{fric} must be < {stiff} ({rule}; {f[i]:g} >= {k[i]:g}'
-                              f'{at}), or the force would change sign on unloading')
+                              f'{_at(i, k.size, unit, labels)}), or the force would change sign '
+                              'on unloading')
+
+
+def check_traction_power(fields: Mapping[str, Any], where: str = '',
+                         labels: Sequence[str] | None = None) -> None:
+    """
+    Raise :class:`ConfigError` for a force limit without its power limit (traction.py).
+
+    The available force is min(F, P / |v|, mu m g): a vehicle with ``max_tractive_force`` > 0
+    and ``max_power`` 0 would pull only at standstill (it crept at mm/s); the same for the
+    dynamic brake. ``fields``: numbers or arrays (one per vehicle; the first failing one is
+    named, as in :func:`check_friction_below_stiffness`); ``where`` prefixes the message.
+    """
+    for force, power in _POWER_PAIRS:
+        f = np.atleast_1d(np.asarray(fields[force], dtype=float))
+        p = np.broadcast_to(np.asarray(fields[power], dtype=float), f.shape)
+        bad = np.flatnonzero((f > 0.0) & ~(p > 0.0))
+        if bad.size:
+            i = bad[0]
+            at = _at(i, f.size, 'vehicle', labels)
+            raise ConfigError(f'{where}{power} must be > 0 with {force} {f[i]:g} N{at}: the '
+                              f'available force min({force}, {power} / |v|) would be 0 at any '
+                              'speed; give the power [W] at the wheel rim')
 
 
 def _read_yaml(path: Path) -> Any:
+    """Return the YAML document of ``path``; refuse a file over :data:`MAX_FILE_BYTES` unread."""
     try:
+        size = path.stat().st_size
+        if size > MAX_FILE_BYTES:
+            raise ConfigError(f'{path}: {fmt_bytes(size)}, more than the limit of '
+                              f'{fmt_bytes(MAX_FILE_BYTES)} for a consist file (use count: to '
+                              'repeat a vehicle)')
         with open(path, encoding='utf-8') as fh:
-            return yaml.load(fh, Loader=RosParamLoader)
+            return yaml.load(fh, Loader=FastRosParamLoader)
     except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
-        raise ConfigError(f'cannot read {path}: {exc}'.splitlines()[0]) from None
+        raise ConfigError(clip(f'cannot read {path}: {exc}'.splitlines()[0])) from None
 
 
 def check_field(field: str, value: Any, where: str) -> Any:
     """Return ``value`` validated as vehicle field ``field``; ConfigError names ``where``."""
+    if field in END_KEYS:
+        if not isinstance(value, dict):
+            raise ConfigError(f'{where}: {field}: a mapping of end fields '
+                              f'({", ".join(COUPLER_FIELDS)})')
+        bad = set(value) - set(COUPLER_FIELDS)
+        if bad:
+            raise ConfigError(f'{where}: {field}: not an end field: {", ".join(sorted(bad))} '
+                              f'(end fields: {", ".join(COUPLER_FIELDS)})')
+        return {k: check_field(k, v, f'{where}: {field}') for k, v in value.items()}
     if field not in VEHICLE_FIELDS:
-        raise ConfigError(f'{where}: unknown field {field!r} (fields: '
-                          f'{", ".join(VEHICLE_FIELDS)})')
+        raise ConfigError(f'{where}: unknown field {quote(field)} (fields: '
+                          f'{", ".join(VEHICLE_FIELDS)}, {", ".join(END_KEYS)})')
     param = PARAM_OF.get(field, field)
     try:
         return validate_value(param, value)
@@ -111,11 +181,13 @@ def _types_of(doc: Any, source: str) -> dict[str, dict[str, Any]]:
         raise ConfigError(f'{source}: vehicle_types must be a mapping of name -> fields')
     types = {}
     for name, fields in doc.items():
+        if not isinstance(name, str):
+            raise ConfigError(f'{source}: vehicle type name {quote(name)} is not a string')
         fields = fields or {}
         if not isinstance(fields, dict):
-            raise ConfigError(f'{source}: vehicle type {name!r}: fields must be a mapping')
-        types[str(name)] = {k: check_field(k, v, f'{source}: vehicle type {name!r}')
-                            for k, v in fields.items()}
+            raise ConfigError(f'{source}: vehicle type {quote(name)}: fields must be a mapping')
+        types[name] = {k: check_field(k, v, f'{source}: vehicle type {quote(name)}')
+                       for k, v in fields.items()}
     return types
 
 
@@ -126,22 +198,92 @@ def library_types() -> dict[str, dict[str, Any]]:
     return _types_of(doc.get('vehicle_types'), str(path))
 
 
+def end_of_coupling(field: str, value: float) -> float:
+    """
+    Return the end value whose coupling with an identical end is ``value`` (a coupling constant).
+
+    Stiffness and friction: 2 k (two such ends in series give k); travel: S / 2. Exact in
+    floating point (a factor of 2), so the coupling of two such ends is ``value`` bit for bit.
+    """
+    if field in SERIES:
+        return 2.0 * value
+    if field in ADDED:
+        return 0.5 * value
+    return value
+
+
 def defaults_of(values: dict[str, Any]) -> dict[str, Any]:
-    """Return each vehicle field's default: the simulator parameter of the same name."""
+    """
+    Return each vehicle field's default from the simulator parameters.
+
+    The parameter of the same name; for an end field the end whose coupling with an identical
+    end is the parameter's (:func:`end_of_coupling`: parameters are whole-coupling constants).
+    """
     out = {}
     for field in VEHICLE_FIELDS:
         param = PARAM_OF.get(field, field)
-        out[field] = values.get(param, PARAMETERS[param].default)
+        out[field] = end_of_coupling(field, values.get(param, PARAMETERS[param].default))
+    return out
+
+
+def series(a, b) -> np.ndarray:
+    """
+    Return a b / (a + b), the stiffness of springs a and b joined end to end: compliances add.
+
+    Exactly a / 2 when a == b; 0 when either is 0 (arrays or scalars [N/m]).
+    """
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    with np.errstate(divide='ignore', invalid='ignore'):
+        both = np.where(a + b > 0.0, a * b / (a + b), 0.0)
+    return np.where(a == b, 0.5 * a, both)
+
+
+def coupling_of_ends(rear: Mapping[str, np.ndarray],
+                     front: Mapping[str, np.ndarray]) -> dict[str, np.ndarray]:
+    """
+    Return the coupling constants of the rear ends ``rear`` joined to the front ends ``front``.
+
+    Both: end field -> array (one per coupling). The law of each end is the paper's (eqs. 2-3):
+    loading branch (k + k_fr)|y|, unloading (k - k_fr)|y|. Under the one force the coupling
+    carries, both ends load or unload together, so the coupling's loading stiffness is the
+    series of the ends' loading stiffnesses, its unloading stiffness the series of the
+    unloading ones: k = (K_load + K_unload) / 2, k_fr = (K_load - K_unload) / 2 (exactly the
+    ends' halves when the ends are identical). Blocked stiffness in series; strokes and free
+    play add.
+    """
+    out = {}
+    for stiff, fric in (('buffer_stiffness', 'buffer_friction'),
+                        ('draw_gear_stiffness', 'draw_gear_friction')):
+        ka, fa, kb, fb = rear[stiff], rear[fric], front[stiff], front[fric]
+        load = series(ka + fa, kb + fb)
+        unload = series(ka - fa, kb - fb)
+        same = (ka == kb) & (fa == fb)
+        out[stiff] = np.where(same, 0.5 * ka, 0.5 * (load + unload))
+        out[fric] = np.where(same, 0.5 * fa, 0.5 * (load - unload))
+    for field in COUPLER_FIELDS:
+        if field in out:
+            continue
+        if field in SERIES:
+            out[field] = series(rear[field], front[field])
+        else:
+            out[field] = np.asarray(rear[field], dtype=float) + np.asarray(front[field], float)
     return out
 
 
 @dataclass
 class Consist:
-    """The vehicles front to rear: their type names and each field's values (arrays of N)."""
+    """
+    The vehicles front to rear: type names, each field's values (arrays of N), the couplings.
+
+    ``fields`` holds a vehicle's fields (the end fields of ends without their own values);
+    ``couplings`` the constants of each coupling, :data:`COUPLER_FIELDS` -> array of N-1.
+    """
 
     types: list[str]
     fields: dict[str, np.ndarray]      # numeric fields, arrays of N
     regimes: list[str]                 # brake_regime per vehicle
+    couplings: dict[str, np.ndarray]   # coupling constants, arrays of N-1
 
     @property
     def n(self) -> int:
@@ -156,8 +298,8 @@ class Consist:
     def locomotives(self) -> list[int]:
         """Return the 0-based indices of the vehicles with traction or dynamic brake."""
         f = self.fields
-        return [i for i in range(self.n)
-                if f['max_tractive_force'][i] > 0.0 or f['max_dynamic_brake_force'][i] > 0.0]
+        return np.flatnonzero((f['max_tractive_force'] > 0.0)
+                              | (f['max_dynamic_brake_force'] > 0.0)).tolist()
 
     @property
     def remotes(self) -> list[int]:
@@ -171,41 +313,82 @@ class Consist:
         return [i for i in self.locomotives if i not in remotes]
 
     def coupler(self, field: str) -> np.ndarray:
-        """Return the connection value of a field, one per coupler: N-1 values."""
-        a = self.fields[field][:-1]
-        b = self.fields[field][1:]
-        if field in HARMONIC:
-            return connection_harmonic(a, b)
-        if field in ARITHMETIC:
-            return np.where(a == b, a, 0.5 * (a + b))
-        raise KeyError(field)
+        """Return one constant of every coupling (:data:`COUPLER_FIELDS`): N-1 values."""
+        return self.couplings[field]
 
     def coupler_array(self) -> np.ndarray:
         """Return the (9, N-1) array of :data:`COUPLER_FIELDS` per coupler."""
         return np.array([self.coupler(f) for f in COUPLER_FIELDS])
 
 
-def connection_harmonic(a, b) -> np.ndarray:
-    """Return 2 a b / (a + b) (springs in series): a when a == b, 0 when either is 0."""
-    a = np.asarray(a, dtype=float)
-    b = np.asarray(b, dtype=float)
-    with np.errstate(divide='ignore', invalid='ignore'):
-        mean = np.where(a + b > 0.0, 2.0 * a * b / (a + b), 0.0)
-    return np.where(a == b, a, mean)
+def _end(row: dict[str, Any], key: str) -> dict[str, float]:
+    """Return the end fields of one end (``front`` or ``rear``) of a complete field dict."""
+    own = row.get(key) or {}
+    return {f: float(own.get(f, row[f])) for f in COUPLER_FIELDS}
 
 
-def _make(rows: list[tuple[str, dict[str, Any]]], source: str) -> Consist:
-    """Build a Consist from (type, complete field dict) rows of a file; cross-field checks."""
-    checked: set[int] = set()
-    for k, (name, f) in enumerate(rows, start=1):
-        if id(f) not in checked:        # a vehicle repeated by count: its fields once
-            check_friction_below_stiffness(f, f'{source}: vehicle {k} ({name}): ')
-            checked.add(id(f))
-    if len(rows) < 2:
-        raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {len(rows)}')
+def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
+          whole: Mapping[str, float] | None = None) -> Consist:
+    """
+    Build a Consist from (type, complete field dict, count) entries of a file.
+
+    Cross-field checks once per entry (on arrays of the entries, each named by its first
+    vehicle; each end's buffer and draw gear on their own); the arrays are the entries'
+    fields repeated ``count`` times (the caller bounded the sum of the counts). Coupling j
+    joins the rear end of vehicle j to the front end of vehicle j + 1
+    (:func:`coupling_of_ends`); ``whole``: whole-coupling constants that replace the ends'
+    series values in every coupling.
+    """
+    counts = np.array([c for _, _, c in entries], dtype=np.int64)
     numeric = [f for f in VEHICLE_FIELDS if f != 'brake_regime']
-    fields = {f: np.array([r[1][f] for r in rows], dtype=float) for f in numeric}
-    return Consist([r[0] for r in rows], fields, [r[1]['brake_regime'] for r in rows])
+    per_entry = {f: np.array([e[1][f] for e in entries], dtype=float) for f in numeric}
+    firsts = np.concatenate(([1], 1 + np.cumsum(counts[:-1])))
+    labels = [f'{first} ({name})' for first, (name, _, _) in zip(firsts, entries)]
+    ends = {}
+    for key in END_KEYS:
+        own = [_end(e[1], key) for e in entries]
+        ends[key] = {f: np.array([o[f] for o in own]) for f in COUPLER_FIELDS}
+        check_friction_below_stiffness(ends[key], f'{source}: {key} end: ', 'vehicle', labels)
+    check_traction_power(per_entry, f'{source}: ', labels)
+    n = int(counts.sum())
+    if n < 2:
+        raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {n}')
+    fields = {f: np.repeat(a, counts) for f, a in per_entry.items()}
+    types = [name for name, _, c in entries for _ in range(c)]
+    regimes = [f['brake_regime'] for _, f, c in entries for _ in range(c)]
+    entry_of = np.repeat(np.arange(len(entries)), counts)
+    couplings = coupling_of_ends({f: a[entry_of[:-1]] for f, a in ends['rear'].items()},
+                                 {f: a[entry_of[1:]] for f, a in ends['front'].items()})
+    for f, v in (whole or {}).items():
+        couplings[f] = np.full(n - 1, float(v))
+    if whole:
+        check_friction_below_stiffness(couplings, f'{source}: couplings: ')
+    return Consist(types, fields, regimes, couplings)
+
+
+def _whole_couplings(doc: Any, source: str) -> dict[str, float]:
+    """Return a consist's ``couplings:`` (whole-coupling constants, as the parameters), checked."""
+    if doc is None:
+        return {}
+    if not isinstance(doc, dict):
+        raise ConfigError(f'{source}: couplings: a mapping of coupling constants '
+                          f'({", ".join(COUPLER_FIELDS)})')
+    bad = set(doc) - set(COUPLER_FIELDS)
+    if bad:
+        raise ConfigError(f'{source}: couplings: not a coupling constant: '
+                          f'{", ".join(sorted(map(str, bad)))} ({", ".join(COUPLER_FIELDS)})')
+    return {k: check_field(k, v, f'{source}: couplings') for k, v in doc.items()}
+
+
+def _count_of(entry: dict[str, Any], where: str) -> int:
+    """Return the ``count`` of a vehicles entry (1 when absent), checked."""
+    count = entry.pop('count', 1)
+    if not isinstance(count, int) or isinstance(count, bool) or count < 1:
+        raise ConfigError(f'{where}: count: must be an integer >= 1, got {quote(count)}')
+    if count > MAX_VEHICLES:
+        raise ConfigError(f'{where}: count: {count}, more than the limit of {MAX_VEHICLES} '
+                          'vehicles in a train')
+    return count
 
 
 def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None) -> Consist:
@@ -213,6 +396,9 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
     Read a consist file; ``values`` are the simulator parameters (the fields' defaults).
 
     Raise ConfigError naming the file, the vehicle (1-based, with its type) and the field.
+    The number of vehicles (the sum of the counts) is checked against
+    :data:`~train_dynamics.physics.config.table.MAX_VEHICLES` before any per-vehicle array
+    is built.
     """
     file = resolve_path(path, base_dir)
     source = str(file)
@@ -220,33 +406,42 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
     if not isinstance(doc, dict):
         raise ConfigError(f'{source}: a consist file is a mapping with vehicles: (and '
                           'optionally vehicle_types:)')
-    unknown = set(doc) - {'vehicle_types', 'vehicles'}
+    unknown = set(doc) - {'vehicle_types', 'vehicles', 'couplings'}
     if unknown:
-        raise ConfigError(f'{source}: unknown key(s) {", ".join(sorted(map(str, unknown)))} '
-                          '(expected vehicle_types, vehicles)')
+        raise ConfigError(clip(f'{source}: unknown key(s) '
+                               f'{", ".join(sorted(quote(k) for k in unknown))} '
+                               '(expected vehicle_types, vehicles, couplings)'))
     types = library_types()
     types.update(_types_of(doc.get('vehicle_types'), source))
     vehicles = doc.get('vehicles')
     if not isinstance(vehicles, list) or not vehicles:
         raise ConfigError(f'{source}: vehicles: must be a non-empty list, front to rear')
+    if len(vehicles) > MAX_VEHICLES:
+        raise ConfigError(f'{source}: vehicles: {len(vehicles)} entries, more than the limit of '
+                          f'{MAX_VEHICLES} vehicles in a train')
     defaults = defaults_of(values)
-    rows: list[tuple[str, dict[str, Any]]] = []
+    entries: list[tuple[str, dict[str, Any], int]] = []
+    total = 0
     for k, entry in enumerate(vehicles, start=1):
         where = f'{source}: vehicles[{k}]'
         if not isinstance(entry, dict) or 'type' not in entry:
             raise ConfigError(f'{where}: each entry needs type: NAME')
         entry = dict(entry)
-        name = str(entry.pop('type'))
-        if name not in types:
-            raise ConfigError(f'{where}: unknown vehicle type {name!r} (known: '
-                              f'{", ".join(sorted(types))})')
-        count = entry.pop('count', 1)
-        if not isinstance(count, int) or isinstance(count, bool) or count < 1:
-            raise ConfigError(f'{where} ({name}): count: must be an integer >= 1, got {count!r}')
+        name = entry.pop('type')
+        if not isinstance(name, str) or name not in types:
+            raise ConfigError(clip(f'{where}: unknown vehicle type {quote(name)} (known: '
+                                   f'{", ".join(sorted(types))})'))
+        count = _count_of(entry, f'{where} ({name})')
+        total += count
+        if total > MAX_VEHICLES:
+            raise ConfigError(f'{source}: vehicles: {total} vehicles up to vehicles[{k}], more '
+                              f'than the limit of {MAX_VEHICLES} vehicles in a train')
         overrides = {f: check_field(f, v, f'{where} ({name})') for f, v in entry.items()}
         merged = {**defaults, **types[name], **overrides}
-        rows.extend((name, merged) for _ in range(count))
-    return _make(rows, source)
+        for key in END_KEYS:     # an end's own fields: the type's, then the entry's
+            merged[key] = {**(types[name].get(key) or {}), **(overrides.get(key) or {})}
+        entries.append((name, merged, count))
+    return _make(entries, source, _whole_couplings(doc.get('couplings'), source))
 
 
 def uniform_consist(values: dict[str, Any]) -> Consist:
@@ -264,7 +459,9 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
         raise ConfigError(f'parameters: a train needs at least 2 vehicles, got {n}')
     fields = {f: np.full(n, float(v)) for f, v in defaults.items() if f != 'brake_regime'}
     fields['mass'] = np.array([float(m) for m in masses])
-    return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n)
+    ends = {f: fields[f][1:] for f in COUPLER_FIELDS}
+    return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n,
+                   coupling_of_ends(ends, ends))
 
 
 def consist_of(values: dict[str, Any], base_dir: str | None = None) -> Consist:

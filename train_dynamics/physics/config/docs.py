@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from train_dynamics.physics.config.spec import ARITHMETIC, HARMONIC, ParamSpec
+from train_dynamics.physics.config.spec import ADDED, ParamSpec, SERIES
 from train_dynamics.physics.config.table import PARAMETERS, VEHICLE_PARAMETERS
 
 
@@ -45,12 +45,12 @@ def fmt_range(s: ParamSpec) -> str:
 
 
 #: how a connection field joins two vehicles, in words
-_CONNECTION_WORDS = {HARMONIC: 'harmonic mean', ARITHMETIC: 'arithmetic mean'}
+_CONNECTION_WORDS = {SERIES: 'ends in series (compliances add)', ADDED: 'ends add'}
 
 
 def vehicle_table() -> str:
     """Return the table of the per-vehicle fields: default, coupler rule, kernel row."""
-    lines = ['| consist field | default: parameter | coupler between two vehicles | kernel row |',
+    lines = ['| consist field | default: parameter | coupling of two vehicle ends | kernel row |',
              '| --- | --- | --- | --- |']
     for field, s in VEHICLE_PARAMETERS.items():
         row = f'`{s.row}`' if s.row else ''

@@ -19,9 +19,11 @@ import math
 from typing import Any, Callable, Mapping
 
 from train_dynamics.physics import track
-from train_dynamics.physics.config.budgets import fmt_bytes, MAX_SIMULATOR_MEMORY, simulator_memory
-from train_dynamics.physics.config.consist import (check_friction_below_stiffness, Consist,
-                                                   consist_of, CONSIST_PARAMETERS)
+from train_dynamics.physics.config.budgets import (config_memory, fmt_bytes, MAX_PERIOD_SECONDS,
+                                                   max_period_steps, MAX_SIMULATOR_MEMORY)
+from train_dynamics.physics.config.consist import (check_friction_below_stiffness,
+                                                   check_traction_power, Consist, consist_of,
+                                                   CONSIST_PARAMETERS)
 from train_dynamics.physics.config.files import simulator_params
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERVICE_PRESSURE,
@@ -29,6 +31,7 @@ from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERV
                                                  INTEGRATION_TOLERANCE, P_FILL_FRACTION,
                                                  P_FILL_TIME, P_RELEASE_FRACTION, P_RELEASE_TIME,
                                                  PARAMETERS, PIPE_NOMINAL_PRESSURE, validate_value)
+from train_dynamics.quoting import quote
 
 #: relative tolerance of ``1 / (publish_rate * integration_step)`` being a whole number
 GRID_TOLERANCE = 1e-9
@@ -114,6 +117,7 @@ class SimConfig:
     traction_build_up_time: float = 4.0               # 0 -> full command [s]
     traction_adhesion: float = 0.33                   # at standstill [-]
     dynamic_brake_fade_speed: float = 1.4             # [m/s]
+    initial_state: str = 'equilibrium'                # couplers at t = 0, or 'unstressed'
     # the line
     initial_position: float = 0.0                     # front of vehicle 1 at t = 0 [m]
     track_gradient_positions: list[float] = field(default_factory=list)   # [m], increasing
@@ -139,7 +143,7 @@ class SimConfig:
             if name not in PARAMETERS:
                 if ignore_unknown:
                     continue
-                raise ConfigError(f'unknown parameter {name!r}')
+                raise ConfigError(f'unknown parameter {quote(name)}')
             values[name] = validate_value(name, value)
         return cls._checked(values, None)
 
@@ -161,7 +165,7 @@ class SimConfig:
         new = dict(old)
         for name, value in changes.items():
             if name not in PARAMETERS:
-                raise ConfigError(f'unknown parameter {name!r}')
+                raise ConfigError(f'unknown parameter {quote(name)}')
             new[name] = validate_value(name, value)
         same = all(new[n] == old[n] for n in CONSIST_PARAMETERS)
         return SimConfig._checked(new, self.consist if same else None)
@@ -243,17 +247,21 @@ class SimConfig:
         if self.masses and len(self.masses) < 2:
             raise ConfigError(f'masses: a train needs at least 2 coaches, got {len(self.masses)}')
         check_output_grid(float(self.publish_rate), float(self.integration_step))
-        memory = simulator_memory(self.n_coaches, float(self.coach_length),
-                                  float(self.brake_propagation_speed),
-                                  float(self.integration_step))
+        memory = config_memory(self)
         if memory > MAX_SIMULATOR_MEMORY:
+            steps = 1.0 / (float(self.publish_rate) * float(self.integration_step))
             raise ConfigError(
                 f'the simulator would need {fmt_bytes(memory)} (limit '
-                f'{fmt_bytes(MAX_SIMULATOR_MEMORY)}): the brake-pipe delay line holds '
-                '(num_coaches - 1) * coach_length / brake_propagation_speed / integration_step '
-                'samples; raise brake_propagation_speed or integration_step, or shorten the train')
+                f'{fmt_bytes(MAX_SIMULATOR_MEMORY)}) for {self.n_coaches} vehicles: the '
+                'brake-pipe delay line holds (pipe length) / brake_propagation_speed / '
+                f'integration_step samples, each output period {steps:.3g} steps (1 / '
+                'publish_rate / integration_step) per vehicle; raise brake_propagation_speed, '
+                'integration_step or publish_rate, or shorten the train')
+        self._check_work()
         # the uniform train's vehicles (and the defaults of a consist's)
         check_friction_below_stiffness(self.values)
+        check_traction_power(self.values)
+        self._check_regimes()
         if not (self.full_service_pressure + self.distributor_sensitivity
                 < self.pipe_nominal_pressure):
             raise ConfigError('full_service_pressure + distributor_sensitivity must be below '
@@ -312,6 +320,31 @@ class SimConfig:
             if remotes and self.brake_model != 'pneumatic':
                 raise ConfigError(f'{self.consist_file}: remote locomotives (vehicles '
                                   f'{[i + 1 for i in remotes]}) need brake_model pneumatic')
+        if times and not self.consist.locomotives:
+            raise ConfigError('traction_schedule_times: the train has no locomotive (no vehicle '
+                              'with max_tractive_force or max_dynamic_brake_force > 0), so the '
+                              'traction schedule would command nothing; remove it or add a '
+                              'locomotive')
+
+    def _check_work(self) -> None:
+        """Refuse an error-control work budget that could keep one output period busy."""
+        limit = max_period_steps(self.n_coaches)
+        if self.integration_tolerance > 0.0 and self.integration_max_steps > limit:
+            raise ConfigError(
+                f'integration_max_steps {self.integration_max_steps}: more than the limit of '
+                f'{limit} error-controlled steps per output period for {self.n_coaches} '
+                f'vehicles (about {MAX_PERIOD_SECONDS:g} s of work per period: signals and '
+                'callbacks are served between periods); lower integration_max_steps '
+                '(the rest of a period runs at the fixed integration_step)')
+
+    def _check_regimes(self) -> None:
+        """Refuse vehicles of mixed brake regimes unless both cylinder tables are given."""
+        regimes = sorted(set(self.consist.regimes))
+        if len(regimes) > 1 and not (self.cylinder_fill_time and self.cylinder_release_time):
+            raise ConfigError(f'{self.consist_file}: brake_regime: the vehicles mix regimes '
+                              f'({", ".join(regimes)}), and the cylinder characteristics are '
+                              'one per train: give every vehicle the same brake_regime, or set '
+                              'cylinder_fill_time/_fraction and cylinder_release_time/_fraction')
 
 
 def check_output_grid(rate: float, h: float) -> None:

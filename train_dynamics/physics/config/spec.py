@@ -9,8 +9,11 @@ param set``, consist file, sweep file), goes through :func:`check_value`. Never 
 from __future__ import annotations
 
 from dataclasses import dataclass
+import itertools
 import math
 from typing import Any
+
+from train_dynamics.quoting import quote
 
 # Kinds of value, named after the ROS 2 parameter types they map to.
 DOUBLE = 'double'
@@ -22,8 +25,11 @@ STRING_ARRAY = 'string_array'
 ARRAY_KINDS = (DOUBLE_ARRAY, STRING_ARRAY)
 
 #: how a per-vehicle field joins two vehicles into one coupler (see config.consist)
-HARMONIC = 'harmonic'       # 2 k_a k_b / (k_a + k_b): springs in series
-ARITHMETIC = 'arithmetic'   # (a + b) / 2
+SERIES = 'series'   # the two ends' springs in series: compliances add, k_a k_b / (k_a + k_b)
+ADDED = 'added'     # the two ends' travels add: a + b
+
+#: the most values an array parameter may hold (checked before any value is looked at)
+MAX_ITEMS = 100_000
 
 
 class ConfigError(ValueError):
@@ -41,8 +47,8 @@ class ParamSpec:
     :mod:`~train_dynamics.physics.config.files`).
     ``vehicle``: the field of a consist's vehicle this parameter is the default of (its name
     in a consist file), '' when not per vehicle; ``connection``: how the field of two
-    vehicles makes the value of the coupler between them (:data:`HARMONIC`,
-    :data:`ARITHMETIC`), '' when it is no connection constant; ``row``: the name of the
+    vehicle ends makes the value of the coupling between them (:data:`SERIES`,
+    :data:`ADDED`), '' when it is no coupling constant; ``row``: the name of the
     per-vehicle constant row of the kernel (``layout.VEHICLE``) that holds the field's value
     of each vehicle as is, '' when the kernel has no such row. A per-vehicle field is this one
     declaration: the consist field list, the docs' tables, the kernel row and the copy into
@@ -62,6 +68,7 @@ class ParamSpec:
     vehicle: str = ''
     connection: str = ''
     row: str = ''
+    max_items: int = MAX_ITEMS
 
     def bounds(self) -> list[str]:
         """Return the numeric range in words, e.g. ``['> 0', '<= 1e+07']`` (docs, descriptors)."""
@@ -89,18 +96,26 @@ def check_value(spec: ParamSpec, value: Any) -> Any:
         return _check_number(spec, value, name)
     if kind == BOOL:
         if not isinstance(value, bool):
-            raise ConfigError(f'{name}: expected true or false, got {value!r}')
+            raise ConfigError(f'{name}: expected true or false, got {quote(value)}')
         return value
     if kind == STRING:
         if not isinstance(value, str):
-            raise ConfigError(f'{name}: expected a string, got {type(value).__name__} {value!r}')
+            raise ConfigError(f'{name}: expected a string, got {type(value).__name__} '
+                              f'{quote(value)}')
         if spec.choices and value not in spec.choices:
-            raise ConfigError(f'{name}: {value!r} is not one of {", ".join(spec.choices)}')
+            raise ConfigError(f'{name}: {quote(value)} is not one of {", ".join(spec.choices)}')
         return value
     if kind in ARRAY_KINDS:
         if isinstance(value, (str, bytes)) or not hasattr(value, '__iter__'):
             what = 'numbers' if kind == DOUBLE_ARRAY else 'strings'
-            raise ConfigError(f'{name}: expected a list of {what}, got {value!r}')
+            raise ConfigError(f'{name}: expected a list of {what}, got {quote(value)}')
+        count = len(value) if hasattr(value, '__len__') else None
+        if count is None:       # an iterator: look at one value more than the limit at most
+            value = list(itertools.islice(value, spec.max_items + 1))
+            count = len(value)
+        if count > spec.max_items:
+            raise ConfigError(f'{name}: {count} values, more than the limit of '
+                              f'{spec.max_items}')
         if kind == STRING_ARRAY:
             return [_check_string(item, f'{name}[{k}]') for k, item in enumerate(value)]
         return [_check_number(spec, item, f'{name}[{k}]') for k, item in enumerate(value)]
@@ -109,7 +124,7 @@ def check_value(spec: ParamSpec, value: Any) -> Any:
 
 def _check_string(value: Any, label: str) -> str:
     if not isinstance(value, str):
-        raise ConfigError(f'{label}: expected a string, got {value!r}')
+        raise ConfigError(f'{label}: expected a string, got {quote(value)}')
     return value
 
 
@@ -118,14 +133,19 @@ def _check_number(spec: ParamSpec, value: Any, label: str) -> float | int:
     if spec.kind == INTEGER:
         if not isinstance(value, int) or isinstance(value, bool):
             raise ConfigError(f'{label}: expected an integer, got {type(value).__name__} '
-                              f'{value!r}')
+                              f'{quote(value)}')
         value = int(value)
+        if value.bit_length() > 63:      # (also: %g of it would overflow)
+            raise ConfigError(f'{label}: out of range, got {quote(value)}')
     elif not _is_number(value):
         if spec.kind == DOUBLE_ARRAY:
-            raise ConfigError(f'{label}: expected a number, got {value!r}')
-        raise ConfigError(f'{label}: expected a number, got {type(value).__name__} {value!r}')
+            raise ConfigError(f'{label}: expected a number, got {quote(value)}')
+        raise ConfigError(f'{label}: expected a number, got {type(value).__name__} {quote(value)}')
     else:
-        value = float(value)
+        try:
+            value = float(value)
+        except OverflowError:           # an integer beyond the floats
+            raise ConfigError(f'{label}: must be finite, got {quote(value)}') from None
     _check_range(spec, value, label)
     return value
 

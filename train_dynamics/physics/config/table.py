@@ -13,8 +13,9 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
-from train_dynamics.physics.config.spec import (ARITHMETIC, BOOL, check_value, ConfigError, DOUBLE,
-                                                DOUBLE_ARRAY, HARMONIC, INTEGER, ParamSpec, STRING)
+from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
+                                                DOUBLE_ARRAY, INTEGER, ParamSpec, SERIES, STRING)
+from train_dynamics.quoting import quote
 
 # Pressure defaults, written once (used by the simulator and the brake valve).
 ATMOSPHERIC_PRESSURE = 101325.0    # [Pa absolute]: FluidPressure (absolute) = gauge + this
@@ -40,6 +41,9 @@ G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
 #: default integration_tolerance: 0 = fixed step
 INTEGRATION_TOLERANCE = 0.0
 
+#: the most vehicles of a train, however given (num_coaches, masses, a consist file's counts)
+MAX_VEHICLES = 100_000
+
 _PARAMS = [
     ParamSpec('model_type', 'tanh', STRING,
               'Coupler friction law: "tanh" uses tanh(u*ydot) (paper eqs. 14-16), '
@@ -49,14 +53,15 @@ _PARAMS = [
               'u in tanh(u*ydot) [s/m], > 0 (paper eq. 14).',
               low=0.0, high=1.0e7, low_exclusive=True, dynamic=True),
     ParamSpec('num_coaches', 3, INTEGER, 'Number of coaches N >= 2 (ignored when masses is set).',
-              low=2, high=100000),
+              low=2, high=MAX_VEHICLES),
     ParamSpec('coach_mass', 45000.0, DOUBLE,
               'Mass of every coach m_i [kg], unless masses is set. Bounds: a track trolley '
               '(~0.5 t) to a loaded heavy-load wagon (~800 t).', low=500.0, high=1.0e6,
               vehicle='mass'),
     ParamSpec('masses', [], DOUBLE_ARRAY,
               'Per-coach masses [kg], front to rear; non-empty overrides num_coaches and '
-              'coach_mass. Bounds as coach_mass.', low=500.0, high=1.0e6),
+              'coach_mass. Bounds as coach_mass; at most as many values as num_coaches allows.',
+              low=500.0, high=1.0e6, max_items=MAX_VEHICLES),
     ParamSpec('coach_length', 25.0, DOUBLE,
               'Coach length [m]: brake-pipe length per coach. Bounds: a trolley (1 m) to '
               'twice the longest rail vehicles (~50 m).', low=1.0, high=100.0, vehicle='length',
@@ -64,16 +69,16 @@ _PARAMS = [
     ParamSpec('buffer_stiffness', 2.8e6, DOUBLE,
               'Buffer stiffness k_e [N/m] (paper eq. 2). Real buffers: 0.5-50 MN/m; the '
               'bounds allow two decades either side.', low=1.0e4, high=1.0e10,
-              vehicle='buffer_stiffness', connection=HARMONIC),
+              vehicle='buffer_stiffness', connection=SERIES),
     ParamSpec('buffer_friction', 1.4e6, DOUBLE,
               'Buffer friction constant k_f [N/m] (paper eq. 2), 0 <= k_f < k_e.',
-              low=0.0, high=1.0e10, vehicle='buffer_friction', connection=HARMONIC),
+              low=0.0, high=1.0e10, vehicle='buffer_friction', connection=SERIES),
     ParamSpec('draw_gear_stiffness', 5.46e6, DOUBLE,
               'Draw-gear stiffness k_ec [N/m] (paper eq. 3). Bounds as buffer_stiffness.',
-              low=1.0e4, high=1.0e10, vehicle='draw_gear_stiffness', connection=HARMONIC),
+              low=1.0e4, high=1.0e10, vehicle='draw_gear_stiffness', connection=SERIES),
     ParamSpec('draw_gear_friction', 2.43e6, DOUBLE,
               'Draw-gear friction constant k_fc [N/m] (paper eq. 3), 0 <= k_fc < k_ec.',
-              low=0.0, high=1.0e10, vehicle='draw_gear_friction', connection=HARMONIC),
+              low=0.0, high=1.0e10, vehicle='draw_gear_friction', connection=SERIES),
     ParamSpec('adhesion_coefficient', 0.1, DOUBLE,
               'Wheel-rail adhesion coefficient mu_a (paper eqs. 12-13): full braking force '
               'is mu_a*m*g per coach.', low=0.0, high=1.0, low_exclusive=True,
@@ -163,7 +168,7 @@ _PARAMS = [
               low=0.0, high=1.0e5),
     ParamSpec('angle_cock_closed', 0, INTEGER,
               'Pneumatic: coupling k (between vehicles k and k+1) whose angle cocks are '
-              'closed, cutting the brake pipe; 0 = all open.', low=0, high=100000),
+              'closed, cutting the brake pipe; 0 = all open.', low=0, high=MAX_VEHICLES),
     ParamSpec('brake_pipe_diameter', 0.032, DOUBLE,
               'Pneumatic: inner diameter of the brake pipe [m] (EN 15355: 25-32 mm).',
               low=0.01, high=0.1),
@@ -222,21 +227,21 @@ _PARAMS = [
     ParamSpec('buffer_stroke', 0.105, DOUBLE,
               'Buffer stroke S_c [m] before blocking (UIC 526-1: 105 mm).',
               low=0.0, high=10.0, low_exclusive=True,
-              vehicle='buffer_stroke', connection=ARITHMETIC),
+              vehicle='buffer_stroke', connection=ADDED),
     ParamSpec('draw_gear_stroke', 0.06, DOUBLE,
               'Draw-gear spring travel S_t [m] before blocking (UIC 520 draw gear, typical).',
               low=0.0, high=10.0, low_exclusive=True,
-              vehicle='draw_gear_stroke', connection=ARITHMETIC),
+              vehicle='draw_gear_stroke', connection=ADDED),
     ParamSpec('buffer_slack', 0.0, DOUBLE,
               'Free play g_c [m] before the buffers take load (0: tight screw coupling).',
-              low=0.0, high=1.0, vehicle='buffer_slack', connection=ARITHMETIC),
+              low=0.0, high=1.0, vehicle='buffer_slack', connection=ADDED),
     ParamSpec('draw_gear_slack', 0.0, DOUBLE,
               'Free play g_t [m] before the draw gear takes load (0: tight coupling).',
-              low=0.0, high=1.0, vehicle='draw_gear_slack', connection=ARITHMETIC),
+              low=0.0, high=1.0, vehicle='draw_gear_slack', connection=ADDED),
     ParamSpec('blocked_stiffness', 1.0e8, DOUBLE,
               'Stiffness K_b [N/m] once a buffer or draw gear is at the end of its stroke '
               '(vehicle underframe, ~1e8 N/m).', low=0.0, high=1.0e12, low_exclusive=True,
-              vehicle='blocked_stiffness', connection=HARMONIC),
+              vehicle='blocked_stiffness', connection=SERIES),
     ParamSpec('max_tractive_force', 0.0, DOUBLE,
               'Locomotive: starting tractive effort [N] (0: not a traction unit).',
               low=0.0, high=1.0e7, vehicle='max_tractive_force', row='T_FORCE'),
@@ -260,6 +265,11 @@ _PARAMS = [
               'Locomotive: below this speed [m/s] the dynamic braking force fades linearly '
               'to 0.', low=0.0, high=50.0, low_exclusive=True,
               vehicle='dynamic_brake_fade_speed', row='DB_FADE'),
+    ParamSpec('initial_state', 'equilibrium', STRING,
+              'The couplers at t = 0: "equilibrium" (the quasi-static deflections that balance '
+              'gradient, curve, resistance and traction at t = 0, free play included: a steady '
+              'run stays steady) or "unstressed" (every coupler at y = 0, the paper\'s start).',
+              choices=('equilibrium', 'unstressed')),
     ParamSpec('initial_position', 0.0, DOUBLE,
               'Position along the track [m] of the front of vehicle 1 at t = 0.',
               low=-1.0e7, high=1.0e7),
@@ -278,7 +288,8 @@ _PARAMS = [
               '500/(R-30) below.', low=100.0, high=1.0e6),
     ParamSpec('traction_schedule_times', [], DOUBLE_ARRAY,
               'Offline runs without a traction bag: times [s] (increasing) from which every '
-              'locomotive holds the matching traction_schedule_commands entry.',
+              'locomotive holds the matching traction_schedule_commands entry; refused for a '
+              'train without a locomotive.',
               low=0.0, high=1.0e7),
     ParamSpec('traction_schedule_commands', [], DOUBLE_ARRAY,
               'Traction command in [-1, 1] (> 0 traction, < 0 dynamic brake) from each '
@@ -292,8 +303,10 @@ _PARAMS = [
               low=0.0, high=0.1),
     ParamSpec('integration_max_steps', 100, INTEGER,
               'Work budget of the error-controlled integration: steps per output period; '
-              'beyond it the rest of the period runs at the fixed integration_step (counted '
-              'in /diagnostics fallback_periods).', low=1, high=1000000),
+              'beyond it the rest of the period takes at most as many equal steps without '
+              'error control (counted in /diagnostics fallback_periods). At most ~0.25 s of '
+              'work per period: 25000 / (1 + N / 20) steps for N vehicles.', low=1,
+              high=1000000),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
@@ -353,5 +366,5 @@ def validate_value(name: str, value: Any,
     """
     spec = table.get(name)
     if spec is None:
-        raise ConfigError(f'unknown parameter {name!r}')
+        raise ConfigError(f'unknown parameter {quote(name)}')
     return check_value(spec, value)

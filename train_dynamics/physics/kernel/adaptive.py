@@ -10,7 +10,8 @@ output instant (:func:`_landing_step`). The brake system and the inputs keep the
 PARAM.H of the fixed-step kernel (:func:`_brake_tick`), and the braking and traction forces
 are linear between ticks (:func:`_tick_means`), so the inputs act at the same tick as in the
 fixed-step kernel, offline and in the node. OPTION.BUDGET bounds the steps per output period:
-a period that runs out finishes at the fixed step, counted (COUNT.NFALLBACK).
+a period that runs out finishes in at most OPTION.BUDGET equal steps without error control
+(never coarser than the tick), counted (COUNT.NFALLBACK): at most twice the budget in all.
 """
 from __future__ import annotations
 
@@ -153,8 +154,9 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
 
     Step-size control: :func:`_error_norm` <= 1 accepts, else the step is redone shorter;
     the next step from the PI controller, at most the landing period, clipped to land on
-    the tick TICK. After OPTION.BUDGET steps in the period the rest is done in fixed steps
-    of PARAM.H (counted in COUNT.NFALLBACK): the work per output period is bounded.
+    the tick TICK. After OPTION.BUDGET steps in the period the rest is done in at most
+    OPTION.BUDGET equal steps, each at most PARAM.H, accepted without error control (counted
+    in COUNT.NFALLBACK): the work per output period is bounded (twice the budget).
     Returns the status (OK or the fault).
     """
     h_tick = sc[PARAM.H]
@@ -170,14 +172,18 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
     steps = 0
     int_hmin = h_max
     fallback = False
+    h_fallback = h_tick
     h = min(sc[CONTROL.HPROP], h_max)
     while s < total:
         rem = total - s
         if steps >= iv[OPTION.BUDGET] and not fallback:
             fallback = True
             iv[COUNT.NFALLBACK] += 1
+            # the rest of the period in at most BUDGET equal steps (never coarser than the
+            # tick): the work stays bounded and the error keeps following the step
+            h_fallback = max(min(rem / iv[OPTION.BUDGET], h_tick), H_MIN)
         if fallback:
-            h = h_tick
+            h = h_fallback
         hs = _landing_step(h, rem)
         if hs != sc[CONTROL.HEVAL]:
             eval_couplers(coach[STATE.X], coach[STATE.V], cpl, model, u, GAMMA * hs, ws)

@@ -1,0 +1,180 @@
+"""
+Accuracy against the independent reference, per setting: error and cost of each.
+
+Three cases, each run with the fixed step and with error control, and compared with
+:func:`train_dynamics.physics.chain_reference.solve_chain` (Radau, rtol 1e-9, events at the
+coupler law's breakpoints, restarted at every input instant) fed the same inputs:
+
+- ``paper``: the paper's 3 coaches, head pipe vented at t = 1 s (closed-form brake forces:
+  the filling table from 1 s + the pipe delay of each coach), 0-20 s;
+- ``khz_unequal``: 4 coaches 45/30/60/25 t, tanh u = 700, cylinder pressures replayed at
+  1 kHz (edges every few tens of ms, half of them between the 2 ms ticks), 0-3 s;
+- ``mixed_freeplay``: a 90 t locomotive and 7 loaded/empty wagons (80/22 t), free play
+  4-12 mm, strokes 20-30 mm, blocked stiffness 5e7-8e7 N/m, brakes applied front to rear
+  in three steps (run-in through the free play to blocking), 0-4 s.
+
+Figures: every coupler-force sample (every 2 ms) and displacement sample: max |ours - ref| /
+max |ref| [%]; the peak force's error [%]; chain steps; wall time of the run [s]
+(in-process, 2 ms read-out; shared machine: compare within a table only).
+``python bench/accuracy.py [--case NAME]``; the table is kept in ``bench/accuracy_results.md``.
+"""
+from __future__ import annotations
+
+import argparse
+import time
+
+import numpy as np
+
+from train_dynamics.physics.chain_reference import ChainLaw, solve_chain
+from train_dynamics.physics.config import SimConfig
+from train_dynamics.physics.kernel.layout import COUPLER
+from train_dynamics.physics.train import TrainSimulator
+
+#: (label, overrides): the default first
+SETTINGS = (
+    ('fixed 2 ms (default)', {}),
+    ('fixed 0.5 ms', {'integration_step': 5e-4}),
+    ('fixed 0.1 ms', {'integration_step': 1e-4}),
+    ('tolerance 1e-3', {'integration_tolerance': 1e-3}),
+    ('tolerance 1e-4', {'integration_tolerance': 1e-4}),
+    ('tolerance 1e-5', {'integration_tolerance': 1e-5}),
+)
+#: error control offline: a budget out of reach, so that no period falls back to the fixed step
+BUDGET = {'integration_max_steps': 1_000_000, 'publish_rate': 500.0}
+DT = 0.002      # [s] read-out
+
+
+def _paper():
+    base = {}
+    t_end = 20.0
+
+    def make(**o):
+        sim = TrainSimulator(SimConfig.from_dict({**base, **o}))
+        sim.schedule(1.0, lambda: sim.set_head_pipe_pressure(0.0))
+        return sim
+
+    cfg = SimConfig.from_dict(base)
+    n = cfg.n_coaches
+    m = np.array(cfg.mass_array)
+    ft, ff = (np.array(a) for a in cfg.fill_table())
+    delays = np.arange(n) * cfg.coach_length / cfg.brake_propagation_speed
+    fmax = cfg.adhesion_coefficient * m * cfg.gravity
+
+    def brake(t):
+        return fmax * np.interp(t - 1.0 - delays, ft, ff, left=0.0)
+
+    kinks = np.unique(np.concatenate([1.0 + d + ft for d in delays]))
+    kinks = kinks[(kinks > 0.0) & (kinks < t_end)]
+    steps = (kinks, np.zeros((kinks.size, n)))
+    return make, steps, brake, t_end, cfg.initial_speed
+
+
+def _khz_unequal(t_end=3.0, seed=1):
+    masses = [45000.0, 30000.0, 60000.0, 25000.0]
+    base = {'masses': masses, 'brake_input': 'cylinder_per_coach', 'scale_factor': 700.0}
+    cfg = SimConfig.from_dict(base)
+    pmax = cfg.max_cylinder_pressure
+    rng = np.random.default_rng(seed)
+    times = np.arange(int(t_end * 1000)) * 1e-3
+    levels = np.empty((times.size, 4))
+    cur = np.zeros(4)
+    for k in range(times.size):
+        if rng.random() < 0.02:
+            cur = rng.choice([0.0, 0.3, 0.6, 1.0], size=4) * pmax
+        levels[k] = cur
+    keep = np.r_[True, np.any(np.diff(levels, axis=0) != 0.0, axis=1)]
+    times, levels = times[keep], levels[keep]
+
+    def make(**o):
+        sim = TrainSimulator(SimConfig.from_dict({**base, **o}))
+        for t, p in zip(times, levels):
+            sim.schedule(t, lambda p=p, sim=sim: sim.set_cylinder_pressure(p))
+        return sim
+
+    full = cfg.adhesion_coefficient * np.array(masses) * cfg.gravity
+    return make, (times, levels / pmax * full), None, t_end, cfg.initial_speed
+
+
+def _mixed_freeplay(t_end=4.0):
+    masses = [90000.0, 80000.0, 22000.0, 80000.0, 22000.0, 22000.0, 80000.0, 22000.0]
+    rng = np.random.default_rng(3)
+    gap, stroke, kb = (rng.uniform(0.004, 0.012, 7), rng.uniform(0.02, 0.03, 7),
+                       rng.uniform(5e7, 8e7, 7))
+    base = {'masses': masses, 'brake_input': 'cylinder_per_coach', 'initial_speed': 20.0}
+    cfg = SimConfig.from_dict(base)
+    pmax = cfg.max_cylinder_pressure
+    times = np.array([0.0, 0.3, 0.9, 1.5])
+    on = np.array([[0] * 8, [1] * 2 + [0] * 6, [1] * 4 + [0] * 4, [1] * 8], float)
+
+    def make(**o):
+        sim = TrainSimulator(SimConfig.from_dict({**base, **o}))
+        for row, value in ((COUPLER.GT, gap), (COUPLER.GC, gap), (COUPLER.ST, stroke),
+                           (COUPLER.SC, stroke), (COUPLER.KB, kb)):
+            sim.cpl[row] = value
+        for t, p in zip(times, on * pmax):
+            sim.schedule(t, lambda p=p, sim=sim: sim.set_cylinder_pressure(p))
+        return sim
+
+    full = cfg.adhesion_coefficient * np.array(masses) * cfg.gravity
+    return make, (times, on * full), None, t_end, cfg.initial_speed
+
+
+CASES = {'paper': _paper, 'khz_unequal': _khz_unequal, 'mixed_freeplay': _mixed_freeplay}
+
+
+def run_case(name: str) -> list[dict]:
+    """Return one row per setting of case ``name`` (errors in %, steps, wall [s])."""
+    make, steps, brake, t_end, v0 = CASES[name]()
+    t_eval = np.round(np.arange(1, int(round(t_end / DT)) + 1) * DT, 10)
+    sim = make()
+    ref = solve_chain(sim.inertia, ChainLaw.of_simulator(sim), v0, steps, t_eval,
+                      brake_of_t=brake)
+    peak_f = np.abs(ref.F).max()
+    peak_y = np.abs(ref.y).max()
+    rows = []
+    for label, over in SETTINGS:
+        opts = {**over, **(BUDGET if 'integration_tolerance' in over else {})}
+        sim = make(**opts)
+        F = np.empty_like(ref.F)
+        Y = np.empty_like(ref.y)
+        t0 = time.perf_counter()
+        for k, t in enumerate(t_eval):
+            sim.advance_to(t)
+            F[k] = sim.coupler_force
+            Y[k] = sim.y
+        wall = time.perf_counter() - t0
+        stats = sim.integration_stats
+        rows.append({'case': name, 'setting': label,
+                     'force_pct': 100.0 * np.abs(F - ref.F).max() / peak_f,
+                     'disp_pct': 100.0 * np.abs(Y - ref.y).max() / peak_y,
+                     'peak_pct': 100.0 * (np.abs(F).max() / peak_f - 1.0),
+                     'steps': stats['steps'] if stats['adaptive'] else sim.steps,
+                     'wall_s': wall, 'fault': sim.fault})
+    return rows
+
+
+def table(rows: list[dict]) -> str:
+    """Return the rows as a markdown table."""
+    out = ['| case | setting | force samples [% of peak] | displacements [% of peak] | '
+           'peak [%] | chain steps | wall [s] |', '|---|---|---|---|---|---|---|']
+    for r in rows:
+        out.append(f"| {r['case']} | {r['setting']} | {r['force_pct']:.3f} | "
+                   f"{r['disp_pct']:.3f} | {r['peak_pct']:+.3f} | {r['steps']} | "
+                   f"{r['wall_s']:.2f} |")
+    return '\n'.join(out)
+
+
+def main(argv=None) -> int:
+    """Run every case and print the table."""
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
+    ap.add_argument('--case', choices=sorted(CASES), action='append')
+    args = ap.parse_args(argv)
+    rows = []
+    for name in args.case or list(CASES):
+        rows += run_case(name)
+    print(table(rows))
+    return 0
+
+
+if __name__ == '__main__':
+    raise SystemExit(main())

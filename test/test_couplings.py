@@ -1,0 +1,134 @@
+"""Couplings as two vehicle ends in series: blocking, compliances, energies, mixed consists."""
+import numpy as np
+import pytest
+
+from train_dynamics.physics.config import consist, SimConfig
+from train_dynamics.physics.couplers import end_deflection, end_energy_to_blocking
+from train_dynamics.physics.kernel.couplers import coupler_force_travel, MODEL_CODES
+
+S = 0.105      # UIC 526-1 buffer stroke [m]
+
+
+def coupling_of(tmp_path, types, vehicles, extra=''):
+    path = tmp_path / 'train.yaml'
+    path.write_text(f'vehicle_types:\n{types}\nvehicles: {vehicles}\n{extra}')
+    return SimConfig.from_dict({'consist_file': str(path)}).consist
+
+
+def quasi_static_force(c, j, y):
+    """F [N] of coupling j at deflections y [m], moving slowly into compression (loading)."""
+    n = len(y)
+    k = c.coupler_array()[:, j]
+    row = dict(zip(consist.COUPLER_FIELDS, k))
+    full = [np.full(n, row[f]) for f in ('buffer_stiffness', 'buffer_friction',
+                                         'draw_gear_stiffness', 'draw_gear_friction',
+                                         'draw_gear_slack', 'buffer_slack', 'draw_gear_stroke',
+                                         'buffer_stroke', 'blocked_stiffness')]
+    return coupler_force_travel(np.asarray(y, float), np.full(n, -1e-3), *full,
+                                MODEL_CODES['sign'], 1000.0)
+
+
+BUFFER = ('  w: {buffer_stiffness: 4.0e6, buffer_friction: 2.0e6, buffer_stroke: 0.105,\n'
+          '      blocked_stiffness: 2.0e8}')
+
+
+def test_two_identical_buffers_block_at_twice_their_stroke(tmp_path):
+    c = coupling_of(tmp_path, BUFFER, '[{type: w}, {type: w}]')
+    y = -np.linspace(0.0, 3.0 * S, 3001)
+    f = quasi_static_force(c, 0, y)
+    slope = np.diff(f) / np.diff(y)
+    # the buffers' springs (6e6 N/m per end in loading, 3e6 N/m the coupling) up to 2 S,
+    # the blocked stiffness beyond: the kink is at y = -2 S
+    kink = -y[1:][np.argmax(slope > 1.0e7)]
+    assert kink == pytest.approx(2.0 * S, abs=2e-4)
+    assert slope[0] == pytest.approx(3.0e6)
+
+
+def test_a_stiff_and_a_soft_end_deflect_in_the_ratio_of_their_compliances(tmp_path):
+    types = ('  stiff: {buffer_stiffness: 9.0e6, buffer_friction: 3.0e6, buffer_stroke: 0.2}\n'
+             '  soft: {buffer_stiffness: 3.0e6, buffer_friction: 1.0e6, buffer_stroke: 0.2}')
+    c = coupling_of(tmp_path, types, '[{type: stiff}, {type: soft}]')
+    force = 2.0e5
+    d_stiff = end_deflection(force, 9.0e6, 3.0e6, 0.0, 0.2, 1e8)
+    d_soft = end_deflection(force, 3.0e6, 1.0e6, 0.0, 0.2, 1e8)
+    assert d_soft / d_stiff == pytest.approx(12.0e6 / 4.0e6)    # compliances 1/4e6 : 1/12e6
+    # the coupling's law carries that force at the sum of the two deflections
+    y = -(d_stiff + d_soft)
+    assert -quasi_static_force(c, 0, [y])[0] == pytest.approx(force, rel=1e-12)
+
+
+@pytest.mark.parametrize('ends', [
+    [(4.0e6, 2.0e6, S)] * 2,
+    # ends of different stiffness and stroke reaching the same final force (as a datasheet pair)
+    [(8.0e6, 2.0e6, 0.075), (4.0e6, 1.0e6, 0.15)],
+])
+def test_energy_to_blocking_is_the_sum_of_the_ends_datasheet_energies(tmp_path, ends):
+    types = '\n'.join(f'  e{i}: {{buffer_stiffness: {k!r}, buffer_friction: {f!r}, '
+                      f'buffer_stroke: {s!r}}}' for i, (k, f, s) in enumerate(ends))
+    c = coupling_of(tmp_path, types, '[{type: e0}, {type: e1}]')
+    datasheet = sum(end_energy_to_blocking(k, f, s) for k, f, s in ends)
+    closed = c.coupler('buffer_stroke')[0] + c.coupler('buffer_slack')[0]
+    y = -np.linspace(0.0, closed, 20001)
+    f = -quasi_static_force(c, 0, y)
+    absorbed = float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(-y)))
+    assert absorbed == pytest.approx(datasheet, rel=0.02)
+
+
+def test_a_mixed_consist_couples_its_ends_not_their_averages(tmp_path):
+    c = SimConfig.from_dict({'consist_file': 'consist_passenger_12.yaml'}).consist
+    lib = consist.library_types()
+    loco, coach = lib['electric_passenger_locomotive'], lib['passenger_coach']
+    k = consist.series(loco['buffer_stiffness'] + loco['buffer_friction'],
+                       coach['buffer_stiffness'] + coach['buffer_friction'])
+    assert c.coupler('buffer_stiffness')[0] + c.coupler('buffer_friction')[0] == pytest.approx(k)
+    assert c.coupler('buffer_stroke')[0] == pytest.approx(
+        loco['buffer_stroke'] + coach['buffer_stroke'])           # 2 x 105 mm, not 105 mm
+    c = SimConfig.from_dict({'consist_file': 'consist_freight_750m.yaml'}).consist
+    wag, loco = lib['freight_wagon_loaded'], lib['electric_freight_locomotive']
+    assert c.coupler('buffer_stroke')[0] == pytest.approx(2 * S)
+    assert c.coupler('blocked_stiffness')[1] == pytest.approx(
+        consist.series(loco['blocked_stiffness'], lib['freight_wagon_empty']['blocked_stiffness']))
+    assert wag['buffer_stroke'] == S
+
+
+def test_front_and_rear_ends_and_whole_coupling_constants(tmp_path):
+    types = ('  w: {buffer_stiffness: 4.0e6, buffer_friction: 2.0e6,\n'
+             '      rear: {buffer_stroke: 0.15}, front: {buffer_stroke: 0.05}}')
+    c = coupling_of(tmp_path, types, '[{type: w, count: 3}]')
+    assert list(c.coupler('buffer_stroke')) == pytest.approx([0.2, 0.2])   # rear + front
+    c = coupling_of(tmp_path, types, '[{type: w, count: 3}]',
+                    'couplings: {buffer_stiffness: 1.0e6, buffer_friction: 0.5e6}\n')
+    assert list(c.coupler('buffer_stiffness')) == [1.0e6, 1.0e6]        # as given
+    assert list(c.coupler('buffer_friction')) == [0.5e6, 0.5e6]
+
+
+def test_the_uniform_train_keeps_the_parameters_as_whole_coupling_constants():
+    cfg = SimConfig.from_dict({'num_coaches': 3, 'buffer_stiffness': 2.8e6,
+                               'buffer_stroke': 0.105})
+    c = cfg.consist
+    assert list(c.coupler('buffer_stiffness')) == [2.8e6, 2.8e6]     # bit for bit
+    assert list(c.coupler('buffer_stroke')) == [0.105, 0.105]
+    assert list(c['buffer_stiffness']) == [5.6e6] * 3                   # each end
+
+
+def test_two_paper_coaches_are_coupled_as_in_the_paper(tmp_path):
+    path = tmp_path / 't.yaml'
+    path.write_text('vehicles: [{type: paper_coach, count: 3}]\n')
+    c = SimConfig.from_dict({'consist_file': str(path)}).consist
+    assert list(c.coupler('buffer_stiffness')) == [2.8e6, 2.8e6]
+    assert list(c.coupler('buffer_friction')) == [1.4e6, 1.4e6]
+    assert list(c.coupler('draw_gear_stiffness')) == [5.46e6, 5.46e6]
+    assert list(c.coupler('draw_gear_friction')) == [2.43e6, 2.43e6]
+    assert list(c.coupler('buffer_stroke')) == [0.105, 0.105]
+
+
+def test_library_locomotives_match_their_sources():
+    lib = consist.library_types()
+    db101 = lib['electric_passenger_locomotive']
+    # DB 101: its 300 kN starting effort within its adhesion at standstill
+    assert db101['traction_adhesion'] * db101['mass'] * 9.81 >= db101['max_tractive_force']
+    # the UK Class 66 has no dynamic brake
+    class66 = lib['heavy_freight_locomotive']
+    assert class66.get('max_dynamic_brake_force', 0.0) == 0.0
+    db185 = lib['electric_freight_locomotive']
+    assert db185['traction_adhesion'] * db185['mass'] * 9.81 >= db185['max_tractive_force']
