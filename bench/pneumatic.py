@@ -4,8 +4,9 @@ Benchmark of the pneumatic brake: offline speed, node jitter, CQU comparison.
 Offline: ``TrainSimulator`` with ``brake_model`` empirical and pneumatic, head of the pipe
 commanded to 0 (emergency) at t = 1 s, 60 s simulated in 10 ms chunks (the node's read-out),
 one core; the best of 3 runs. Trains: the paper's 3 coaches (P), the 750 m freight train
-(30 wagons of 25 m, G, 90 t) and 150 vehicles (G). Node: ``bench/node.py`` with 100
-vehicles, ``brake_model: pneumatic``, 100 Hz, real time.
+(30 wagons of 25 m, G, 90 t), 150 vehicles (G) and 150 vehicles with emergency
+accelerators and a distributed-power remote (``consist_150_dp.yaml``, pneumatic only).
+Node: ``bench/node.py`` with 100 vehicles, ``brake_model: pneumatic``, 100 Hz, real time.
 
 Run alone: ``python bench/pneumatic.py [--no-node]`` (writes bench/pneumatic_results.md,
 which ``bench/run_all.py`` includes in RESULTS.md).
@@ -33,6 +34,8 @@ TRAINS = (
                                       'brake_regime': 'G', 'initial_speed': 27.78}),
     ('150 vehicles (G)', {'num_coaches': 150, 'coach_mass': 90000.0, 'brake_regime': 'G',
                           'initial_speed': 27.78}),
+    ('150 vehicles (G), accelerators and a DP remote',
+     {'consist_file': os.path.join(HERE, 'consist_150_dp.yaml'), 'initial_speed': 27.78}),
 )
 
 
@@ -61,7 +64,8 @@ def run_offline(log=print) -> list[dict]:
     """Time every train with both brake models."""
     rows = []
     for name, params in TRAINS:
-        for model in ('empirical', 'pneumatic'):
+        # remote locomotives exist only in the pneumatic model
+        for model in ('pneumatic',) if 'consist_file' in params else ('empirical', 'pneumatic'):
             wall, info = time_run(dict(params, brake_model=model))
             row = dict(info, train=name, model=model, wall_s=wall, rtf=60.0 / wall)
             log(f'pneumatic bench: {name}, {model}: {row["rtf"]:.0f}x real time')

@@ -159,10 +159,16 @@ def test_the_per_vehicle_declarations_elsewhere_name_fields_of_the_table():
     assert {*TrainSimulator._TRAVEL_ROWS, *TrainSimulator._COUPLER_ROWS} == connections
 
 
+#: parameters a field's consist needs to be valid (remote brake valves: the pneumatic brake)
+_CONTEXT = {'remote': {'brake_model': 'pneumatic'}}
+
+
 def _distinctive(spec):
     """Return a valid value of the field ``spec`` declares that is not its default."""
     if spec.choices:
         return next(c for c in spec.choices if c != spec.default)
+    if isinstance(spec.default, bool):
+        return not spec.default
     value = spec.default * 1.1 + 0.01
     return value if spec.high is None or value <= spec.high else (spec.default + spec.high) / 2
 
@@ -195,7 +201,7 @@ def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
         extra += ', braked_mass_p: 40000.0'
     path = write(tmp_path, f'vehicle_types: {{w: {{{field}: {value!r}{extra}}}}}\n'
                            'vehicles: [{type: w, count: 3}]\n')
-    cfg = SimConfig.from_dict({'consist_file': path})
+    cfg = SimConfig.from_dict({'consist_file': path, **_CONTEXT.get(field, {})})
     kernel_value = value
     if spec.choices:            # a choice reaches the kernel as its index in the choices
         assert cfg.consist.choices(field) == [value] * 3

@@ -49,6 +49,10 @@ TRACTION_TOPIC = 'coach_{i}/traction/command'
 TRACTION_TOPIC_PATTERN = re.compile(r'coach_(\d+)/traction/command')
 TRACTION_TOPIC_DISPLAY = 'coach_<i>/traction/command'
 
+# -- EP / ECP train-line command (std_msgs/Float64, a fraction of full service in [0, 1]) ---------
+#: brake_system ep / ecp: the command every vehicle's EP valves / car control device follows
+EP_COMMAND_TOPIC = 'brake_ep/command'
+
 # -- outputs (sensor_msgs/JointState, header.stamp = simulation time) ----------------------------
 COUPLERS_TOPIC = 'couplers'
 COACHES_TOPIC = 'coaches'

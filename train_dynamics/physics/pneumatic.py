@@ -63,6 +63,10 @@ import numpy as np
 from train_dynamics.physics.kernel import pneumatic as pk
 
 
+#: brake systems: UIC distributors only, EP valves on every vehicle, ECP car control devices
+BRAKE_SYSTEMS = ('pneumatic', 'ep', 'ecp')
+
+
 @dataclass(frozen=True)
 class PneumaticSpec:
     """
@@ -104,6 +108,26 @@ class PneumaticSpec:
     rel_area_p: float = 3.0e-6
     app_area_g: float = 1.1e-6
     rel_area_g: float = 9.6e-7
+    # emergency accelerator (where a vehicle has one)
+    accelerator_rate: float = 100000.0   # [Pa/s] filtered pipe drop rate that opens it
+    accelerator_drop: float = 100000.0   # [Pa] ... with the pipe this far below the CR
+    accelerator_filter: float = 0.05     # [s] time constant of the rate filter
+    accelerator_area: float = 8.0e-4     # vent to atmosphere (the 32 mm bore)
+    accelerator_close: float = 30000.0   # [Pa] local pipe below it: closes and re-arms
+    # distributor first stage (inshot): fast filling up to inshot_pressure; 0 = none
+    inshot_pressure: float = 0.0
+    inshot_area: float = 2.0e-5
+    # EP valves and ECP car control devices
+    ep_valve_delay: float = 0.2          # [s] train-line command to valve action
+    ep_application_area: float = 3.0e-5
+    ep_release_area: float = 4.0e-5
+    ecp_pipe_penalty: float = 300000.0   # [Pa] ECP: pipe below it applies in full
+    # distributed power: radio link of the remote locomotives
+    radio_delay: float = 0.5             # [s] lead to remote
+    radio_loss: float = 0.0              # probability of losing one message
+    radio_period: float = 0.5            # [s] the lead repeats its state this often
+    radio_timeout: float = 2.0           # [s] no message for this long: link lost
+    radio_seed: int = 0
 
     def replace(self, **changes) -> 'PneumaticSpec':
         """Return a copy with some fields changed."""
@@ -122,8 +146,15 @@ class PneumaticBrake:
     """
 
     def __init__(self, lengths, p_max, regimes, h: float, spec: PneumaticSpec | None = None,
-                 external_pipe: bool = False):
-        """Build the grid (cells per vehicle from ``spec.cell_length``) and charge it."""
+                 external_pipe: bool = False, accelerators=False, remotes=False,
+                 brake_system: str = 'pneumatic'):
+        """
+        Build the grid (cells per vehicle from ``spec.cell_length``) and charge it.
+
+        ``accelerators`` (N,) or scalar: vehicles with an emergency accelerator; ``remotes``
+        (N,) or scalar: distributed-power locomotives with their own brake valve on the pipe
+        (radio link, :meth:`advance`); ``brake_system``: one of :data:`BRAKE_SYSTEMS`.
+        """
         self.spec = spec = spec or PneumaticSpec()
         lengths = np.asarray(lengths, dtype=float)
         self.n = n = lengths.shape[0]
@@ -163,6 +194,12 @@ class PneumaticBrake:
         veh[pk.V_AAPP] = np.where(goods, spec.app_area_g, spec.app_area_p)
         veh[pk.V_AREL] = np.where(goods, spec.rel_area_g, spec.rel_area_p)
         veh[pk.V_CELL] = self.start[:-1] + per // 2
+        veh[pk.V_ACC] = np.broadcast_to(np.asarray(accelerators, dtype=bool), (n,))
+        veh[pk.V_REMOTE] = np.broadcast_to(np.asarray(remotes, dtype=bool), (n,))
+        veh[pk.V_INSHOT] = spec.inshot_pressure
+        if brake_system not in BRAKE_SYSTEMS:
+            raise ValueError(f'brake_system must be one of {BRAKE_SYSTEMS}, got {brake_system!r}')
+        self.brake_system = brake_system
         sc = self.sc = np.zeros(pk.N_SCALARS)
         sc[[pk.S_H, pk.S_RT, pk.S_AREA, pk.S_DIAM, pk.S_MU, pk.S_PATM, pk.S_PMR, pk.S_ACHG,
             pk.S_AVENT, pk.S_AEM, pk.S_BAND, pk.S_EMTH, pk.S_GCR, pk.S_APPTH, pk.S_RELTH,
@@ -173,7 +210,13 @@ class PneumaticBrake:
             1.0 / spec.cr_time_constant, spec.apply_threshold, spec.release_threshold,
             spec.nominal_pressure - spec.full_service_pressure, spec.aux_charge_area,
             spec.qs_area, spec.lap_band, spec.relay_part_band]
-        self.iv = np.array([self.substeps, int(external_pipe), 0], dtype=np.int64)
+        sc[[pk.S_ACCRATE, pk.S_ACCAREA, pk.S_ACCCLOSE, pk.S_ACCTAU, pk.S_EPAPP, pk.S_EPREL,
+            pk.S_ECPPIPE, pk.S_AINSHOT, pk.S_ACCDROP]] = [
+            spec.accelerator_rate, spec.accelerator_area, spec.accelerator_close,
+            spec.accelerator_filter, spec.ep_application_area, spec.ep_release_area,
+            spec.ecp_pipe_penalty, spec.inshot_area, spec.accelerator_drop]
+        self.iv = np.array([self.substeps, int(external_pipe), 0,
+                            BRAKE_SYSTEMS.index(brake_system), 1], dtype=np.int64)
         self._empty = np.zeros((0, n))
         self.reset()
 
@@ -191,18 +234,136 @@ class PneumaticBrake:
         veh[pk.V_MQS] = patm * veh[pk.V_VQS] / self.rt
         veh[pk.V_APPLIED] = 0.0
         veh[pk.V_PEXT] = spec.nominal_pressure
+        veh[pk.V_ACCOPEN] = 0.0
+        veh[pk.V_RATE] = 0.0
+        veh[pk.V_PPREV] = p0
+        veh[pk.V_RCMD] = spec.nominal_pressure
+        veh[pk.V_RLAP] = 0.0
         self.sc[pk.S_CMD] = spec.nominal_pressure
+        self.sc[pk.S_EPCMD] = 0.0
+        self.iv[pk.I_LAP] = 0
+        self.iv[pk.I_LINE] = 1
         self.steps = 0
+        #: the head's command [Pa gauge] and lap state, the EP/ECP command at the head
+        self._command = spec.nominal_pressure
+        self._lap = False
+        self.ep_command = 0.0
+        #: pending actions: (instant [s], order, action) in time order
+        self._events = []
+        self._order = 0
+        # distributed power: the lead's traction command, what the remotes last received
+        self.lead_traction = 0.0
+        self.remote_traction = 0.0
+        self.radio_sent = 0
+        self.radio_lost = 0
+        self.radio_received = 0
+        self.radio_last = 0.0
+        self.radio_ok = True
+        self._rng = np.random.default_rng(spec.radio_seed)
+        if self.has_remotes:
+            self._schedule(spec.radio_period, self._radio_tick)
 
     # -- inputs -----------------------------------------------------------------------------
     def set_command(self, p: float) -> None:
         """Pressure [Pa gauge] the driver's brake valve regulates the pipe head to."""
-        self.sc[pk.S_CMD] = float(p)
+        changed = float(p) != self._command or self._lap
+        self._command = float(p)
+        self._lap = False
         self.iv[pk.I_LAP] = 0
+        self._head_command()
+        if changed:        # the radio carries changes (and the periodic repeats)
+            self._radio_send()
 
     def set_lap(self, lap: bool = True) -> None:
         """Lap position: the driver's brake valve neither charges nor vents the pipe."""
+        changed = bool(lap) != self._lap
+        self._lap = bool(lap)
         self.iv[pk.I_LAP] = int(bool(lap))
+        if changed:
+            self._radio_send()
+
+    def set_ep_command(self, fraction: float) -> None:
+        """
+        Set the EP / ECP command on the train line.
+
+        A fraction of full service (0 release, 1 full), acting at every vehicle
+        ``spec.ep_valve_delay`` seconds later.
+        """
+        fraction = float(fraction)
+        if not (math.isfinite(fraction) and 0.0 <= fraction <= 1.0):
+            raise ValueError(f'EP command must be a fraction in [0, 1], got {fraction!r}')
+        self.ep_command = fraction
+        self._head_command()
+        self._schedule(self.t + self.spec.ep_valve_delay,
+                       lambda: self.sc.__setitem__(pk.S_EPCMD, fraction))
+
+    def set_train_line(self, healthy: bool) -> None:
+        """
+        Set the state of the EP / ECP train line.
+
+        Lost: EP vehicles brake pneumatically (the head's
+        brake valve then also regulates the pipe to the EP command's service pressure); ECP
+        cars make a penalty (full) application.
+        """
+        self.iv[pk.I_LINE] = int(bool(healthy))
+        self._head_command()
+
+    def set_traction(self, command: float) -> None:
+        """Set the lead locomotive's traction command, sent to the remotes over the radio."""
+        changed = float(command) != self.lead_traction
+        self.lead_traction = float(command)
+        if changed:
+            self._radio_send()
+
+    def _head_command(self) -> None:
+        """Set the head's regulated pressure: the command, or the EP fallback if lower."""
+        cmd = self._command
+        if self.brake_system == 'ep' and not self.iv[pk.I_LINE]:
+            spec = self.spec
+            cmd = min(cmd, spec.nominal_pressure
+                      - self.ep_command * (spec.nominal_pressure - spec.full_service_pressure))
+        self.sc[pk.S_CMD] = cmd
+
+    # -- distributed power: radio link ------------------------------------------------------
+    @property
+    def has_remotes(self) -> bool:
+        """Whether the train has distributed-power locomotives."""
+        return bool(np.any(self.veh[pk.V_REMOTE] > 0.5))
+
+    def _schedule(self, t: float, action) -> None:
+        self._order += 1
+        self._events.append((float(t), self._order, action))
+        self._events.sort(key=lambda e: (e[0], e[1]))
+
+    def _radio_send(self) -> None:
+        """Send the lead's brake and traction state; lost with ``spec.radio_loss``."""
+        if not self.has_remotes:
+            return
+        self.radio_sent += 1
+        if self.spec.radio_loss > 0.0 and self._rng.random() < self.spec.radio_loss:
+            self.radio_lost += 1
+            return
+        state = (self._command, self._lap, self.lead_traction)
+        self._schedule(self.t + self.spec.radio_delay, lambda: self._radio_receive(*state))
+
+    def _radio_receive(self, command, lap, traction) -> None:
+        remote = self.veh[pk.V_REMOTE] > 0.5
+        self.veh[pk.V_RCMD, remote] = command
+        self.veh[pk.V_RLAP, remote] = float(lap)
+        self.remote_traction = traction
+        self.radio_received += 1
+        self.radio_last = self.t
+        self.radio_ok = True
+
+    def _radio_tick(self) -> None:
+        """Every radio period: the lead repeats its state; a silent link is declared lost."""
+        if self.t - self.radio_last > self.spec.radio_timeout:
+            # link lost: the remotes idle (no traction) and hold their pipe (valve lapped)
+            self.radio_ok = False
+            self.veh[pk.V_RLAP, self.veh[pk.V_REMOTE] > 0.5] = 1.0
+            self.remote_traction = 0.0
+        self._radio_send()
+        self._schedule(self.t + self.spec.radio_period, self._radio_tick)
 
     def set_pipe_pressure(self, p, index: int | None = None) -> None:
         """Local pipe pressures [Pa gauge] when the pipe is external (``pipe_per_coach``)."""
@@ -212,11 +373,37 @@ class PneumaticBrake:
             self.veh[pk.V_PEXT, index] = float(p)
 
     # -- stepping ---------------------------------------------------------------------------
-    def advance(self, n_steps: int, trace: np.ndarray | None = None) -> None:
-        """Advance ``n_steps`` steps; ``trace`` (n_steps, N) receives the cylinder pressures."""
-        pk.advance(int(n_steps), self.cells, self.faces, self.veh, self.sc, self.iv,
-                   self._empty if trace is None else trace)
-        self.steps += int(n_steps)
+    def advance(self, n_steps: int, trace: np.ndarray | None = None,
+                traction: np.ndarray | None = None) -> None:
+        """
+        Advance ``n_steps`` steps.
+
+        ``trace`` (n_steps, N) receives the cylinder pressures, ``traction`` (n_steps,) the
+        remotes' traction command during each step.
+
+        Pending actions (EP valves after their delay, radio messages) take effect at the
+        first step boundary at or after their instant.
+        """
+        n_steps = int(n_steps)
+        done = 0
+        while True:
+            self._fire_due()
+            if done >= n_steps:
+                return
+            k = n_steps - done
+            if self._events:
+                k = min(k, max(1, int(math.ceil((self._events[0][0] - self.t) / self.h
+                                                - 1e-9))))
+            if traction is not None:
+                traction[done:done + k] = self.remote_traction
+            pk.advance(k, self.cells, self.faces, self.veh, self.sc, self.iv,
+                       self._empty if trace is None else trace[done:done + k])
+            self.steps += k
+            done += k
+
+    def _fire_due(self) -> None:
+        while self._events and self._events[0][0] <= self.t + 1e-9:
+            self._events.pop(0)[2]()
 
     @property
     def t(self) -> float:
@@ -255,6 +442,26 @@ class PneumaticBrake:
         return self._gauge(pk.V_MCYL, pk.V_VCYL)
 
     @property
+    def ep_command_received(self) -> float:
+        """EP / ECP command acting at the vehicles (after the valve delay), fraction."""
+        return float(self.sc[pk.S_EPCMD])
+
+    @property
+    def train_line(self) -> bool:
+        """Whether the EP / ECP train line is healthy."""
+        return bool(self.iv[pk.I_LINE])
+
+    @property
+    def accelerator_open(self) -> np.ndarray:
+        """Emergency accelerators venting the pipe now."""
+        return self.veh[pk.V_ACCOPEN] > 0.5
+
+    @property
+    def remote_command(self) -> np.ndarray:
+        """Pressure each remote's brake valve regulates to, gauge [Pa] (NaN: not a remote)."""
+        return np.where(self.veh[pk.V_REMOTE] > 0.5, self.veh[pk.V_RCMD], np.nan)
+
+    @property
     def applied(self) -> np.ndarray:
         """Distributors in the applied position."""
         return self.veh[pk.V_APPLIED] > 0.5
@@ -273,12 +480,13 @@ class PneumaticBrake:
 
 
 def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=None,
-                regimes=None) -> PneumaticBrake:
+                regimes=None, accelerators=None, remotes=None) -> PneumaticBrake:
     """
     Return the pneumatic brake of a simulator configuration (``parameters.SimConfig``).
 
-    ``lengths``, ``p_max``, ``regimes``: per-vehicle data of a consist; by default the
-    uniform train's ``coach_length``, ``max_cylinder_pressure`` and ``brake_regime``.
+    ``lengths``, ``p_max``, ``regimes``, ``accelerators``, ``remotes``: per-vehicle data of
+    a consist; by default the uniform train's ``coach_length``, ``max_cylinder_pressure`` and
+    ``brake_regime``, no accelerators, no remote locomotives.
     """
     n = cfg.n_coaches
     spec = PneumaticSpec(
@@ -288,8 +496,12 @@ def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=
         full_service_pressure=float(cfg.full_service_pressure),
         leakage=float(cfg.brake_pipe_leakage),
         angle_cock_closed=int(cfg.angle_cock_closed),
-        main_reservoir_pressure=float(cfg.main_reservoir_pressure))
+        main_reservoir_pressure=float(cfg.main_reservoir_pressure),
+        radio_delay=float(cfg.radio_delay),
+        radio_loss=float(cfg.radio_loss))
     return PneumaticBrake(
         np.full(n, float(cfg.coach_length)) if lengths is None else lengths,
         float(cfg.max_cylinder_pressure) if p_max is None else p_max,
-        str(cfg.brake_regime) if regimes is None else regimes, h, spec, external_pipe)
+        str(cfg.brake_regime) if regimes is None else regimes, h, spec, external_pipe,
+        accelerators=False if accelerators is None else accelerators,
+        remotes=False if remotes is None else remotes, brake_system=str(cfg.brake_system))

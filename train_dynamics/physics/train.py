@@ -152,16 +152,20 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         # chain step by step (the chain then runs as in cylinder_per_coach); the bypass
         # cylinder_per_coach keeps the input cylinders
         self.pneu = None
+        self._remotes: list[int] = []
         if cfg.brake_model == 'pneumatic' and self.mode != brakes.CYLINDER_PER_COACH:
-            per_vehicle = {}
+            per_vehicle = {'accelerators': consist['emergency_accelerator'] > 0.5,
+                           'remotes': consist['remote'] > 0.5}
             if cfg.consist_file:     # the consist's lengths, cylinder pressures and regimes
-                per_vehicle = {'lengths': np.array(consist['length']),
-                               'p_max': np.array(consist['max_cylinder_pressure']),
-                               'regimes': list(consist.regimes)}
+                per_vehicle.update({'lengths': np.array(consist['length']),
+                                    'p_max': np.array(consist['max_cylinder_pressure']),
+                                    'regimes': list(consist.regimes)})
             self.pneu = pneumatic.from_config(cfg, self.h,
                                               external_pipe=self.mode == brakes.PIPE_PER_COACH,
                                               **per_vehicle)
             self._trace = np.zeros((0, n))
+            self._traction_trace = np.zeros(0)
+            self._remotes = [int(i) for i in np.flatnonzero(per_vehicle['remotes'])]
 
     # -- constants and state -----------------------------------------------------------------
     def _set_constants(self) -> None:
@@ -348,14 +352,21 @@ class TrainSimulator(TrainOutputs, TrainBalances):
 
     @property
     def locomotives(self) -> list[int]:
-        """Return the 0-based indices of the vehicles that take a traction command."""
-        return self.consist.locomotives
+        """
+        Return the 0-based indices of the vehicles that take a traction command.
+
+        The locomotives but the remotes (they follow the lead over the radio).
+        """
+        return self.consist.commanded
 
     def set_traction_command(self, command: float, index: int) -> None:
         """Set the traction command of locomotive ``index`` (0-based), in [-1, 1]."""
         c = float(command)
         if not (np.isfinite(c) and -1.0 <= c <= 1.0):
             raise ValueError(f'traction command must be in [-1, 1], got {quote(command)}')
+        if index in self._remotes:
+            raise ValueError(f'vehicle {index + 1} is a remote locomotive: it follows the '
+                             'lead over the radio')
         if index not in self.consist.locomotives:
             raise ValueError(f'vehicle {index + 1} is not a locomotive (no traction)')
         self.coach[INPUT.T_CMD, index] = c
@@ -365,6 +376,30 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             # balance (a train at rest notches up from 0 through the build-up time)
             self.coach[STATE.T_EFF, index] = c
             self._settle()
+        if self.remotes and index == self.lead:
+            self.pneu.set_traction(c)
+
+    @property
+    def remotes(self) -> list[int]:
+        """Return the 0-based indices of the distributed-power (remote) locomotives."""
+        return self._remotes
+
+    @property
+    def lead(self) -> int | None:
+        """Return the 0-based index of the lead locomotive (the first that is no remote)."""
+        return next(iter(self.locomotives), None)
+
+    def set_ep_command(self, fraction: float) -> None:
+        """Set the EP / ECP train-line command, fraction of full service (``brake_system``)."""
+        if self.pneu is None or self.pneu.brake_system == 'pneumatic':
+            raise ValueError('brake_ep/command needs brake_model pneumatic and brake_system '
+                             'ep or ecp')
+        self.pneu.set_ep_command(fraction)
+
+    def set_train_line(self, healthy: bool) -> None:
+        """Set the state of the EP / ECP train line (lost: the documented fallback)."""
+        if self.pneu is not None:
+            self.pneu.set_train_line(healthy)
 
     # -- integration -------------------------------------------------------------------------
     @property
@@ -509,12 +544,21 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         if self._trace.shape[0] < n_steps:
             self._trace = np.zeros((n_steps, self.n))
         trace = self._trace[:n_steps]
-        self.pneu.advance(n_steps, trace)
+        remotes = self.remotes
+        if remotes:            # the remotes' traction as the radio delivers it, step by step
+            if self._traction_trace.shape[0] < n_steps:
+                self._traction_trace = np.zeros(n_steps)
+            traction = self._traction_trace[:n_steps]
+            self.pneu.advance(n_steps, trace, traction)
+        else:
+            self.pneu.advance(n_steps, trace)
         cyl_in = self.coach[INPUT.CYL]
         done = 0
         status = OK
         scaled = bool(np.any(self.pmax_ratio != 1.0))   # vehicles' own p_max -> the train's
         for k in range(n_steps):
+            if remotes:
+                self.coach[INPUT.T_CMD, remotes] = traction[k]
             cyl_in[:] = trace[k] / self.pmax_ratio if scaled else trace[k]
             step, status = self._kernel(1)
             done += step

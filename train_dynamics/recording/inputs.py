@@ -18,9 +18,11 @@ from pathlib import Path
 from typing import Any
 
 from train_dynamics import topics
-from train_dynamics.physics.config import input_rejection, INPUT_VALUE_REASONS, traction_rejection
+from train_dynamics.physics.config import (ep_rejection, input_rejection, INPUT_VALUE_REASONS,
+                                           traction_rejection)
 from train_dynamics.recording.bags import bag_info, BagError, BagInfo, read_topics
-from train_dynamics.simulation.runner import InputEvent, InputSchedule, step_of, TractionEvent
+from train_dynamics.simulation.runner import (EP_INDEX, InputEvent, InputSchedule, step_of,
+                                              TractionEvent)
 
 _log = logging.getLogger(__name__)
 
@@ -84,17 +86,27 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
     Only locomotives (vehicles with traction or dynamic brake) take a command; a value that is
     not finite or outside [-1, 1] is rejected by the node's rule
     (:func:`train_dynamics.physics.config.traction_rejection`; counted, reported through
-    ``warn``). Empty when the bag has no traction topic.
+    ``warn``). With an EP or ECP brake system, ``brake_ep/command`` too (index
+    :data:`~train_dynamics.simulation.runner.EP_INDEX`, rule
+    :func:`~train_dynamics.physics.config.ep_rejection`). Empty when the bag has none.
     """
     ns = namespace.strip('/')
     try:
         info = bag_info(path)
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
-    locos = set(cfg.consist.locomotives) if cfg.external_forces else set()
+    locos = set(cfg.consist.commanded) if cfg.external_forces else set()
     selected: dict[str, int] = {}
     for topic, (msgtype, _) in info.topics.items():
         rel = topic[len(ns) + 1:] if ns and topic.startswith(ns + '/') else topic
+        if rel == topics.EP_COMMAND_TOPIC and (rel != topic or not ns):
+            if msgtype != topics.FLOAT64:
+                warn(f'input bag: {topic} has type {msgtype}, not {topics.FLOAT64}; ignored')
+            elif not cfg.ep_commanded:
+                warn(f'input bag: {topic}: needs brake_system ep or ecp; ignored')
+            else:
+                selected[topic] = EP_INDEX
+            continue
         m = topics.TRACTION_TOPIC_PATTERN.fullmatch(rel)
         if m is None or (ns and rel == topic):
             continue
@@ -111,16 +123,17 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
     try:
         for topic, t_ns, msg in read_topics(path, list(selected)):
             c = float(msg.data)
-            if traction_rejection(c) is not None:
+            i = selected[topic]
+            if (ep_rejection(c) if i == EP_INDEX else traction_rejection(c)) is not None:
                 rejected += 1
                 continue
             rel_ns = t_ns - info.start_ns
-            events.append(TractionEvent(step_of(rel_ns, h), rel_ns, selected[topic], c,
-                                        topics.traction_topic(selected[topic] + 1), msg))
+            name = topics.EP_COMMAND_TOPIC if i == EP_INDEX else topics.traction_topic(i + 1)
+            events.append(TractionEvent(step_of(rel_ns, h), rel_ns, i, c, name, msg))
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
     if rejected:
-        warn(f'input bag: {rejected} traction command(s) not finite or outside [-1, 1] '
+        warn(f'input bag: {rejected} traction or EP command(s) not finite or out of range '
              'rejected')
     events.sort(key=lambda e: e.t_ns)
     return events

@@ -59,6 +59,7 @@ from train_dynamics import topics
 from train_dynamics.physics.config import input_rejection, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
+from train_dynamics.ros.ep_inputs import EpInputs
 from train_dynamics.ros.publishers import stamp
 from train_dynamics.ros.traction_inputs import TractionInputs
 
@@ -206,6 +207,8 @@ class BrakeInputs:
         self._applied_stamp = np.zeros(0, dtype=np.int64)
         #: the locomotives' traction commands (same validation counts, timeout and policy)
         self.traction = TractionInputs(node, INPUT_QOS, self._reject_traction)
+        #: the EP / ECP train-line command (same validation counts and timeout)
+        self.ep = EpInputs(node, INPUT_QOS, self._reject_traction)
 
     def _reject_traction(self, resolved: str, reason: str, detail: str) -> None:
         self._reject(resolved, Rejected(reason, detail))
@@ -229,7 +232,7 @@ class BrakeInputs:
     @property
     def accepted(self) -> int:
         """Return the accepted brake inputs and traction commands."""
-        return self._accepted + self.traction.accepted
+        return self._accepted + self.traction.accepted + self.ep.accepted
 
     # -- a run (executor thread, simulation lock held) -------------------------------------
     def start(self, cfg: SimConfig, n: int, recording: bool) -> None:
@@ -249,7 +252,8 @@ class BrakeInputs:
         self.late = 0
         self._applied_stamp = buffer.stamp.copy()
         self._update_subscriptions(mode, n)
-        self.traction.start(cfg.consist.locomotives if cfg.external_forces else [])
+        self.traction.start(cfg.consist.commanded if cfg.external_forces else [])
+        self.ep.start(cfg.ep_commanded)
 
     def set_policy(self, timeout: float, on_timeout: str) -> None:
         """Report inputs older than ``timeout`` [s wall]; ``on_timeout``: hold/emergency."""
@@ -427,6 +431,7 @@ class BrakeInputs:
     def apply(self, now: float, sim: TrainSimulator, record: Record) -> None:
         """Put the inputs received since the last call (or the fail-safe) into ``sim``."""
         self.traction.apply(now, sim, record, self.timeout, self.on_timeout == 'emergency')
+        self.ep.apply(now, sim, record, self.timeout)
         if self.by_stamp:
             self._release_due(sim)
         news = self._take(now)

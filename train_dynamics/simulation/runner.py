@@ -23,6 +23,9 @@ from train_dynamics import topics
 from train_dynamics.physics.train import TrainSimulator
 
 
+#: TractionEvent.index of the EP / ECP train-line command
+EP_INDEX = -1
+
 #: [s wall] period of the ``progress`` callback of :func:`run_simulation`
 PROGRESS_PERIOD = 0.1
 
@@ -41,11 +44,15 @@ class InputEvent:
 
 @dataclass(frozen=True)
 class TractionEvent:
-    """One traction command: from step ``step`` on, locomotive ``index`` holds ``command``."""
+    """
+    One Float64 command: from step ``step`` on, locomotive ``index`` holds ``command``.
+
+    With ``index`` :data:`EP_INDEX`: the EP / ECP train-line command (``brake_ep/command``).
+    """
 
     step: int
     t_ns: int                 # time relative to the run's start [ns]
-    index: int                # 0-based vehicle
+    index: int                # 0-based vehicle; EP_INDEX: the EP / ECP command
     command: float            # fraction in [-1, 1]: > 0 traction, < 0 dynamic brake
     topic: str                # relative topic name
     msg: Any = None           # the Float64 message of an input bag (None: a schedule)
@@ -77,7 +84,7 @@ def traction_schedule(cfg: Any) -> list[TractionEvent]:
 
     Empty for a train without locomotives or without a schedule.
     """
-    locos = cfg.consist.locomotives if cfg.traction_schedule_times else []
+    locos = cfg.consist.commanded if cfg.traction_schedule_times else []
     h = float(cfg.integration_step)
     events = []
     for t, c in zip(cfg.traction_schedule_times, cfg.traction_schedule_commands):
@@ -220,8 +227,9 @@ def run_simulation(cfg, duration: float, inputs: InputSchedule, *,
               topics.CYLINDER_PER_COACH: lambda e: sim.set_cylinder_pressure(e.gauge, e.index)
               }[inputs.mode]
     brake_events = _DueEvents(events, setter, on_input)
-    traction = _DueEvents(inputs.traction,
-                          lambda e: sim.set_traction_command(e.command, e.index), on_input)
+    traction = _DueEvents(inputs.traction, lambda e: sim.set_ep_command(e.command)
+                          if e.index == EP_INDEX else sim.set_traction_command(e.command, e.index),
+                          on_input)
     k = 0
     head: float | None = None
     last_progress = time.monotonic()

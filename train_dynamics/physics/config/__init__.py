@@ -25,7 +25,8 @@ from train_dynamics.physics.config.files import (KNOWN_NODE_NAMES, node_sections
                                                  read_param_sections, resolve_path,
                                                  ROS_BUILTIN_PARAMETERS, simulator_params,
                                                  unknown_sections, unknown_sections_message)
-from train_dynamics.physics.config.inputs import (input_rejection, INPUT_VALUE_REASONS,
+from train_dynamics.physics.config.inputs import (ep_rejection, EP_VALUE_REASONS,
+                                                  input_rejection, INPUT_VALUE_REASONS,
                                                   traction_rejection, TRACTION_VALUE_REASONS)
 from train_dynamics.physics.config.simconfig import load_param_file, SimConfig
 from train_dynamics.physics.config.spec import (ARRAY_KINDS, BOOL, check_value, ConfigError,
@@ -41,7 +42,8 @@ from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERV
 
 __all__ = [
     'ARRAY_KINDS', 'ATMOSPHERIC_PRESSURE', 'BOOL', 'check_value', 'ConfigError', 'Consist',
-    'CONSIST_PARAMETERS', 'DOUBLE', 'DOUBLE_ARRAY', 'fmt_bytes', 'FULL_SERVICE_PRESSURE',
+    'CONSIST_PARAMETERS', 'DOUBLE', 'DOUBLE_ARRAY', 'ep_rejection', 'EP_VALUE_REASONS',
+    'fmt_bytes', 'FULL_SERVICE_PRESSURE',
     'G_FILL_TIME', 'G_RELEASE_TIME', 'input_rejection', 'INPUT_VALUE_REASONS', 'INTEGER',
     'INTEGRATION_TOLERANCE', 'KNOWN_NODE_NAMES', 'load_param_file',
     'MAX_SIMULATOR_MEMORY', 'node_sections', 'output_disk', 'P_FILL_FRACTION', 'P_FILL_TIME',

@@ -308,6 +308,17 @@ class Consist:
         return np.flatnonzero((f['max_tractive_force'] > 0.0)
                               | (f['max_dynamic_brake_force'] > 0.0)).tolist()
 
+    @property
+    def remotes(self) -> list[int]:
+        """Return the 0-based indices of the distributed-power (remote) locomotives."""
+        return [int(i) for i in np.flatnonzero(self.fields['remote'] > 0.5)]
+
+    @property
+    def commanded(self) -> list[int]:
+        """Return the locomotives that take traction commands: all but the remotes."""
+        remotes = self.remotes
+        return [i for i in self.locomotives if i not in remotes]
+
     def coupler(self, field: str) -> np.ndarray:
         """Return one constant of every coupling (:data:`COUPLER_FIELDS`): N-1 values."""
         return self.couplings[field]

@@ -32,6 +32,25 @@ def input_rejection(absolute: float) -> tuple[str, str] | None:
     return None
 
 
+#: why an EP / ECP command is not used (counted per reason like the other inputs)
+EP_VALUE_REASONS = ('non_finite', 'out_of_range')
+
+
+def ep_rejection(command: float) -> tuple[str, str] | None:
+    """
+    Return (reason, detail) if an EP / ECP command is rejected, else None.
+
+    ``brake_ep/command`` is a fraction of full service: ``non_finite``, ``out_of_range``
+    (outside [0, 1]).
+    """
+    c = float(command)
+    if not math.isfinite(c):
+        return 'non_finite', f'command {c}'
+    if not 0.0 <= c <= 1.0:
+        return 'out_of_range', f'EP command {c:g} outside [0, 1]'
+    return None
+
+
 #: why a traction command is not used (``sim_node`` counts them per reason)
 TRACTION_VALUE_REASONS = ('non_finite', 'out_of_range')
 

@@ -91,6 +91,11 @@ class SimConfig:
     angle_cock_closed: int = 0                        # coupling cut off; 0 = all open
     brake_pipe_diameter: float = 0.032                # inner diameter [m]
     main_reservoir_pressure: float = 900000.0         # gauge [Pa]
+    brake_system: str = 'pneumatic'                   # 'pneumatic', 'ep' or 'ecp'
+    emergency_accelerator: bool = False               # vehicle field: accelerator fitted
+    remote: bool = False                              # vehicle field: DP remote locomotive
+    radio_delay: float = 0.5                          # distributed power: lead -> remote [s]
+    radio_loss: float = 0.0                           # probability a radio message is lost
     # run metrics (live)
     coupler_force_limit: float = 0.0                  # |F| limit [N]; 0 = off
     jerk_limit: float = 0.0                           # |jerk| limit [m/s^3]; 0 = off
@@ -245,6 +250,11 @@ class SimConfig:
         times = P_RELEASE_TIME if self.brake_regime == 'P' else G_RELEASE_TIME
         return list(times), list(P_RELEASE_FRACTION)
 
+    @property
+    def ep_commanded(self) -> bool:
+        """Return True if the train takes ``brake_ep/command`` (an EP or ECP brake system)."""
+        return self.brake_model == 'pneumatic' and self.brake_system != 'pneumatic'
+
     # -- the checks as a whole ------------------------------------------------------------
     def check(self) -> None:
         """Cross-parameter checks; raises :class:`ConfigError`."""
@@ -274,6 +284,11 @@ class SimConfig:
         if self.angle_cock_closed > self.n_coaches - 1:
             raise ConfigError(f'angle_cock_closed: the couplings are 1..{self.n_coaches - 1} '
                               f'(0 = none), got {self.angle_cock_closed}')
+        if self.remote:
+            raise ConfigError("remote is a field of a consist's locomotives (consist_file); "
+                              'the uniform train has no remote locomotive')
+        if self.brake_system != 'pneumatic' and self.brake_model != 'pneumatic':
+            raise ConfigError(f'brake_system {self.brake_system} needs brake_model pneumatic')
         if (self.brake_model == 'pneumatic'
                 and self.main_reservoir_pressure <= self.pipe_nominal_pressure):
             raise ConfigError('main_reservoir_pressure must be above pipe_nominal_pressure')
@@ -316,7 +331,10 @@ class SimConfig:
         if any(b <= a for a, b in zip(times, times[1:])):
             raise ConfigError('traction_schedule_times: must strictly increase')
         if self.consist_file:
-            self.consist
+            remotes = self.consist.remotes
+            if remotes and self.brake_model != 'pneumatic':
+                raise ConfigError(f'{self.consist_file}: remote locomotives (vehicles '
+                                  f'{[i + 1 for i in remotes]}) need brake_model pneumatic')
         if times and not self.consist.locomotives:
             raise ConfigError('traction_schedule_times: the train has no locomotive (no vehicle '
                               'with max_tractive_force or max_dynamic_brake_force > 0), so the '

@@ -178,6 +178,28 @@ _PARAMS = [
     ParamSpec('main_reservoir_pressure', 900000.0, DOUBLE,
               'Pneumatic: main-reservoir pressure feeding the brake valve of the driver, gauge '
               '[Pa].', low=1.0e5, high=2.0e6),
+    ParamSpec('brake_system', 'pneumatic', STRING,
+              'Pneumatic: "pneumatic" (UIC distributors), "ep" (EP valves at every vehicle '
+              'follow brake_ep/command after 0.2 s, pipe kept charged; a lost train line '
+              'brakes through the pipe) or "ecp" (car control devices fill each cylinder to '
+              'brake_ep/command x p_max; a lost train line or pipe is a full penalty '
+              'application).', choices=('pneumatic', 'ep', 'ecp')),
+    ParamSpec('emergency_accelerator', False, BOOL,
+              'Pneumatic: the vehicle has an emergency accelerator (a pipe falling more than '
+              '1 bar below its control reservoir at over 1 bar/s opens a 32 mm local vent: '
+              'the emergency carries along the train at >= 250 m/s).',
+              vehicle='emergency_accelerator'),
+    ParamSpec('remote', False, BOOL,
+              'Pneumatic, consist field: a distributed-power locomotive, its brake valve on the '
+              'pipe at its position and its traction following the lead over the radio; the '
+              'uniform train (no consist_file) has none.', vehicle='remote'),
+    ParamSpec('radio_delay', 0.5, DOUBLE,
+              "Pneumatic, distributed power: radio delay [s] of the lead's brake and traction "
+              'commands to the remote locomotives (consist field remote).', low=0.0, high=60.0),
+    ParamSpec('radio_loss', 0.0, DOUBLE,
+              'Pneumatic, distributed power: probability that a radio message is lost; the '
+              'lead repeats its state every 0.5 s, a remote without a message for 2 s idles '
+              'its traction and laps its brake valve.', low=0.0, high=1.0),
     # Run metrics (physics/metrics.py): a crossing is a WARN in /diagnostics.
     ParamSpec('coupler_force_limit', 0.0, DOUBLE,
               'Coupler force limit on abs(F) [N]: each excursion beyond it is a limit crossing '

@@ -39,23 +39,29 @@ N_FACE_ROWS = 4
 
 
 (V_MCR, V_MAUX, V_MCYL, V_MQS, V_APPLIED, V_VCR, V_VAUX, V_VCYL, V_VQS, V_PMAX, V_AAPP,
- V_AREL, V_CELL, V_PEXT) = range(14)
+ V_AREL, V_CELL, V_PEXT, V_ACC, V_ACCOPEN, V_RATE, V_PPREV, V_INSHOT, V_REMOTE, V_RCMD,
+ V_RLAP) = range(22)
 
 
-N_VEH_ROWS = 14
+N_VEH_ROWS = 22
 
 
 (S_H, S_RT, S_AREA, S_DIAM, S_MU, S_PATM, S_CMD, S_PMR, S_ACHG, S_AVENT, S_AEM, S_BAND,
- S_EMTH, S_GCR, S_APPTH, S_RELTH, S_SPAN, S_AAUX, S_AQS, S_LAP, S_DBAND) = range(21)
+ S_EMTH, S_GCR, S_APPTH, S_RELTH, S_SPAN, S_AAUX, S_AQS, S_LAP, S_DBAND, S_ACCRATE, S_ACCAREA,
+ S_ACCCLOSE, S_ACCTAU, S_EPCMD, S_EPAPP, S_EPREL, S_ECPPIPE, S_AINSHOT, S_ACCDROP) = range(31)
 
 
-N_SCALARS = 21
+N_SCALARS = 31
 
 
-I_SUB, I_EXTERNAL, I_LAP = range(3)
+I_SUB, I_EXTERNAL, I_LAP, I_SYSTEM, I_LINE = range(5)
 
 
-N_INT = 3
+N_INT = 5
+
+
+#: brake systems (I_SYSTEM): UIC distributors only, EP valves added, ECP car control devices
+SYS_PNEUMATIC, SYS_EP, SYS_ECP = range(3)
 
 
 @jit
@@ -120,34 +126,75 @@ def _pipe_transport(cells, faces, sc, h):
 
 
 @jit
-def _relay_valve(cells, sc, h):
-    """Driver's brake valve at the head: regulate cell 0 to the command (module docstring)."""
+def _relay_valve(cells, c, cmd, sc, h):
+    """
+    Regulate pipe cell c to ``cmd`` [Pa gauge] with a brake valve (module docstring).
+
+    The driver's at the head, or a remote locomotive's.
+    """
     rt = sc[S_RT]
     patm = sc[S_PATM]
-    vol = cells[C_VOL, 0]
-    p = cells[C_M, 0] * rt / vol
-    cmd = sc[S_CMD]
+    vol = cells[C_VOL, c]
+    p = cells[C_M, c] * rt / vol
     if cmd < sc[S_EMTH]:
         # open to atmosphere (both ways: the column's inertia may overshoot below it)
-        cells[C_M, 0] -= _exchange(p, vol, patm, 1.0e9, sc[S_AEM], h, rt)
+        cells[C_M, c] -= _exchange(p, vol, patm, 1.0e9, sc[S_AEM], h, rt)
         return
     target = cmd + patm
     err = target - p
     if err > 0.0:
         s = min(err / sc[S_BAND], 1.0)
         dm = min(orifice_flow(sc[S_PMR] + patm, p, sc[S_ACHG] * s, rt) * h, err * vol / rt)
-        cells[C_M, 0] += dm
+        cells[C_M, c] += dm
     elif err < 0.0:
         s = min(-err / sc[S_BAND], 1.0)
         dm = min(orifice_flow(p, patm, sc[S_AVENT] * s, rt) * h, -err * vol / rt)
-        cells[C_M, 0] -= dm
+        cells[C_M, c] -= dm
 
 
 @jit
-def _distributors(cells, veh, sc, external, h):
-    """Every vehicle's distributor, reservoirs and cylinder over one step."""
+def _accelerator(veh, sc, i, p_l, v_l, p_cr, h):
+    """
+    Vent the pipe at vehicle i through its emergency accelerator.
+
+    The local pipe (p_l, volume v_l) falling faster than
+    S_ACCRATE [Pa/s] (its rate low-pass filtered, time constant S_ACCTAU) while more than
+    S_ACCDROP below the control reservoir p_cr (deeper than any service application) opens
+    a vent of S_ACCAREA to atmosphere; it stays open until the local pipe is below
+    S_ACCCLOSE (gauge), then closes and re-arms. Returns the pipe mass vented [kg] in h.
+    """
     rt = sc[S_RT]
     patm = sc[S_PATM]
+    rate = (p_l - veh[V_PPREV, i]) / h
+    veh[V_PPREV, i] = p_l
+    veh[V_RATE, i] += (rate - veh[V_RATE, i]) * min(h / sc[S_ACCTAU], 1.0)
+    if veh[V_ACC, i] < 0.5:
+        return 0.0
+    if veh[V_ACCOPEN, i] < 0.5:
+        if (veh[V_RATE, i] < -sc[S_ACCRATE] and p_cr - p_l > sc[S_ACCDROP]
+                and p_l - patm > sc[S_ACCCLOSE]):
+            veh[V_ACCOPEN, i] = 1.0
+        else:
+            return 0.0
+    if p_l - patm < sc[S_ACCCLOSE]:
+        veh[V_ACCOPEN, i] = 0.0
+        return 0.0
+    dm = orifice_flow(p_l, patm, sc[S_ACCAREA], rt) * h
+    return min(dm, (p_l - patm) * v_l / rt)
+
+
+@jit
+def _distributors(cells, veh, sc, iv, external, h):
+    """
+    Advance every vehicle's distributor, accelerator, reservoirs and cylinder one step.
+
+    ECP cars: the car control device instead of the distributor.
+    """
+    rt = sc[S_RT]
+    patm = sc[S_PATM]
+    system = iv[I_SYSTEM]
+    line = iv[I_LINE] != 0
+    ep_frac = min(max(sc[S_EPCMD], 0.0), 1.0)
     for i in range(veh.shape[1]):
         c = int(veh[V_CELL, i])
         if external:
@@ -163,6 +210,39 @@ def _distributors(cells, veh, sc, external, h):
         p_aux = veh[V_MAUX, i] * rt / v_aux
         p_cyl = veh[V_MCYL, i] * rt / v_cyl
         dm_pipe = 0.0
+        if not external:
+            dm_pipe -= _accelerator(veh, sc, i, p_l, v_l, p_cr, h)
+        a_app = veh[V_AAPP, i]
+        a_rel = veh[V_AREL, i]
+        if system == SYS_ECP:
+            # car control device: the cylinder follows the head-end unit's command; a lost
+            # train line or a pipe below S_ECPPIPE (gauge) is a penalty: full application
+            if line and p_l - patm >= sc[S_ECPPIPE]:
+                target = patm + veh[V_PMAX, i] * ep_frac
+            else:
+                target = patm + veh[V_PMAX, i]
+            veh[V_APPLIED, i] = 1.0 if target > patm else 0.0
+            if p_l > p_aux:
+                dm = _exchange(p_l, v_l, p_aux, v_aux, sc[S_AAUX], h, rt)
+                veh[V_MAUX, i] += dm
+                dm_pipe -= dm
+                p_aux += dm * rt / v_aux
+            err = target - p_cyl
+            if err > sc[S_LAP]:
+                if p_aux > p_cyl:
+                    s = min(err / sc[S_DBAND], 1.0)
+                    dm = _exchange(p_aux, v_aux, p_cyl, v_cyl, s * sc[S_EPAPP], h, rt)
+                    dm = min(dm, (target - p_cyl) * v_cyl / rt)
+                    veh[V_MAUX, i] -= dm
+                    veh[V_MCYL, i] += dm
+            elif err < -sc[S_LAP]:
+                s = min(-err / sc[S_DBAND], 1.0)
+                dm = orifice_flow(p_cyl, patm, s * sc[S_EPREL], rt) * h
+                dm = min(dm, (p_cyl - target) * v_cyl / rt)
+                veh[V_MCYL, i] -= dm
+            if not external:
+                cells[C_M, c] += dm_pipe
+            continue
         gap = p_cr - p_l
         applied = veh[V_APPLIED, i] > 0.5
         if not applied and gap > sc[S_APPTH]:
@@ -195,21 +275,35 @@ def _distributors(cells, veh, sc, external, h):
             veh[V_MAUX, i] += dm
             dm_pipe -= dm
             p_aux += dm * rt / v_aux
+        # EP valves (train line healthy): the cylinder holds at least the commanded
+        # fraction of p_max, filled and vented through the EP valves
+        by_ep = False
+        if system == SYS_EP and line:
+            a_rel = sc[S_EPREL]
+            ep_target = patm + veh[V_PMAX, i] * ep_frac
+            if ep_target > target:
+                target = ep_target
+                a_app = sc[S_EPAPP]
+                by_ep = True
         # relay part: fill BC from AR, or vent BC, toward the target
-        # (valve openings in proportion to the error, full at S_DBAND)
+        # (valve openings in proportion to the error, full at S_DBAND); first stage
+        # (inshot): below V_INSHOT (gauge) an applied distributor also fills through S_AINSHOT
         err = target - p_cyl
         if err > sc[S_LAP]:
             if p_aux > p_cyl:
                 s = min(err / sc[S_DBAND], 1.0)
-                dm = _exchange(p_aux, v_aux, p_cyl, v_cyl, s * veh[V_AAPP, i], h, rt)
+                area = s * a_app
+                if applied and p_cyl - patm < veh[V_INSHOT, i]:
+                    area += sc[S_AINSHOT]
+                dm = _exchange(p_aux, v_aux, p_cyl, v_cyl, area, h, rt)
                 dm = min(dm, (target - p_cyl) * v_cyl / rt)
                 veh[V_MAUX, i] -= dm
                 veh[V_MCYL, i] += dm
-        elif err < -sc[S_LAP] or (not applied and p_cyl > patm):
+        elif err < -sc[S_LAP] or (not applied and not by_ep and p_cyl > patm):
             s = min(-err / sc[S_DBAND], 1.0)
-            if not applied:
+            if not applied and not by_ep:
                 s = 1.0
-            dm = orifice_flow(p_cyl, patm, s * veh[V_AREL, i], rt) * h
+            dm = orifice_flow(p_cyl, patm, s * a_rel, rt) * h
             dm = min(dm, (p_cyl - target) * v_cyl / rt)
             veh[V_MCYL, i] -= dm
         if not external:
@@ -221,7 +315,7 @@ def advance(n_steps, cells, faces, veh, sc, iv, trace):
     """
     Advance the brake system ``n_steps`` steps of sc[S_H] seconds, in place.
 
-    cells (3, n_cells), faces (4, n_cells + 1), veh (14, N): the layouts C_*, F_*, V_*;
+    cells (3, n_cells), faces (4, n_cells + 1), veh (N_VEH_ROWS, N): the layouts C_*, F_*, V_*;
     sc, iv: scalars S_*, I_*. ``trace`` (n_steps, N) or (0, N): when it has rows, row k
     receives each vehicle's cylinder pressure, gauge [Pa], at the end of step k.
     """
@@ -244,8 +338,11 @@ def advance(n_steps, cells, faces, veh, sc, iv, trace):
                     m_atm = patm * vol[j] / rt
                     m[j] = m_atm + (m[j] - m_atm) / (1.0 + h * leak[j])
             if iv[I_LAP] == 0:
-                _relay_valve(cells, sc, h)
-        _distributors(cells, veh, sc, external, h)
+                _relay_valve(cells, 0, sc[S_CMD], sc, h)
+            for i in range(veh.shape[1]):
+                if veh[V_REMOTE, i] > 0.5 and veh[V_RLAP, i] < 0.5:
+                    _relay_valve(cells, int(veh[V_CELL, i]), veh[V_RCMD, i], sc, h)
+        _distributors(cells, veh, sc, iv, external, h)
         if record:
             for i in range(veh.shape[1]):
                 trace[k, i] = veh[V_MCYL, i] * rt / veh[V_VCYL, i] - patm

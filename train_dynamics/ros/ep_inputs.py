@@ -1,0 +1,105 @@
+"""
+The EP / ECP input of ``sim_node``: ``brake_ep/command`` (``brake_system`` ep or ecp).
+
+``std_msgs/Float64``, a fraction of full service in [0, 1] (0 release), subscribed best-effort
+keep-last 10 while the train has an EP or ECP brake (``brake_model`` pneumatic). The latest
+command reaches the simulator at the next integration step and acts at the vehicles after the
+EP valve delay (:meth:`train_dynamics.physics.pneumatic.PneumaticBrake.set_ep_command`); it is
+recorded as received. Rejected and counted with the brake inputs' reasons: ``non_finite``,
+``out_of_range``, ``malformed``.
+
+Train line: healthy while commands arrive. With ``input_timeout`` > 0, no command for that many
+wall seconds after a first one is a lost train line (EP: the pipe brakes, ECP: penalty
+application); the next command restores it.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from typing import Any, Callable
+
+from rclpy.node import Node
+from rclpy.serialization import deserialize_message
+from std_msgs.msg import Float64
+
+from train_dynamics import topics
+from train_dynamics.physics.config import ep_rejection
+from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.recording.outputs import time_ns
+
+Record = Callable[[str, str, int, bytes], None]
+Reject = Callable[[str, str, str], None]
+
+
+def ep_command(data: bytes) -> float:
+    """Return the command of a raw Float64; raise ValueError(reason, detail) if unusable."""
+    try:
+        value = float(deserialize_message(data, Float64).data)
+    except Exception as exc:  # noqa: BLE001 - anything rclpy raises on a bad buffer
+        raise ValueError('malformed', f'cannot deserialise: {exc}') from None
+    why = ep_rejection(value)
+    if why is not None:
+        raise ValueError(*why)
+    return value
+
+
+class EpInputs:
+    """Subscribe to, check and hold the EP / ECP train-line command of one node."""
+
+    def __init__(self, node: Node, qos: Any, reject: Reject) -> None:
+        self._node = node
+        self._qos = qos
+        self._reject = reject
+        self._sub = None
+        self._lock = threading.Lock()
+        self._pending: tuple[float, bytes] | None = None
+        self._arrival: float | None = None
+        self._line = True
+        self.accepted = 0
+
+    def start(self, active: bool) -> None:
+        """Subscribe (``active``: an EP or ECP train) or unsubscribe for a new run."""
+        with self._lock:
+            self._pending = None
+            self._arrival = None
+        self._line = True
+        if active and self._sub is None:
+            name = self._node.resolve_topic_name(topics.EP_COMMAND_TOPIC)
+            self._sub = self._node.create_subscription(
+                Float64, name, lambda data: self._on_command(name, data), self._qos, raw=True)
+        elif not active and self._sub is not None:
+            self._node.destroy_subscription(self._sub)
+            self._sub = None
+
+    def subscribed(self, resolved: str) -> bool:
+        """Return True if ``resolved`` is the command topic we take."""
+        return self._sub is not None and resolved == self._sub.topic_name
+
+    def _on_command(self, resolved: str, data: bytes) -> None:
+        try:
+            value = ep_command(data)
+        except ValueError as exc:
+            self._reject(resolved, *exc.args)
+            return
+        with self._lock:
+            self._pending = (value, bytes(data))
+            self._arrival = time.monotonic()
+        self.accepted += 1
+
+    def apply(self, now: float, sim: TrainSimulator, record: Record, timeout: float) -> None:
+        """Put the command received since the last call into ``sim``; supervise the line."""
+        if self._sub is None:
+            return
+        with self._lock:
+            pending, self._pending = self._pending, None
+            arrival = self._arrival
+        line = not (timeout > 0.0 and arrival is not None and now - arrival > timeout)
+        if pending is not None:
+            value, raw = pending
+            sim.set_ep_command(value)
+            record(topics.EP_COMMAND_TOPIC, topics.FLOAT64, time_ns(sim.t), raw)
+        if line != self._line:
+            self._line = line
+            sim.set_train_line(line)
+            self._node.get_logger().warning(
+                f'{topics.EP_COMMAND_TOPIC}: train line {"restored" if line else "lost"}')
