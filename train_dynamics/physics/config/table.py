@@ -15,10 +15,10 @@ from typing import Any, Mapping
 
 from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
                                                 DOUBLE_ARRAY, INTEGER, ParamSpec, SERIES, STRING)
-from train_dynamics.quoting import quote
 # the friction materials in the order of their codes in the kernel (the models and their
 # sources: physics/friction.py)
 from train_dynamics.physics.kernel.friction import MATERIALS as FRICTION_MATERIALS
+from train_dynamics.quoting import quote
 
 # Pressure defaults, written once (used by the simulator and the brake valve).
 ATMOSPHERIC_PRESSURE = 101325.0    # [Pa absolute]: FluidPressure (absolute) = gauge + this
