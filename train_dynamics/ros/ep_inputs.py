@@ -16,31 +16,21 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Any, Callable
+from typing import Any
 
 from rclpy.node import Node
-from rclpy.serialization import deserialize_message
 from std_msgs.msg import Float64
 
 from train_dynamics import topics
 from train_dynamics.physics.config import ep_rejection
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
-
-Record = Callable[[str, str, int, bytes], None]
-Reject = Callable[[str, str, str], None]
+from train_dynamics.ros.traction_inputs import float64_command, Record, Reject
 
 
 def ep_command(data: bytes) -> float:
-    """Return the command of a raw Float64; raise ValueError(reason, detail) if unusable."""
-    try:
-        value = float(deserialize_message(data, Float64).data)
-    except Exception as exc:  # noqa: BLE001 - anything rclpy raises on a bad buffer
-        raise ValueError('malformed', f'cannot deserialise: {exc}') from None
-    why = ep_rejection(value)
-    if why is not None:
-        raise ValueError(*why)
-    return value
+    """Return the command of a raw EP Float64; raise ValueError(reason, detail)."""
+    return float64_command(data, ep_rejection)
 
 
 class EpInputs:

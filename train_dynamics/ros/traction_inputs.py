@@ -38,16 +38,26 @@ Record = Callable[[str, str, int, bytes], None]
 Reject = Callable[[str, str, str], None]
 
 
-def traction_command(data: bytes) -> float:
-    """Return the command of a raw Float64; raise ValueError(reason, detail) if unusable."""
+def float64_command(data: bytes, rule: Callable[[float], tuple[str, str] | None]) -> float:
+    """
+    Return the value of a raw Float64 command checked by ``rule``.
+
+    Raise ValueError(reason, detail) if it cannot be read or ``rule`` rejects it (the rules
+    of physics/config/inputs.py, shared with the offline input bags).
+    """
     try:
         value = float(deserialize_message(data, Float64).data)
     except Exception as exc:  # noqa: BLE001 - anything rclpy raises on a bad buffer
         raise ValueError('malformed', f'cannot deserialise: {exc}') from None
-    why = traction_rejection(value)
+    why = rule(value)
     if why is not None:
         raise ValueError(*why)
     return value
+
+
+def traction_command(data: bytes) -> float:
+    """Return the command of a raw traction Float64; raise ValueError(reason, detail)."""
+    return float64_command(data, traction_rejection)
 
 
 class TractionInputs:
