@@ -263,14 +263,18 @@ class BagRecorder:
                         self._start_segment()      # an empty bag still records its topics
                     self._finish_segment()
                 shutil.rmtree(self._staging, ignore_errors=True)
-                if self._atomic:
-                    if self.path.exists() or self.path.is_symlink():
-                        raise FileExistsError(f'{self.path} exists already, not overwriting')
-                    os.rename(self._dir, self.path)
+                self._move_into_place()
             except BaseException:
                 self.abort()
                 raise
             self._closed = True
+
+    def _move_into_place(self) -> None:
+        """With ``atomic``: rename the finished bag directory to ``path`` (never over one)."""
+        if self._atomic:
+            if self.path.exists() or self.path.is_symlink():
+                raise FileExistsError(f'{self.path} exists already, not overwriting')
+            os.rename(self._dir, self.path)
 
     @property
     def saved_until_ns(self) -> int:
@@ -301,10 +305,7 @@ class BagRecorder:
                 if note:
                     self._custom['incomplete'] = note
                 self._write_metadata()
-                if self._atomic:
-                    if self.path.exists() or self.path.is_symlink():
-                        raise FileExistsError(f'{self.path} exists already, not overwriting')
-                    os.rename(self._dir, self.path)
+                self._move_into_place()
             except BaseException:
                 self.abort()
                 raise
