@@ -65,11 +65,15 @@ OUTPUT_TOPICS = (COUPLERS_TOPIC, COACHES_TOPIC, BRAKE_CYLINDERS_TOPIC)
 #: position = traction / dynamic-brake force, velocity = running + curve resistance,
 #: effort = gradient force; all [N] on the vehicle, forward > 0
 VEHICLE_FORCES_TOPIC = 'vehicle_forces'
-#: per-vehicle motion, JointState ``coach_1..N``, ``frame_id`` :data:`TRACK_FRAME`: position =
-#: track position of the vehicle's front [m] (``initial_position`` minus the lengths ahead at
-#: t = 0, plus x_i), velocity = v_i [m/s], effort = acceleration [m/s^2, forward > 0], the
-#: mean over the last output period (0 at t = 0)
+#: per-vehicle motion, JointState ``coach_1..N``: position = track position of the vehicle's
+#: front [m] (``initial_position`` minus the lengths ahead at t = 0, plus x_i), velocity = v_i
+#: [m/s], effort = acceleration [m/s^2, forward > 0], the mean over the last output period
+#: (0 at t = 0)
 VEHICLE_MOTION_TOPIC = 'vehicle_motion'
+#: ``header.frame_id`` of every JointState output (couplers, coaches, brake_cylinders,
+#: brake_reservoirs, vehicle_forces, vehicle_motion): the track, one axis along it, forward
+#: (towards ``coach_1``'s end) positive; displacements, speeds, accelerations and forces are
+#: along it, pressures are scalars of the vehicles on it
 TRACK_FRAME = 'track'
 CLOCK_TOPIC = '/clock'
 DIAGNOSTICS_TOPIC = '/diagnostics'

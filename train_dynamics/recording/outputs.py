@@ -2,7 +2,9 @@
 The output messages of a simulator state, encoded once for publishing and recording.
 
 ``sim_node`` publishes these bytes and records the very same bytes; the offline command
-writes them to its bag. One definition of what each output topic carries:
+writes them to its bag. Every one has ``header.stamp`` = simulation time and ``header.frame_id``
+``track`` (:data:`train_dynamics.topics.TRACK_FRAME`: along the track, forward > 0). One
+definition of what each output topic carries:
 
 - ``couplers``: JointState ``coupler_1..N-1``: position y [m], velocity ydot [m/s], effort F [N];
 - ``coaches``: JointState ``coach_1..N``: position x [m], velocity v [m/s], effort Fb [N];
@@ -14,10 +16,10 @@ writes them to its bag. One definition of what each output topic carries:
 - ``vehicle_forces`` (a train with resistance, gradients, curves or traction only):
   JointState ``coach_1..N``: position = traction / dynamic-brake force, velocity = running
   + curve resistance, effort = gradient force [N, on the vehicle, forward > 0].
-- ``vehicle_motion``: JointState ``coach_1..N``, ``frame_id`` ``track``: position = track
-  position of the vehicle's front [m], velocity = v [m/s], effort = acceleration [m/s^2,
-  forward > 0]: (v(t_k) - v(t_{k-1})) / (t_k - t_{k-1}) over the last output period (exact
-  as a mean: the integrator's speed change), 0 at t = 0.
+- ``vehicle_motion``: JointState ``coach_1..N``: position = track position of the vehicle's
+  front [m], velocity = v [m/s], effort = acceleration [m/s^2, forward > 0]:
+  (v(t_k) - v(t_{k-1})) / (t_k - t_{k-1}) over the last output period (exact as a mean: the
+  integrator's speed change), 0 at t = 0.
 """
 from __future__ import annotations
 
@@ -45,10 +47,11 @@ class OutputEncoder:
     """CDR bytes of the output topics for a train of ``n_coaches`` (names encoded once)."""
 
     def __init__(self, n_coaches: int, reservoirs: bool = False) -> None:
-        self._couplers = JointStateEncoder(topics.coupler_names(n_coaches))
-        self._coaches = JointStateEncoder(topics.coach_names(n_coaches))
+        frame = topics.TRACK_FRAME
+        self._couplers = JointStateEncoder(topics.coupler_names(n_coaches), frame)
+        self._coaches = JointStateEncoder(topics.coach_names(n_coaches), frame)
         self.reservoirs = bool(reservoirs)
-        self._motion = JointStateEncoder(topics.coach_names(n_coaches), topics.TRACK_FRAME)
+        self._motion = self._coaches
         self._last_motion: tuple[int, Any] | None = None    # (t_ns, v) of the last call
         self.topics = topics.OUTPUT_TOPICS + (
             (topics.BRAKE_RESERVOIRS_TOPIC,) if reservoirs else ())

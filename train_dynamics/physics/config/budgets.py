@@ -141,10 +141,11 @@ def output_bytes_per_sample(n_coaches: int, joint_topics: tuple[str, ...] = topi
     """
     Return the bag bytes of one output instant: a JointState per topic of ``joint_topics``.
 
-    ``vehicle_motion`` carries the frame_id ``track`` (8 bytes more).
+    Each carries the frame_id ``track`` (:data:`~train_dynamics.topics.TRACK_FRAME`, up to 8
+    bytes more with its alignment).
     """
     digits = len(str(n_coaches))
-    total = 8 if topics.VEHICLE_MOTION_TOPIC in joint_topics else 0
+    total = 8 * len(joint_topics)
     for topic in joint_topics:
         if topic == topics.COUPLERS_TOPIC:
             total += _joint_state_bytes(n_coaches - 1, 8 + digits)
