@@ -6,6 +6,7 @@ diagnostics under ``use_sim_time``, a WARN for two publishers on the active inpu
 """
 from __future__ import annotations
 
+import numpy as np
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
@@ -117,6 +118,61 @@ def test_input_timing_stamp_applies_a_command_at_its_stamp(harness, tmp_path):
     times = {round(m.fluid_pressure): t
              for topic, t, m in read_topics(bag, ['brake_pipe/pressure'])}
     assert times[round(3.5e5 + ATM)] == 700_000_000                     # exactly at its stamp
+
+
+def test_input_timing_stamp_acts_between_two_steps_exactly_at_the_stamp(harness, tmp_path):
+    """
+    A cylinder command stamped 0.7043 s acts from 0.7043 s, not from the next 2 ms step.
+
+    Three equal coaches at 10 m/s without resistance, every cylinder to 190 kPa at t_s: the
+    couplers stay unloaded and each coach decelerates at a = mu g p / p_max (eq. 13) from
+    t_s on, so v(t) = 10 - a (t - t_s) at every output after it (0.706 s instead of t_s
+    would be 8.3e-4 m/s slower at 0.71 s). The offline command replaying the node's bag gives
+    the very same outputs.
+    """
+    from train_dynamics.physics.config import SimConfig
+    from train_dynamics.recording.bags import read_topics
+    from train_dynamics.recording.inputs import read_input_bag
+    from train_dynamics.simulation.runner import run_simulation
+
+    bag = tmp_path / 'bag'
+    params = {'brake_input': 'cylinder_per_coach', 'initial_speed': 10.0}
+    pubs = [harness.publisher(f'coach_{i}/brake_cylinder/pressure') for i in (1, 2, 3)]
+    node = harness.start(input_timing='stamp', real_time_factor=1.0, record_bag=str(bag),
+                         **params)
+    assert all(harness.wait_for_subscriber(p) for p in pubs)
+    assert harness.wait(lambda: node.sim_time > 0.2, 10.0)
+    assert node.sim_time < 0.6
+    t_s, p = 0.7043, 190e3
+    for pub in pubs:
+        msg = fluid(p + ATM)
+        msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 704_300_000
+        pub.publish(msg)
+    late = fluid(ATM)                      # stamped t = 0.1 s, long passed: late, at once
+    late.header.stamp.nanosec = 100_000_000
+    pubs[0].publish(late)
+    assert harness.wait(lambda: node.sim_time > 1.0, 10.0)
+    assert node._inputs.late == 1
+    harness.stop(node)
+
+    recorded = [(topic, t) for topic, t, m in read_topics(bag) if 'cylinder/' in topic
+                and m.fluid_pressure > ATM]
+    assert sorted(recorded) == [(f'coach_{i}/brake_cylinder/pressure', 704_300_000)
+                                for i in (1, 2, 3)]             # recorded where they acted
+    coaches = {t: np.array(m.velocity) for _, t, m in read_topics(bag, ['coaches'])}
+    cfg = SimConfig.from_dict(params)
+    a = cfg.adhesion_coefficient * cfg.gravity * p / cfg.max_cylinder_pressure  # [m/s^2]
+    assert np.all(coaches[700_000_000] == 10.0)
+    for t_ns in range(710_000_000, 1_000_000_001, 10_000_000):
+        np.testing.assert_allclose(coaches[t_ns], 10.0 - a * (t_ns * 1e-9 - t_s),
+                                   rtol=0.0, atol=1e-12)
+    # the offline command fed the bag's inputs at their bag times: the same outputs
+    offline = {}
+    run_simulation(cfg, max(coaches) * 1e-9, read_input_bag(str(bag), cfg),
+                   on_sample=lambda s: offline.__setitem__(round(s.t * 1e9), s.sim.v))
+    assert sorted(offline) == sorted(coaches)
+    for t_ns, v in coaches.items():
+        assert np.array_equal(offline[t_ns], v), t_ns
 
 
 def test_namespaced_trains_keep_their_own_clock_and_status_names(harness):

@@ -424,6 +424,18 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             return
         heapq.heappush(self._pending, (t, next(self._order), apply))
 
+    def missed(self, t: float) -> bool:
+        """
+        Return True if an input due at ``t`` [s] handed to :meth:`schedule` now acts late.
+
+        With :attr:`exact_inputs`: t lies in the past (by more than 1e-6 h); else its step,
+        the first k with k h >= t, is already done (an input handed over in time would have
+        acted there).
+        """
+        if self.exact_inputs:
+            return float(t) < self.t - _INSTANT * self.h
+        return self._due_tick(float(t)) < self.steps
+
     def _due_tick(self, t: float) -> int:
         """Return the first step k with k h >= t [s] (within 1e-6 h)."""
         return max(0, int(np.ceil(t / self.h - _INSTANT)))

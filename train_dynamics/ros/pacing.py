@@ -42,11 +42,6 @@ YIELD = 0.0002           # [s wall] pause that lets a waiting thread take the lo
 GIL_SWITCH_INTERVAL = 0.0005
 
 
-def step_at(t_ns: int, h: float) -> int:
-    """Return the first integration step (of ``h`` [s]) at or after ``t_ns`` [ns]."""
-    return int(math.ceil(t_ns * 1e-9 / h - 1e-9))
-
-
 class SimulationLock:
     """
     The simulation lock: guards the simulator and the run state of every part of the node.
@@ -309,9 +304,6 @@ class Pacer:
                 stop = min(stop, target)
             if self.end_step is not None:
                 stop = min(stop, self.end_step)
-            due = self._inputs.next_stamp_ns() if self._inputs.by_stamp else None
-            if due is not None:     # input_timing stamp: stop at the step of the next stamp
-                stop = min(stop, max(sim.steps + 1, step_at(due, self._h)))
             limit = self.control.limit(time.monotonic())
             if limit is not None and sim.steps >= limit:
                 self._held = True
@@ -324,6 +316,9 @@ class Pacer:
                 return target is None or sim.steps >= target
             n = stop - sim.steps
             n = max(1, min(n, int(CHUNK_BUDGET / max(self._step_cost, 1e-9))))
+            if self._inputs.by_stamp:   # the inputs stamped inside the coming steps, at their
+                self._inputs.schedule_due(sim, (sim.steps + n) * self._h,   # stamps
+                                          self._outputs.record)
             t0 = time.monotonic()
             sim.advance(n)
             t1 = time.monotonic()

@@ -393,8 +393,10 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               choices=('free', 'lockstep'), dynamic=True),
     ParamSpec('input_timing', 'arrival', STRING,
               'arrival: a brake input takes effect at the next integration step after it '
-              'arrives; stamp: at the first integration step at or after its header stamp '
-              '(simulation time); a stamp already past is applied at once and counted late.',
+              'arrives; stamp: at its header stamp (simulation time), exactly with '
+              'cylinder_per_coach and pipe_per_coach (the step spanning it is split there), '
+              'else at the first integration step at or after it; one the simulation has '
+              'passed takes effect at once and is counted late.',
               choices=('arrival', 'stamp'), dynamic=True),
     ParamSpec('lockstep_timeout', 5.0, DOUBLE,
               'lockstep: wall seconds without the answer to an output after which the node '
