@@ -62,7 +62,7 @@ from sensor_msgs.msg import FluidPressure
 from std_msgs.msg import Float64
 
 from train_dynamics import topics
-from train_dynamics.physics.config import input_rejection, SimConfig
+from train_dynamics.physics.config import input_rejection, SIM_NODE_PARAMETERS, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
 from train_dynamics.ros.ep_inputs import EpInputs
@@ -73,6 +73,9 @@ HEAD = topics.PIPE_HEAD
 CYL = topics.CYLINDER_PER_COACH
 PER_COACH = (topics.PIPE_PER_COACH, topics.CYLINDER_PER_COACH)
 MAX_ABSOLUTE_PRESSURE = topics.MAX_ABSOLUTE_PRESSURE
+#: ``lockstep_inputs``: the controller inputs a lock-step period can wait for
+LOCKSTEP_INPUTS = SIM_NODE_PARAMETERS['lockstep_inputs'].choices
+BRAKE, TRACTION, EP = LOCKSTEP_INPUTS
 #: Reasons an input message is rejected (keys of the counts in /diagnostics).
 REJECT_REASONS = ('non_finite', 'negative', 'too_high', 'wrong_mode', 'unknown_coach',
                   'malformed', 'out_of_range', 'not_locomotive')
@@ -212,9 +215,14 @@ class BrakeInputs:
         # simulation lock: the header stamps of the values the simulator holds
         self._applied_stamp = np.zeros(0, dtype=np.int64)
         #: the locomotives' traction commands (same validation counts, timeout and policy)
-        self.traction = TractionInputs(node, INPUT_QOS, self._reject_traction)
+        self.traction = TractionInputs(node, INPUT_QOS, self._reject_traction, self._notify)
         #: the EP / ECP train-line command (same validation counts and timeout)
-        self.ep = EpInputs(node, INPUT_QOS, self._reject_traction)
+        self.ep = EpInputs(node, INPUT_QOS, self._reject_traction, self._notify)
+
+    def _notify(self) -> None:
+        """Tell the simulation thread that an input was accepted (executor thread)."""
+        if self.on_input is not None:
+            self.on_input()
 
     def _reject_traction(self, resolved: str, reason: str, detail: str) -> None:
         self._reject(resolved, Rejected(reason, detail))
@@ -410,8 +418,7 @@ class BrakeInputs:
                 if buffer.recording:
                     buffer.records.append((rel, raw))
         self._accepted += 1
-        if self.on_input is not None:
-            self.on_input()
+        self._notify()
 
     def _reject(self, resolved: str, exc: Rejected) -> None:
         self.rejected[exc.reason] += 1
@@ -538,14 +545,49 @@ class BrakeInputs:
         if buffer.recording:    # at the instant it acted: the offline replay acts there too
             record(rel, topics.FLUID_PRESSURE, stamp_ns if exact else time_ns(sim.t), raw)
 
-    def answered(self, t_ns: int) -> bool:
-        """Lock-step: return True if every input the simulator holds is stamped ``t_ns``."""
-        stamps = self._applied_stamp
-        return bool(stamps.size) and bool(np.all(stamps == t_ns))
+    # -- lock-step (simulation lock held) ---------------------------------------------------
+    def output_published(self, t_ns: int) -> None:
+        """An output stamped ``t_ns`` is about to go out: the Float64 commands answer it next."""
+        self.traction.output_published(t_ns)
+        self.ep.output_published(t_ns)
 
-    def connected(self) -> bool:
-        """Return True if every active brake-input topic has a publisher."""
-        return all(s.get_publisher_count() > 0 for s in self._active)
+    def unanswered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> list[str]:
+        """
+        Return the input topics of ``families`` whose applied input does not answer ``t_ns``.
+
+        ``brake`` (:data:`LOCKSTEP_INPUTS`): every active brake input holds a value stamped
+        ``t_ns``; ``traction``, ``ep``: the applied command arrived after the output stamped
+        ``t_ns`` was published. Empty: every declared input has answered.
+        """
+        out: list[str] = []
+        if BRAKE in families:
+            stamps = self._applied_stamp
+            missing = np.nonzero(stamps != t_ns)[0]
+            out += [self._buffer.topics[k] for k in missing[:10]]
+        if TRACTION in families:
+            out += self.traction.unanswered(t_ns)
+        if EP in families:
+            out += self.ep.unanswered(t_ns)
+        return out
+
+    def answered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> bool:
+        """Lock-step: return True if every input of ``families`` answers the output ``t_ns``."""
+        if families == (BRAKE,):        # the common case, without building lists
+            stamps = self._applied_stamp
+            return bool(np.all(stamps == t_ns))
+        return not self.unanswered(t_ns, families)
+
+    def connected(self, families: tuple[str, ...] = (BRAKE,)) -> bool:
+        """Return True if every active input topic of ``families`` has a publisher."""
+        return ((BRAKE not in families
+                 or all(s.get_publisher_count() > 0 for s in self._active))
+                and (TRACTION not in families or self.traction.connected())
+                and (EP not in families or self.ep.connected()))
+
+    def missing_inputs(self, families: tuple[str, ...]) -> list[str]:
+        """Return the families of ``families`` this run has no input topic of."""
+        return [f for f in families if (f == TRACTION and not self.traction.active)
+                or (f == EP and not self.ep.active)]
 
     def _report_stale(self, stale: bool) -> None:
         self._stale = stale

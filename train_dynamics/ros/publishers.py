@@ -24,6 +24,7 @@ thread holds the GIL meanwhile: output jitter).
 from __future__ import annotations
 
 import time
+from typing import Callable
 
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
@@ -85,6 +86,8 @@ class Outputs:
         self.last_t_ns = -1             # [ns] its stamp
         self.last_wall = 0.0            # [s wall, monotonic] when it was published
         self.metrics = LiveMetrics()    # the run's metrics, fed every output
+        #: called with the stamp [ns] of each output just before it is published
+        self.on_output: Callable[[int], None] | None = None
 
     def start(self, n: int, rate: float, h: float, publish_clock: bool,
               writer: BagWriter | None, reservoirs: bool = False,
@@ -140,6 +143,8 @@ class Outputs:
     def _publish(self, sim: TrainSimulator) -> None:
         """Publish (and record) the outputs of the present state."""
         t_ns = time_ns(sim.t)
+        if self.on_output is not None:
+            self.on_output(t_ns)
         encoded = self._encoder.encode(t_ns, sim)
         for pub, data in zip(self._pubs, encoded):
             pub.publish(data)

@@ -16,8 +16,8 @@ behaviour and owns its state:
 - :mod:`train_dynamics.ros.diagnostics`: ``/diagnostics`` (~1 Hz wall);
 - :mod:`train_dynamics.ros.parameters`: descriptors and the set callbacks;
 - :mod:`train_dynamics.ros.run_control`: the ``~/pause``, ``~/resume`` and ``~/step``
-  services and the lock-step with a controller (``sync_mode``, ``lockstep_timeout``);
-  ``input_timing`` is the brake inputs'.
+  services and the lock-step with a controller (``sync_mode``, ``lockstep_inputs``,
+  ``lockstep_timeout``); ``input_timing`` is the brake inputs'.
 
 Threads and locks: the executor thread runs the subscription callbacks, the timers, the
 parameter callbacks and the ``reset`` service; the simulation thread (:class:`Pacer`) runs the
@@ -88,7 +88,7 @@ EXIT_RECORD_FAILED = 1
 SPECS = {**PARAMETERS, **SIM_NODE_PARAMETERS}
 #: the node parameters of the run control (pause/step, lock-step, input timing)
 CONTROL_PARAMETERS = frozenset({'sync_mode', 'input_timing', 'lockstep_timeout',
-                                'lockstep_on_timeout', 'step_periods'})
+                                'lockstep_on_timeout', 'step_periods', 'lockstep_inputs'})
 
 
 #: the most values of an array a log line, the reset reply or /diagnostics shows
@@ -131,6 +131,7 @@ class SimNode(Node):
         self._lock = SimulationLock()
         self._inputs = BrakeInputs(self)
         self._outputs = Outputs(self)
+        self._outputs.on_output = self._inputs.output_published    # lock-step: Float64 answers
         self._pacer = Pacer(self._lock, self.get_logger(), self.context, self._inputs,
                             self._outputs)
         self._pacer.duration = float(self.get_parameter('duration').value)
@@ -167,7 +168,8 @@ class SimNode(Node):
         value = self.get_parameter
         sync_mode = value('sync_mode').value
         self._control.configure(sync_mode, value('lockstep_timeout').value,
-                                value('lockstep_on_timeout').value, value('step_periods').value)
+                                value('lockstep_on_timeout').value, value('step_periods').value,
+                                tuple(value('lockstep_inputs').value))
         self._inputs.by_stamp = value('input_timing').value == 'stamp'
         # wake the simulation thread on each input only where it waits for them
         self._inputs.on_input = (self._pacer.wake if sync_mode == 'lockstep'

@@ -14,7 +14,8 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
-                                                DOUBLE_ARRAY, INTEGER, ParamSpec, SERIES, STRING)
+                                                DOUBLE_ARRAY, INTEGER, ParamSpec, SERIES, STRING,
+                                                STRING_ARRAY)
 # the friction materials in the order of their codes in the kernel (the models and their
 # sources: physics/friction.py)
 from train_dynamics.physics.kernel.friction import MATERIALS as FRICTION_MATERIALS
@@ -387,10 +388,18 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               low=0.0, high=3600.0, dynamic=True),
     ParamSpec('sync_mode', 'free', STRING,
               'free: the simulation runs at real_time_factor whatever the controller does; '
-              'lockstep: after each output the node waits until every active brake input has '
-              "answered with a message stamped with that output's stamp, then advances one "
-              'output period (and starts only when the controller is connected both ways).',
+              'lockstep: after each output the node waits until every input that '
+              'lockstep_inputs declares has answered it, then advances one output period '
+              '(and starts only when the controller is connected both ways).',
               choices=('free', 'lockstep'), dynamic=True),
+    ParamSpec('lockstep_inputs', ['brake'], STRING_ARRAY,
+              'lockstep: the controller inputs each output period waits for. brake: every '
+              "active brake-input topic of brake_input, answered by a message stamped with "
+              "the output's stamp; traction: the command topic of every locomotive that "
+              'takes one, ep: brake_ep/command (brake_system ep or ecp), each answered by one '
+              'command received after the output was published (std_msgs/Float64 has no '
+              'stamp). A listed input the train does not have is skipped (logged).',
+              choices=('brake', 'traction', 'ep'), dynamic=True, min_items=1),
     ParamSpec('input_timing', 'arrival', STRING,
               'arrival: a brake input takes effect at the next integration step after it '
               'arrives; stamp: at its header stamp (simulation time), exactly with '
