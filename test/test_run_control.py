@@ -99,6 +99,44 @@ def test_lockstep_timeout_reports_and_waits(harness):
     assert stamp_s(seen[1]) == PERIOD
 
 
+def test_lockstep_on_traction_commands_waits_for_each_and_names_the_silent_one(harness):
+    """
+    ``lockstep_inputs: [traction]``: a period goes on per traction command, nothing else.
+
+    The controller answers the first five outputs on ``coach_1/traction/command`` (no brake
+    input at all), then falls silent: six outputs (t = 0 .. 0.05 s), then the node waits and
+    its timeout names the traction topic.
+    """
+    from pathlib import Path
+
+    from diagnostic_msgs.msg import DiagnosticArray
+    from std_msgs.msg import Float64
+    from train_dynamics.physics.kernel.layout import INPUT
+
+    consist = Path(__file__).resolve().parents[1] / 'config' / 'consist_passenger_12.yaml'
+    diags = harness.collect(DiagnosticArray, '/diagnostics')
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    pub = harness.probe.create_publisher(Float64, 'coach_1/traction/command', qos)
+    seen = []
+
+    def on_coaches(msg):
+        seen.append(msg)
+        if len(seen) <= 5:
+            pub.publish(Float64(data=0.5))
+    harness.probe.create_subscription(JointState, 'coaches', on_coaches, qos)
+    node = harness.start(consist_file=str(consist), initial_speed=10.0, sync_mode='lockstep',
+                         lockstep_inputs=['traction'], real_time_factor=0.0,
+                         lockstep_timeout=0.3)
+    assert harness.wait(lambda: (diag_values(diags, 'train_dynamics: simulation') or {})
+                        .get('lockstep_timeouts') == '1', 20.0)
+    assert [round(stamp_s(m), 9) for m in seen] == [0.0, 0.01, 0.02, 0.03, 0.04, 0.05]
+    assert node.sim_time == 0.05
+    d = diag_values(diags, 'train_dynamics: simulation')
+    assert d['lockstep_inputs'] == 'traction'
+    assert 'on coach_1/traction/command' in d['_message']
+    assert node.simulator.coach[INPUT.T_CMD, 0] == 0.5     # the answers acted
+
+
 def test_input_timing_stamp_applies_a_command_at_its_stamp(harness, tmp_path):
     from train_dynamics.recording.bags import read_topics
 

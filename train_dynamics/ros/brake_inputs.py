@@ -17,8 +17,10 @@ the stamp split there, as the offline command replays an input at its bag time
 (``cylinder_per_coach``, ``pipe_per_coach``; ``pipe_head`` and the pneumatic brake take inputs
 at the first integration step at or after the stamp). One that can no longer act there (its
 stamp in the past; without exact inputs, its step done) takes effect at once and is counted in
-:attr:`BrakeInputs.late`; it is recorded at the instant it acted. The header stamps of the values the simulator holds tell the
-lock-step whether every input has answered an output (:meth:`BrakeInputs.answered`). Active
+:attr:`BrakeInputs.late`; it is recorded at the instant it acted. The header stamps of the
+values the simulator holds tell the lock-step whether every input has answered an output
+(:meth:`BrakeInputs.answered`; with the traction and EP commands when ``lockstep_inputs``
+declares them: :meth:`BrakeInputs.unanswered`). Active
 input topics with more than one publisher are found by the graph scan and warned about
 (:attr:`BrakeInputs.multiple_publishers`). Rejected and counted per
 reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning naming the topic):
@@ -547,7 +549,7 @@ class BrakeInputs:
 
     # -- lock-step (simulation lock held) ---------------------------------------------------
     def output_published(self, t_ns: int) -> None:
-        """An output stamped ``t_ns`` is about to go out: the Float64 commands answer it next."""
+        """Take note of an output stamped ``t_ns`` about to go out: Float64 commands answer it."""
         self.traction.output_published(t_ns)
         self.ep.output_published(t_ns)
 

@@ -193,8 +193,12 @@ class RunControl:
         """Return why the simulation waits for the controller ('' when it does not)."""
         if not self.lockstep or self._waiting_since is None:
             return ''
-        what = ('the controller to connect' if not self._outputs.published
-                else f'the answer to the output of t = {self.sim.t:.6f} s')
+        if not self._outputs.published:
+            what = 'the controller to connect'
+        else:
+            missing = self._inputs.unanswered(self._outputs.last_t_ns, self.waits_for)
+            what = (f'the answer to the output of t = {self.sim.t:.6f} s'
+                    + (f' on {", ".join(missing[:5])}' if missing else ''))
         return f'lockstep: waiting {now - self._waiting_since:.1f} s for {what}'
 
     def summary(self) -> str:

@@ -394,7 +394,7 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               choices=('free', 'lockstep'), dynamic=True),
     ParamSpec('lockstep_inputs', ['brake'], STRING_ARRAY,
               'lockstep: the controller inputs each output period waits for. brake: every '
-              "active brake-input topic of brake_input, answered by a message stamped with "
+              'active brake-input topic of brake_input, answered by a message stamped with '
               "the output's stamp; traction: the command topic of every locomotive that "
               'takes one, ep: brake_ep/command (brake_system ep or ecp), each answered by one '
               'command received after the output was published (std_msgs/Float64 has no '
