@@ -58,7 +58,6 @@ def test_lockstep_waits_for_traction_commands_and_is_byte_identical(tmp_path):
     command acts at the output it answers (recorded at that output's time, its value the
     controller's law of that output's speed), and two runs give byte-identical bags.
     """
-    sys.path.insert(0, str(ROOT / 'test'))
     from lockstep_traction_controller import command
 
     scenario = tmp_path / 'traction.yaml'
