@@ -522,6 +522,20 @@ class PneumaticBrake:
                                                  + veh[pk.V_MQS]))
 
 
+def propagation_speed(lengths, instants) -> float:
+    """
+    Return the speed [m/s] at which an event (e.g. a 1 bar pipe drop) travels along a train.
+
+    1 / slope of the least-squares line of the event's instants [s] at the vehicles against
+    the positions of their distributors (each vehicle's middle [m], ``lengths`` front to
+    rear): the wave's speed along the whole train, not set by one vehicle's lag at either end.
+    """
+    lengths = np.asarray(lengths, dtype=float)
+    middle = np.cumsum(lengths) - 0.5 * lengths
+    slope = np.polyfit(middle, np.asarray(instants, dtype=float), 1)[0]
+    return float(1.0 / slope)
+
+
 def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=None,
                 regimes=None, accelerators=None, remotes=None, **cylinders) -> PneumaticBrake:
     """
