@@ -58,7 +58,7 @@ def test_cylinder_pressure_is_boyle_over_the_three_ranges():
 
 def test_stroke_volume_comes_out_of_the_auxiliary_reservoir():
     """Boyle: p_AR drops by ((patm + p_C) (V0 + Vs) - patm V0) / V_AR; the piston adds Vs."""
-    kw = dict(dead_volume=V0, stroke_volume=VS, spring_pressure=PS)
+    kw = {'dead_volume': V0, 'stroke_volume': VS, 'spring_pressure': PS}
     t, cyl, aux = emergency_trace(**kw)
     p_c = cyl[-1]
     assert p_c == pytest.approx(P_MAX, rel=0.02)
