@@ -51,15 +51,19 @@ def test_ep_command_received_and_valves_on_the_state_topic(harness):
     assert np.all(eff == 1.0) and np.all(pos[-1] == 0.5)
 
 
-def test_ecp_line_loss_is_published_and_diagnosed(harness):
+def test_ecp_line_loss_is_published_recorded_and_diagnosed(harness, tmp_path):
     from diagnostic_msgs.msg import DiagnosticArray
     from sensor_msgs.msg import JointState
     from std_msgs.msg import Float64
 
+    from train_dynamics.recording.bags import read_topics
+
     states = harness.collect(JointState, 'brake_ep/state')
     diags = harness.collect(DiagnosticArray, '/diagnostics')
+    bag = tmp_path / 'bag'
     node = harness.start(num_coaches=4, brake_model='pneumatic', brake_system='ecp',
-                         initial_speed=20.0, real_time_factor=2.0, input_timeout=1.5)
+                         initial_speed=20.0, real_time_factor=2.0, input_timeout=1.5,
+                         record_bag=str(bag))
     pub = _float64_publisher(harness)
     assert harness.wait_for_subscriber(pub)
 
@@ -86,6 +90,14 @@ def test_ecp_line_loss_is_published_and_diagnosed(harness):
         'train_line') == 'lost', 5.0)
     lost = diag_values(diags, BRAKE_SYSTEM)
     assert lost['_level'] == 1 and 'penalty' in lost['_message']
+    # the recorder has the published states: one per output, the line lost at the end
+    harness.stop(node)
+    recorded = [m for _, _, m in read_topics(str(bag), ['brake_ep/state'])]
+    cylinders = [m for _, _, m in read_topics(str(bag), ['brake_cylinders'])]
+    assert len(recorded) == len(cylinders) > 0
+    line = np.array([m.effort[0] for m in recorded])
+    assert line[0] == 1.0 and line[-1] == 0.0
+    assert 0.3 in {m.position[0] for m in recorded}
 
 
 DP_CONSIST = """

@@ -49,6 +49,14 @@ p_max: filling from AR through the application choke (P or G), venting through t
 choke (graduated release as the pipe rises); back in release once the gap is below
 ``release_threshold``. AR charges from the pipe through a check valve and choke.
 
+**Brake cylinder** (``cylinder_pressure``): dead volume V0 [m^3] (pistons released), stroke
+volume Vs (pistons' area x stroke) and return-spring pressure p_s (spring force / piston
+area) per vehicle; isothermal (Boyle): p = m R T / V0 while the pistons rest, p = patm + p_s
+while they travel out, p = m R T / (V0 + Vs) at full stroke. Vs = 0 (the default): one fixed
+volume. **First stage (inshot)**: below the vehicle's inshot pressure an applied
+distributor also fills through ``inshot_area`` (UIC 540 / EN 15355 first stage; 0 = none).
+The cylinder's valve (``V_VALVE``) is +1 filling, 0 lapped, -1 venting after each step.
+
 The compiled part (the functions named above, the rows of the packed arrays) is
 :mod:`train_dynamics.physics.kernel.pneumatic`; here the specification, the packing and the
 brake object the simulator drives.
@@ -114,9 +122,10 @@ class PneumaticSpec:
     accelerator_filter: float = 0.05     # [s] time constant of the rate filter
     accelerator_area: float = 8.0e-4     # vent to atmosphere (the 32 mm bore)
     accelerator_close: float = 30000.0   # [Pa] local pipe below it: closes and re-arms
-    # distributor first stage (inshot): fast filling up to inshot_pressure; 0 = none
+    # distributor first stage (inshot): fast filling up to inshot_pressure (the default of
+    # the vehicle field of the same name); 0 = none
     inshot_pressure: float = 0.0
-    inshot_area: float = 2.0e-5
+    inshot_area: float = 2.0e-5          # a guess: three times the P application choke
     # EP valves and ECP car control devices
     ep_valve_delay: float = 0.2          # [s] train-line command to valve action
     ep_application_area: float = 3.0e-5
