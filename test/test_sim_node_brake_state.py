@@ -42,8 +42,12 @@ def test_ep_command_received_and_valves_on_the_state_topic(harness):
     assert harness.wait(lambda: len(states) > before and np.all(
         np.asarray(states[-1].position) == 0.5), 10.0)
     # the EP valves fill, then lap (hold) at the commanded 0.5 p_max
-    assert harness.wait(lambda: len(states) > before + 10 and np.all(
-        np.asarray(states[-1].velocity) == 0.0), 20.0)
+
+    def filled_then_lapped():
+        vel = np.array([list(m.velocity) for m in states[before:]])
+        seen = np.nonzero(np.all(vel == 1.0, axis=1))[0] if len(vel) else []
+        return len(seen) > 0 and np.all(vel[-1] == 0.0) and len(vel) - 1 > seen[0]
+    assert harness.wait(filled_then_lapped, 20.0)
     assert np.all(np.abs(node.simulator.cylinder_pressure - 0.5 * P_MAX) < 0.05e5)
     _, pos, vel, eff = joint_arrays(states[before:])
     filled = np.any(vel == 1.0, axis=0)
