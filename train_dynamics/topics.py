@@ -75,6 +75,15 @@ VEHICLE_MOTION_TOPIC = 'vehicle_motion'
 #: (towards ``coach_1``'s end) positive; displacements, speeds, accelerations and forces are
 #: along it, pressures are scalars of the vehicles on it
 TRACK_FRAME = 'track'
+#: brake_system ep / ecp: JointState ``coach_1..N``: position = the command the vehicle's EP
+#: valves / car control device follow [fraction of full service; 0 with the train line lost],
+#: velocity = its cylinder valve in the last step [+1 filling, 0 lapped, -1 venting],
+#: effort = the train line [1 healthy, 0 lost]
+BRAKE_EP_STATE_TOPIC = 'brake_ep/state'
+#: a train with remote locomotives: JointState ``coach_<i>`` of each remote: position = radio
+#: link [1 up, 0 lost], velocity = age of the last radio message received [s], effort =
+#: pressure the remote's brake valve regulates the pipe to [Pa gauge]
+RADIO_STATE_TOPIC = 'distributed_power/state'
 CLOCK_TOPIC = '/clock'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 
@@ -94,6 +103,11 @@ def traction_topic(vehicle: int) -> str:
 def coupler_names(n_coaches: int) -> list[str]:
     """Return the joint names of ``couplers``: ``coupler_1`` .. ``coupler_{N-1}``."""
     return [f'coupler_{i}' for i in range(1, n_coaches)]
+
+
+def vehicle_names(indices) -> list[str]:
+    """Return the joint names ``coach_<i>`` of some vehicles given by 0-based ``indices``."""
+    return [f'coach_{int(i) + 1}' for i in indices]
 
 
 def coach_names(n_coaches: int) -> list[str]:

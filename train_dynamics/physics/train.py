@@ -156,6 +156,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         if cfg.brake_model == 'pneumatic' and self.mode != brakes.CYLINDER_PER_COACH:
             per_vehicle = {'accelerators': consist['emergency_accelerator'] > 0.5,
                            'remotes': consist['remote'] > 0.5}
+            per_vehicle.update(_cylinder_fields(consist))
             if cfg.consist_file:     # the consist's lengths, cylinder pressures and regimes
                 per_vehicle.update({'lengths': np.array(consist['length']),
                                     'p_max': np.array(consist['max_cylinder_pressure']),
@@ -639,6 +640,25 @@ def _landing_ticks(rate: float, h: float) -> int:
     """Return the output period in ticks of h [s] when whole (the chain lands there), else 1."""
     k = int(np.floor(1.0 / (rate * h) + 0.5))
     return k if k >= 1 and abs(k * h * rate - 1.0) < 1e-9 else 1
+
+
+def _cylinder_fields(consist: Consist) -> dict[str, np.ndarray]:
+    """
+    Return the pneumatic cylinder keywords of a consist's vehicles (``PneumaticBrake``).
+
+    First stage (``inshot_pressure``), dead volume; the stroke volume brake_cylinders x
+    brake_cylinder_area x piston_stroke [m^3] and the return spring's pressure
+    brake_spring_force / brake_cylinder_area [Pa] at which the pistons travel out (0 where
+    the vehicle has no stroke).
+    """
+    area = np.asarray(consist['brake_cylinder_area'], dtype=float)
+    stroke = np.asarray(consist['piston_stroke'], dtype=float)
+    moving = (stroke > 0.0) & (area > 0.0)     # SimConfig refuses a stroke without an area
+    safe = np.where(moving, area, 1.0)
+    return {'inshot': np.array(consist['inshot_pressure'], dtype=float),
+            'dead_volume': np.array(consist['cylinder_dead_volume'], dtype=float),
+            'stroke_volume': np.where(moving, consist['brake_cylinders'] * area * stroke, 0.0),
+            'spring_pressure': np.where(moving, consist['brake_spring_force'] / safe, 0.0)}
 
 
 def _cylinder_tables(cfg: SimConfig, consist: Consist) -> tuple[np.ndarray, np.ndarray]:

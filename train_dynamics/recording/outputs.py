@@ -13,6 +13,13 @@ definition of what each output topic carries:
 - ``brake_reservoirs`` (``brake_model: pneumatic`` only): JointState ``coach_1..N``:
   position = auxiliary-reservoir gauge pressure [Pa], velocity empty, effort =
   control-reservoir gauge pressure [Pa].
+- ``brake_ep/state`` (``brake_system`` ep or ecp only): JointState ``coach_1..N``: position =
+  the command the vehicle's EP valves / car control device follow [fraction of full service,
+  0 with the train line lost], velocity = its cylinder valve in the last step [+1 filling,
+  0 lapped, -1 venting], effort = the train line [1 healthy, 0 lost];
+- ``distributed_power/state`` (remote locomotives only): JointState ``coach_<i>`` of each
+  remote: position = radio link [1 up, 0 lost], velocity = age of the last radio message
+  received [s], effort = pressure the remote's brake valve regulates the pipe to [Pa gauge];
 - ``vehicle_forces`` (a train with resistance, gradients, curves or traction only):
   JointState ``coach_1..N``: position = traction / dynamic-brake force, velocity = running
   + curve resistance, effort = gradient force [N, on the vehicle, forward > 0].
@@ -27,7 +34,8 @@ import json
 from typing import Any
 
 from train_dynamics import topics
-from train_dynamics.physics.config.budgets import has_reservoirs
+from train_dynamics.physics.config.budgets import (has_ep_state, has_reservoirs, radio_remotes,
+                                                   state_topics)
 from train_dynamics.recording.cdr import JointStateEncoder
 
 
@@ -38,35 +46,55 @@ def time_ns(t: float) -> int:
 
 def output_topics(cfg: Any) -> tuple[str, ...]:
     """Return the JointState output topics of a run of ``cfg``, in publishing order."""
-    if has_reservoirs(cfg):
-        return topics.OUTPUT_TOPICS + (topics.BRAKE_RESERVOIRS_TOPIC,)
-    return topics.OUTPUT_TOPICS
+    return state_topics(cfg)
 
 
 class OutputEncoder:
-    """CDR bytes of the output topics for a train of ``n_coaches`` (names encoded once)."""
+    """
+    CDR bytes of the output topics for a train of ``n_coaches`` (names encoded once).
 
-    def __init__(self, n_coaches: int, reservoirs: bool = False) -> None:
+    ``reservoirs``: also ``brake_reservoirs``; ``ep``: also ``brake_ep/state``; ``remotes``
+    (0-based vehicles): also ``distributed_power/state`` of these remote locomotives. Every
+    output has the frame ``topics.TRACK_FRAME``.
+    """
+
+    def __init__(self, n_coaches: int, reservoirs: bool = False, ep: bool = False,
+                 remotes=()) -> None:
         frame = topics.TRACK_FRAME
         self._couplers = JointStateEncoder(topics.coupler_names(n_coaches), frame)
         self._coaches = JointStateEncoder(topics.coach_names(n_coaches), frame)
         self.reservoirs = bool(reservoirs)
+        self.ep = bool(ep)
+        self._radio = (JointStateEncoder(topics.vehicle_names(remotes), frame) if len(remotes)
+                       else None)
         self._motion = self._coaches
         self._last_motion: tuple[int, Any] | None = None    # (t_ns, v) of the last call
         self.topics = topics.OUTPUT_TOPICS + (
-            (topics.BRAKE_RESERVOIRS_TOPIC,) if reservoirs else ())
+            (topics.BRAKE_RESERVOIRS_TOPIC,) if reservoirs else ()) + (
+            (topics.BRAKE_EP_STATE_TOPIC,) if self.ep else ()) + (
+            (topics.RADIO_STATE_TOPIC,) if self._radio is not None else ())
+
+    @classmethod
+    def for_config(cls, cfg: Any) -> 'OutputEncoder':
+        """Return the encoder of a run of ``cfg``: its topics are :func:`output_topics`."""
+        return cls(cfg.n_coaches, has_reservoirs(cfg), has_ep_state(cfg), radio_remotes(cfg))
 
     def encode(self, t_ns: int, sim: Any) -> tuple[bytes, ...]:
         """
         Return (couplers, coaches, brake_cylinders) of ``sim``'s present state at ``t_ns``.
 
-        In the order of :attr:`topics`; ``brake_reservoirs`` last when it is published.
+        In the order of :attr:`topics`: then ``brake_reservoirs``, ``brake_ep/state``,
+        ``distributed_power/state`` when they are published.
         """
         out = (self._couplers(t_ns, sim.y, sim.ydot, sim.coupler_force),
                self._coaches(t_ns, sim.x, sim.v, sim.brake_force),
                self._coaches(t_ns, sim.cylinder_pressure, None, sim.pipe_pressure))
         if self.reservoirs:
             out += (self._coaches(t_ns, sim.auxiliary_pressure, None, sim.control_pressure),)
+        if self.ep:
+            out += (self._coaches(t_ns, *sim.ep_state),)
+        if self._radio is not None:
+            out += (self._radio(t_ns, *sim.radio_state),)
         return out
 
     def encode_forces(self, t_ns: int, sim: Any) -> bytes:

@@ -18,7 +18,7 @@ from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.cdr import encode_float64, encode_fluid_pressure
 from train_dynamics.recording.history import History, JointSeries
 from train_dynamics.recording.messages import stamp
-from train_dynamics.recording.outputs import has_reservoirs, OutputEncoder, time_ns
+from train_dynamics.recording.outputs import OutputEncoder, time_ns
 from train_dynamics.simulation.runner import InputEvent, Sample, TractionEvent
 
 
@@ -34,7 +34,7 @@ class BagSink:
     def __init__(self, rec: BagRecorder, cfg: Any) -> None:
         self.rec = rec
         self.atm = float(cfg.atmospheric_pressure)
-        self.encoder = OutputEncoder(cfg.n_coaches, has_reservoirs(cfg))
+        self.encoder = OutputEncoder.for_config(cfg)
         for topic in self.encoder.topics + (topics.VEHICLE_MOTION_TOPIC,):
             rec.add_topic(topic, topics.JOINT_STATE)
         self.forces = bool(cfg.external_forces)

@@ -190,6 +190,25 @@ _PARAMS = [
               '1 bar below its control reservoir at over 1 bar/s opens a 32 mm local vent: '
               'the emergency carries along the train at >= 250 m/s).',
               vehicle='emergency_accelerator'),
+    # Cylinders and distributor first stage of the pneumatic brake (physics/pneumatic.py).
+    ParamSpec('inshot_pressure', 0.0, DOUBLE,
+              'Pneumatic: distributor first stage (inshot; UIC 540 / EN 15355 "first stage" of '
+              'the cylinder pressure): an applied distributor fills its cylinder through an '
+              'extra port up to this gauge pressure [Pa] (rigging slack taken up quickly, '
+              'typically 0.4-0.7 bar); 0 = none (the calibrated UIC fill times).',
+              low=0.0, high=2.0e5, vehicle='inshot_pressure'),
+    ParamSpec('cylinder_dead_volume', 0.008, DOUBLE,
+              'Pneumatic: volume of the brake cylinders of the vehicle with the pistons '
+              'released [m^3] (clearance and pipes; with piston_stroke 0 the whole, fixed, '
+              'cylinder volume the UIC fill times were calibrated with).',
+              low=1.0e-4, high=0.2, vehicle='cylinder_dead_volume'),
+    ParamSpec('piston_stroke', 0.0, DOUBLE,
+              'Pneumatic: piston stroke [m]: the pistons (brake_cylinders x '
+              'brake_cylinder_area) travel out at the return-spring pressure '
+              'brake_spring_force / brake_cylinder_area, adding brake_cylinders x '
+              'brake_cylinder_area x piston_stroke to the dead volume; needs '
+              'brake_cylinder_area > 0. 0 = a fixed volume.',
+              low=0.0, high=0.5, vehicle='piston_stroke'),
     ParamSpec('remote', False, BOOL,
               'Pneumatic, consist field: a distributed-power locomotive, its brake valve on the '
               'pipe at its position and its traction following the lead over the radio; the '
@@ -358,6 +377,13 @@ _PARAMS = [
     ParamSpec('traction_schedule_commands', [], DOUBLE_ARRAY,
               'Traction command in [-1, 1] (> 0 traction, < 0 dynamic brake) from each '
               'traction_schedule_times entry on.', low=-1.0, high=1.0),
+    ParamSpec('ep_schedule_times', [], DOUBLE_ARRAY,
+              'Offline runs without brake_ep/command in an input bag: times [s] (increasing) '
+              'from which the EP / ECP train line carries the matching ep_schedule_commands '
+              'entry; needs brake_system ep or ecp.', low=0.0, high=1.0e7),
+    ParamSpec('ep_schedule_commands', [], DOUBLE_ARRAY,
+              'EP / ECP command in [0, 1] (fraction of full service, 0 = release) from each '
+              'ep_schedule_times entry on.', low=0.0, high=1.0),
     # Error-controlled stepping (physics/adaptive.py).
     ParamSpec('integration_tolerance', INTEGRATION_TOLERANCE, DOUBLE,
               'Error-controlled integration: the local error of every coupler force per step, '
