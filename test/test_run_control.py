@@ -251,3 +251,38 @@ def test_two_publishers_on_the_active_input_raise_a_warn(harness):
         diags, 'train_dynamics: brake input') or {}).get('multiple_publishers', ''), 10.0)
     d = diag_values(diags, 'train_dynamics: brake input')
     assert d['_level'] == 1 and 'more than one publisher' in d['_message']
+
+
+def test_lockstep_bag_files_split_in_simulation_time_not_wall_time(tmp_path):
+    """
+    A lock-step bag's files do not depend on how fast the machine ran the loop.
+
+    ``sim_time_split``: with a period of 1 s, messages at 0..2.5 s of simulation time written
+    slowly (wall gaps beyond the period) and fast give the same files, split at 1 s and 2 s.
+    """
+    import logging
+    import time
+
+    from train_dynamics.recording.bags import BagRecorder, read_topics
+    from train_dynamics.recording.messages import typestore
+    from train_dynamics.ros.recorder import BagWriter
+
+    types = typestore()
+    data = bytes(types.serialize_cdr(types.types['std_msgs/msg/Float64'](data=1.0),
+                                     'std_msgs/msg/Float64'))
+    files = []
+    for name, pause in (('fast', 0.0), ('slow', 0.3)):
+        rec = BagRecorder(tmp_path / name)
+        writer = BagWriter(rec, logging.getLogger('test'), flush_period=1.0,
+                           sim_time_split=True)
+        # the slow run takes ~1.5 s of wall time: the wall-clock rule would split it once
+        for k in range(11):
+            writer.write('x', 'std_msgs/msg/Float64', k * 250_000_000, data)
+            time.sleep(pause if k % 2 else 0.0)
+        writer.close()
+        assert writer.error is None
+        assert len(list(read_topics(tmp_path / name, ['x']))) == 11
+        files.append([(p.name[len(name):], p.stat().st_size)
+                      for p in sorted((tmp_path / name).glob('*.mcap'))])
+    assert files[0] == files[1]
+    assert len(files[0]) == 3       # [0, 1) s, [1, 2) s, [2, 2.5] s

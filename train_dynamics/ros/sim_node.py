@@ -273,7 +273,8 @@ class SimNode(Node):
             return None
         path = cfg.record_bag if first else reset_bag_path(cfg.record_bag, self._resets)
         return open_bag(path, cfg, self.get_fully_qualified_name(), self.get_logger(),
-                        self._flush_period, self.resolve_topic_name, self._offered())
+                        self._flush_period, self.resolve_topic_name, self._offered(),
+                        sim_time_split=self.get_parameter('sync_mode').value == 'lockstep')
 
     @staticmethod
     def _offered() -> dict[str, Any]:
