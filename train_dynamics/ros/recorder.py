@@ -10,10 +10,10 @@ never delays the simulation. The MCAP file is finished every ``record_flush_peri
 a SIGKILL loses at most that much; in ``sync_mode`` lockstep every ``record_flush_period`` s of
 simulation time instead (at the first message at or after each multiple), so that the files of a
 lock-step run are the same on every run, whatever the machine's speed. SIGINT and SIGTERM
-close the bag completely. When writing fails (a full disk), nothing more is recorded; the bag keeps its finished files, the node
-reports how many messages it holds (:meth:`BagWriter.closed_message`, never more than what
-is on disk) and exits with status 1. A ``reset``
-continues in a new bag ``<record_bag>_reset<k>`` (:func:`reset_bag_path`; each bag is one run
+close the bag completely. When writing fails (a full disk), nothing more is recorded; the bag
+keeps its finished files, the node reports how many messages it holds
+(:meth:`BagWriter.closed_message`, never more than what is on disk) and exits with status 1.
+A ``reset`` continues in a new bag ``<record_bag>_reset<k>`` (:func:`reset_bag_path`; each bag is one run
 from t = 0).
 """
 from __future__ import annotations
