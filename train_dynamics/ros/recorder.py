@@ -13,8 +13,8 @@ lock-step run are the same on every run, whatever the machine's speed. SIGINT an
 close the bag completely. When writing fails (a full disk), nothing more is recorded; the bag
 keeps its finished files, the node reports how many messages it holds
 (:meth:`BagWriter.closed_message`, never more than what is on disk) and exits with status 1.
-A ``reset`` continues in a new bag ``<record_bag>_reset<k>`` (:func:`reset_bag_path`; each bag is one run
-from t = 0).
+A ``reset`` continues in a new bag ``<record_bag>_reset<k>`` (:func:`reset_bag_path`; each bag
+is one run from t = 0).
 """
 from __future__ import annotations
 
