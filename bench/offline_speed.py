@@ -1,0 +1,188 @@
+"""
+Speed of a whole offline run as a user meets it: in-process and through ``train-dynamics simulate``.
+
+Train: N of the paper's coaches (default 100; tanh, u = 1000 s/m, h = the default step, 100 Hz
+output, the paper's couplers with strokes out of reach as in ``bench/core.py``), unstressed
+at t = 0, emergency braking from 44.444 m/s with the brake valve at t = 0 (the head pipe
+vented). The train decelerates at about mu g = 0.98 m/s^2 once braked and stops after about
+50 s, so it is moving over the whole timed span (at most :data:`T_LONG` = 30 s: a stopped
+train costs almost nothing and would flatter the figure).
+
+Measured, in one driver process after a warm-up (numba's cache load), repeated ``--repeats``
+times with the modes INTERLEAVED in each round (the host's speed drifts; other processes may
+load it), each figure the BEST of its repeats:
+
+- ``kernel``: a whole run of :data:`T_LONG` s through
+  :func:`train_dynamics.simulation.runner.run_simulation` (the offline command's loop and
+  inputs) with a sink that does nothing: the model alone;
+- ``encode``: the same run, the sink encoding every output topic
+  (:class:`train_dynamics.recording.outputs.OutputEncoder`, what ``BagSink`` writes) and
+  dropping the bytes;
+- ``bag``: the same run, the sink writing the bag (``BagSink`` into an atomic
+  ``BagRecorder``, as ``simulate`` opens it): the offline command minus its start-up;
+- ``simulate``: the offline command in a fresh process (``python -m train_dynamics.cli.offline
+  simulate -q``) for :data:`T_SHORT` and :data:`T_LONG` s; its start-up (interpreter, imports,
+  numba cache, parameter file, bag set-up) is removed by taking the difference of the two wall
+  times: RTF = (T_LONG - T_SHORT) / (wall_long - wall_short), each wall the best of its repeats.
+
+The split per simulated second [ms]: kernel = kernel / T; encode = (encode - kernel) / T;
+write = (bag - encode) / T. ``python bench/offline_speed.py [--n 100] [--repeats 5]``.
+"""
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.dirname(HERE)
+if REPO not in sys.path:
+    sys.path.insert(0, REPO)
+
+T_SHORT = 5.0           # [s] simulated: the short run of the start-up difference
+T_LONG = 30.0           # [s] simulated: the long run (the train still moves at its end)
+U = 1000.0              # [s/m] tanh scale factor of the paper's bench (bench/core.py)
+
+PARAMS = """\
+/**/train_dynamics:
+  ros__parameters:
+    model_type: tanh
+    scale_factor: {u!r}
+    num_coaches: {n}
+    initial_speed: 44.444
+    initial_state: unstressed
+    brake_input: pipe_head
+    buffer_stroke: 10.0
+    draw_gear_stroke: 10.0
+    publish_rate: 100.0
+/**/brake_valve:
+  ros__parameters:
+    schedule: ["0.0:emergency"]
+"""
+
+
+def write_params(path: str, n: int) -> str:
+    """Write the bench's parameter file (N paper coaches, emergency at t = 0) to ``path``."""
+    with open(path, 'w', encoding='utf-8') as fh:
+        fh.write(PARAMS.format(n=int(n), u=U))
+    return path
+
+
+class _Null:
+    def sample(self, s) -> None:
+        pass
+
+
+class _Encode:
+    """Encode every output topic of each sample (the bytes BagSink writes), keep nothing."""
+
+    def __init__(self, cfg) -> None:
+        from train_dynamics.recording.outputs import has_reservoirs, OutputEncoder
+        self.enc = OutputEncoder(cfg.n_coaches, has_reservoirs(cfg))
+        self.forces = bool(cfg.external_forces)
+
+    def sample(self, s) -> None:
+        from train_dynamics.recording.outputs import time_ns
+        t_ns = time_ns(s.t)
+        self.enc.encode(t_ns, s.sim)
+        self.enc.encode_motion(t_ns, s.sim)
+        if self.forces:
+            self.enc.encode_forces(t_ns, s.sim)
+
+
+def run_inprocess(params: str, mode: str, duration: float, tmp: str) -> float:
+    """Return the wall time [s] of one whole run of ``duration`` [s] in this process."""
+    from train_dynamics.cli.scenario import brake_inputs, load_config
+    from train_dynamics.simulation.runner import run_simulation
+    cfg = load_config(params)
+    inputs = brake_inputs(argparse.Namespace(input=None, namespace='', params=params), cfg)
+    rec = None
+    if mode == 'kernel':
+        sink = _Null()
+    elif mode == 'encode':
+        sink = _Encode(cfg)
+    else:
+        from train_dynamics import topics
+        from train_dynamics.recording.bags import BagRecorder
+        from train_dynamics.recording.sinks import BagSink
+        out = os.path.join(tmp, f'bag_{time.monotonic_ns()}')
+        rec = BagRecorder(out, atomic=True, file_stem='bag')
+        sink = BagSink(rec, cfg)
+        rec.add_topic(topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE)
+    t0 = time.perf_counter()
+    sim = run_simulation(cfg, duration, inputs, on_sample=sink.sample,
+                         on_input=getattr(sink, 'input', None))
+    if rec is not None:
+        rec.close()
+    wall = time.perf_counter() - t0
+    assert sim.fault is None, sim.fault
+    assert float(sim.v.min()) > 1.0, 'the train must be moving over the whole timed span'
+    return wall
+
+
+def run_command(params: str, duration: float, tmp: str) -> float:
+    """Return the wall time [s] of ``train-dynamics simulate`` in a fresh process."""
+    out = os.path.join(tmp, f'cli_{time.monotonic_ns()}')
+    env = dict(os.environ, PYTHONPATH=REPO)
+    cmd = [sys.executable, '-m', 'train_dynamics.cli.offline', 'simulate', '-q',
+           '--params', params, '--duration', repr(duration), '--output', out]
+    t0 = time.perf_counter()
+    subprocess.run(cmd, check=True, env=env, cwd=tmp)
+    return time.perf_counter() - t0
+
+
+def measure(n: int, repeats: int, log=print) -> dict:
+    """Return the best wall time [s] of each mode over ``repeats`` interleaved rounds."""
+    with tempfile.TemporaryDirectory(prefix='offline_speed_') as tmp:
+        params = write_params(os.path.join(tmp, 'params.yaml'), n)
+        run_inprocess(params, 'kernel', 0.1, tmp)                  # warm-up: numba cache
+        run_command(params, 0.1, tmp)                              # warm-up: file cache
+        best: dict[str, float] = {}
+        plan = (('kernel', None), ('encode', None), ('bag', None),
+                ('simulate_short', T_SHORT), ('simulate_long', T_LONG))
+        for r in range(repeats):
+            for mode, t in plan:
+                wall = (run_command(params, t, tmp) if t is not None
+                        else run_inprocess(params, mode, T_LONG, tmp))
+                best[mode] = min(best.get(mode, float('inf')), wall)
+                log(f'  round {r + 1}/{repeats} {mode:15s} {wall:7.3f} s')
+            for entry in os.listdir(tmp):                          # keep the disk free
+                if entry.startswith(('bag_', 'cli_')):
+                    subprocess.run(['rm', '-rf', os.path.join(tmp, entry)], check=False)
+    return best
+
+
+def table(n: int, best: dict, repeats: int) -> str:
+    """Return the results as a markdown table."""
+    k, e, b = best['kernel'], best['encode'], best['bag']
+    span = T_LONG - T_SHORT
+    cli = best['simulate_long'] - best['simulate_short']
+    startup = best['simulate_short'] - T_SHORT / span * cli
+    rows = [
+        '| N | in-process model only | in-process with encoding | in-process with the bag '
+        '| `train-dynamics simulate`, start-up removed | start-up [s] | kernel / encode / write '
+        '[ms per simulated s] |',
+        '| ---: | ---: | ---: | ---: | ---: | ---: | --- |',
+        f'| {n} | {T_LONG / k:.0f}x | {T_LONG / e:.0f}x | {T_LONG / b:.0f}x | '
+        f'{span / cli:.0f}x | {startup:.2f} | {1e3 * k / T_LONG:.1f} / '
+        f'{1e3 * (e - k) / T_LONG:.1f} / {1e3 * (b - e) / T_LONG:.1f} |',
+    ]
+    return '\n'.join(rows) + (f'\n\nBest of {repeats} interleaved rounds; whole runs of '
+                              f'{T_LONG:g} s (command: {T_LONG:g} s minus {T_SHORT:g} s).\n')
+
+
+def main(argv=None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
+    ap.add_argument('--n', type=int, default=100, help='coaches (default 100)')
+    ap.add_argument('--repeats', type=int, default=5, help='interleaved rounds (default 5)')
+    args = ap.parse_args(argv)
+    best = measure(args.n, args.repeats)
+    print(table(args.n, best, args.repeats))
+    return 0
+
+
+if __name__ == '__main__':
+    sys.exit(main())
