@@ -15,9 +15,9 @@ load it), each figure the BEST of its repeats:
 - ``kernel``: a whole run of :data:`T_LONG` s through
   :func:`train_dynamics.simulation.runner.run_simulation` (the offline command's loop and
   inputs) with a sink that does nothing: the model alone;
-- ``encode``: the same run, the sink encoding every output topic
-  (:class:`train_dynamics.recording.outputs.OutputEncoder`, what ``BagSink`` writes) and
-  dropping the bytes;
+- ``encode``: the same run, the sink encoding every output topic in place, as ``BagSink``
+  does (:class:`train_dynamics.recording.outputs.OutputRows`), into a block whose rows are
+  dropped instead of written;
 - ``bag``: the same run, the sink writing the bag (``BagSink`` into an atomic
   ``BagRecorder``, as ``simulate`` opens it): the offline command minus its start-up;
 - ``simulate``: the offline command in a fresh process (``python -m train_dynamics.cli.offline
@@ -26,7 +26,9 @@ load it), each figure the BEST of its repeats:
   times: RTF = (T_LONG - T_SHORT) / (wall_long - wall_short), each wall the best of its repeats.
 
 The split per simulated second [ms]: kernel = kernel / T; encode = (encode - kernel) / T;
-write = (bag - encode) / T. ``python bench/offline_speed.py [--n 100] [--repeats 5]``.
+write = (bag - encode) / T. ``--baseline DIR`` times the command of another checkout (e.g. ``git archive`` of the commit
+before a change) in the same rounds: before and after under the same load.
+``python bench/offline_speed.py [--n 100] [--repeats 5] [--baseline DIR]``.
 """
 from __future__ import annotations
 
@@ -76,21 +78,31 @@ class _Null:
         pass
 
 
+class _Discard:
+    """A recorder that takes the rows of a block and writes nothing (the encoding alone)."""
+
+    def attach(self, block) -> None:
+        self.block = block
+
+    def row(self, t_ns: int) -> int:
+        if self.block.full:
+            self.block.count = 0
+        return self.block.next_row(t_ns)
+
+
 class _Encode:
-    """Encode every output topic of each sample (the bytes BagSink writes), keep nothing."""
+    """Encode every output topic of each sample in place (OutputRows, as BagSink), no bag."""
 
     def __init__(self, cfg) -> None:
-        from train_dynamics.recording.outputs import has_reservoirs, OutputEncoder
-        self.enc = OutputEncoder(cfg.n_coaches, has_reservoirs(cfg))
-        self.forces = bool(cfg.external_forces)
+        from train_dynamics.recording.outputs import has_reservoirs, OutputEncoder, OutputRows
+        self.atm = float(cfg.atmospheric_pressure)
+        self.rows = OutputRows(OutputEncoder(cfg.n_coaches, has_reservoirs(cfg)),
+                               bool(cfg.external_forces), True)
+        self.rec = _Discard()
 
     def sample(self, s) -> None:
         from train_dynamics.recording.outputs import time_ns
-        t_ns = time_ns(s.t)
-        self.enc.encode(t_ns, s.sim)
-        self.enc.encode_motion(t_ns, s.sim)
-        if self.forces:
-            self.enc.encode_forces(t_ns, s.sim)
+        self.rows.write(self.rec, time_ns(s.t), s.sim, s.head_gauge + self.atm)
 
 
 def run_inprocess(params: str, mode: str, duration: float, tmp: str) -> float:
@@ -123,10 +135,10 @@ def run_inprocess(params: str, mode: str, duration: float, tmp: str) -> float:
     return wall
 
 
-def run_command(params: str, duration: float, tmp: str) -> float:
-    """Return the wall time [s] of ``train-dynamics simulate`` in a fresh process."""
+def run_command(params: str, duration: float, tmp: str, repo: str = REPO) -> float:
+    """Return the wall time [s] of ``train-dynamics simulate`` (of ``repo``) in a new process."""
     out = os.path.join(tmp, f'cli_{time.monotonic_ns()}')
-    env = dict(os.environ, PYTHONPATH=REPO)
+    env = dict(os.environ, PYTHONPATH=repo)
     cmd = [sys.executable, '-m', 'train_dynamics.cli.offline', 'simulate', '-q',
            '--params', params, '--duration', repr(duration), '--output', out]
     t0 = time.perf_counter()
@@ -134,18 +146,21 @@ def run_command(params: str, duration: float, tmp: str) -> float:
     return time.perf_counter() - t0
 
 
-def measure(n: int, repeats: int, log=print) -> dict:
+def measure(n: int, repeats: int, baseline: str | None = None, log=print) -> dict:
     """Return the best wall time [s] of each mode over ``repeats`` interleaved rounds."""
     with tempfile.TemporaryDirectory(prefix='offline_speed_') as tmp:
         params = write_params(os.path.join(tmp, 'params.yaml'), n)
         run_inprocess(params, 'kernel', 0.1, tmp)                  # warm-up: numba cache
         run_command(params, 0.1, tmp)                              # warm-up: file cache
         best: dict[str, float] = {}
-        plan = (('kernel', None), ('encode', None), ('bag', None),
-                ('simulate_short', T_SHORT), ('simulate_long', T_LONG))
+        plan = [('kernel', None, REPO), ('encode', None, REPO), ('bag', None, REPO),
+                ('simulate_short', T_SHORT, REPO), ('simulate_long', T_LONG, REPO)]
+        if baseline:
+            run_command(params, 0.1, tmp, baseline)
+            plan += [('baseline_short', T_SHORT, baseline), ('baseline_long', T_LONG, baseline)]
         for r in range(repeats):
-            for mode, t in plan:
-                wall = (run_command(params, t, tmp) if t is not None
+            for mode, t, repo in plan:
+                wall = (run_command(params, t, tmp, repo) if t is not None
                         else run_inprocess(params, mode, T_LONG, tmp))
                 best[mode] = min(best.get(mode, float('inf')), wall)
                 log(f'  round {r + 1}/{repeats} {mode:15s} {wall:7.3f} s')
@@ -161,14 +176,19 @@ def table(n: int, best: dict, repeats: int) -> str:
     span = T_LONG - T_SHORT
     cli = best['simulate_long'] - best['simulate_short']
     startup = best['simulate_short'] - T_SHORT / span * cli
+    base = ''
+    if 'baseline_long' in best:
+        base_cli = best['baseline_long'] - best['baseline_short']
+        base = f' | {span / base_cli:.0f}x ({1e3 * base_cli / span:.1f} ms/s)'
     rows = [
         '| N | in-process model only | in-process with encoding | in-process with the bag '
         '| `train-dynamics simulate`, start-up removed | start-up [s] | kernel / encode / write '
-        '[ms per simulated s] |',
-        '| ---: | ---: | ---: | ---: | ---: | ---: | --- |',
+        '[ms per simulated s] |' + (' baseline checkout: simulate |' if base else ''),
+        '| ---: | ---: | ---: | ---: | ---: | ---: | --- |' + (' ---: |' if base else ''),
         f'| {n} | {T_LONG / k:.0f}x | {T_LONG / e:.0f}x | {T_LONG / b:.0f}x | '
-        f'{span / cli:.0f}x | {startup:.2f} | {1e3 * k / T_LONG:.1f} / '
-        f'{1e3 * (e - k) / T_LONG:.1f} / {1e3 * (b - e) / T_LONG:.1f} |',
+        f'{span / cli:.0f}x ({1e3 * cli / span:.1f} ms/s) | {startup:.2f} | '
+        f'{1e3 * k / T_LONG:.1f} / {1e3 * (e - k) / T_LONG:.1f} / '
+        f'{1e3 * (b - e) / T_LONG:.1f} |' + (base[3:] + ' |' if base else ''),
     ]
     return '\n'.join(rows) + (f'\n\nBest of {repeats} interleaved rounds; whole runs of '
                               f'{T_LONG:g} s (command: {T_LONG:g} s minus {T_SHORT:g} s).\n')
@@ -178,8 +198,10 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
     ap.add_argument('--n', type=int, default=100, help='coaches (default 100)')
     ap.add_argument('--repeats', type=int, default=5, help='interleaved rounds (default 5)')
+    ap.add_argument('--baseline', metavar='DIR',
+                    help='another checkout of the package: its simulate timed in the same rounds')
     args = ap.parse_args(argv)
-    best = measure(args.n, args.repeats)
+    best = measure(args.n, args.repeats, args.baseline)
     print(table(args.n, best, args.repeats))
     return 0
 
