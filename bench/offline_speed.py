@@ -1,5 +1,5 @@
 """
-Speed of a whole offline run as a user meets it: in-process and through ``train-dynamics simulate``.
+Speed of whole offline runs as a user meets them: in-process and ``train-dynamics simulate``.
 
 Train: N of the paper's coaches (default 100; tanh, u = 1000 s/m, h = the default step, 100 Hz
 output, the paper's couplers with strokes out of reach as in ``bench/core.py``), unstressed
@@ -26,8 +26,9 @@ load it), each figure the BEST of its repeats:
   times: RTF = (T_LONG - T_SHORT) / (wall_long - wall_short), each wall the best of its repeats.
 
 The split per simulated second [ms]: kernel = kernel / T; encode = (encode - kernel) / T;
-write = (bag - encode) / T. ``--baseline DIR`` times the command of another checkout (e.g. ``git archive`` of the commit
-before a change) in the same rounds: before and after under the same load.
+write = (bag - encode) / T. ``--baseline DIR`` times the command of another checkout (e.g.
+``git archive`` of the commit before a change) in the same rounds: before and after under the
+same load.
 ``python bench/offline_speed.py [--n 100] [--repeats 5] [--baseline DIR]``.
 """
 from __future__ import annotations

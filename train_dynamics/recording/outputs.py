@@ -126,8 +126,10 @@ class OutputRows:
     and a whole block goes to the bag at once (:meth:`BagRecorder.attach`).
     """
 
-    def __init__(self, encoder: OutputEncoder, forces: bool, head_pipe: bool) -> None:
+    def __init__(self, encoder: OutputEncoder, forces: bool, head_pipe: bool,
+                 capacity: int | None = None) -> None:
         self.encoder = encoder
+        self.capacity = capacity                     # rows per block (None: about 1 MiB)
         self.forces = bool(forces)
         self.head_pipe = bool(head_pipe)
         self.topics = encoder.topics + (topics.VEHICLE_MOTION_TOPIC,) + (
@@ -156,7 +158,7 @@ class OutputRows:
                                               frame))
         if self.head_pipe:
             layouts.append(fluid_pressure_layout())
-        block = RecordBlock(self.topics, layouts)
+        block = RecordBlock(self.topics, layouts, self.capacity)
         self._views = [[block.field(m, i) if n else None for i, n in enumerate(lay.lengths)]
                        for m, lay in enumerate(layouts)]
         return block
