@@ -48,6 +48,7 @@ if REPO not in sys.path:
 T_SHORT = 5.0           # [s] simulated: the short run of the start-up difference
 T_LONG = 30.0           # [s] simulated: the long run (the train still moves at its end)
 U = 1000.0              # [s/m] tanh scale factor of the paper's bench (bench/core.py)
+RESULTS_MD = os.path.join(HERE, 'offline_speed_results.md')
 
 PARAMS = """\
 /**/train_dynamics:
@@ -147,6 +148,21 @@ def run_command(params: str, duration: float, tmp: str, repo: str = REPO) -> flo
     return time.perf_counter() - t0
 
 
+def write_speed(tmp: str, mib: int = 32) -> float:
+    """Return the speed [MB/s] of writing ``mib`` MiB of new file data (1 MiB writes)."""
+    buf = bytes(range(256)) * 4096
+    path = os.path.join(tmp, f'probe_{time.monotonic_ns()}')
+    t0 = time.perf_counter()
+    with open(path, 'wb') as fh:
+        for _ in range(mib):
+            fh.write(buf)
+    return mib * len(buf) / (time.perf_counter() - t0) / 1e6
+
+
+def _size(path: str) -> int:
+    return sum(os.path.getsize(os.path.join(path, f)) for f in os.listdir(path))
+
+
 def measure(n: int, repeats: int, baseline: str | None = None, log=print) -> dict:
     """Return the best wall time [s] of each mode over ``repeats`` interleaved rounds."""
     with tempfile.TemporaryDirectory(prefix='offline_speed_') as tmp:
@@ -159,15 +175,25 @@ def measure(n: int, repeats: int, baseline: str | None = None, log=print) -> dic
         if baseline:
             run_command(params, 0.1, tmp, baseline)
             plan += [('baseline_short', T_SHORT, baseline), ('baseline_long', T_LONG, baseline)]
+        best['load_before'] = os.getloadavg()[0]
         for r in range(repeats):
             for mode, t, repo in plan:
                 wall = (run_command(params, t, tmp, repo) if t is not None
                         else run_inprocess(params, mode, T_LONG, tmp))
                 best[mode] = min(best.get(mode, float('inf')), wall)
                 log(f'  round {r + 1}/{repeats} {mode:15s} {wall:7.3f} s')
+            mb = write_speed(tmp)
+            best['new_file_mb_s'] = max(best.get('new_file_mb_s', 0.0), mb)
+            bags = sorted((e for e in os.listdir(tmp) if e.startswith('cli_')),
+                          key=lambda e: int(e[4:]))
+            best['bag_mb_per_s'] = (_size(os.path.join(tmp, bags[-1])) - _size(
+                os.path.join(tmp, bags[-2]))) / (T_LONG - T_SHORT) / 1e6 if not baseline \
+                else (_size(os.path.join(tmp, bags[-3])) - _size(
+                    os.path.join(tmp, bags[-4]))) / (T_LONG - T_SHORT) / 1e6
             for entry in os.listdir(tmp):                          # keep the disk free
-                if entry.startswith(('bag_', 'cli_')):
+                if entry.startswith(('bag_', 'cli_', 'probe_')):
                     subprocess.run(['rm', '-rf', os.path.join(tmp, entry)], check=False)
+        best['load_after'] = os.getloadavg()[0]
     return best
 
 
@@ -189,10 +215,14 @@ def table(n: int, best: dict, repeats: int) -> str:
         f'| {n} | {T_LONG / k:.0f}x | {T_LONG / e:.0f}x | {T_LONG / b:.0f}x | '
         f'{span / cli:.0f}x ({1e3 * cli / span:.1f} ms/s) | {startup:.2f} | '
         f'{1e3 * k / T_LONG:.1f} / {1e3 * (e - k) / T_LONG:.1f} / '
-        f'{1e3 * (b - e) / T_LONG:.1f} |' + (base[3:] + ' |' if base else ''),
+        f'{1e3 * (b - e) / T_LONG:.1f} |' + (base[2:] + ' |' if base else ''),
     ]
-    return '\n'.join(rows) + (f'\n\nBest of {repeats} interleaved rounds; whole runs of '
-                              f'{T_LONG:g} s (command: {T_LONG:g} s minus {T_SHORT:g} s).\n')
+    return '\n'.join(rows) + (
+        f'\n\nBest of {repeats} interleaved rounds; whole runs of {T_LONG:g} s (command: '
+        f'{T_LONG:g} s minus {T_SHORT:g} s). The bag: {best["bag_mb_per_s"]:.2f} MB per '
+        f'simulated second; this host writes new file data at {best["new_file_mb_s"]:.0f} MB/s '
+        f'(best of the rounds). Load average (1 min) {best["load_before"]:.1f} before, '
+        f'{best["load_after"]:.1f} after.\n')
 
 
 def main(argv=None) -> int:
@@ -201,9 +231,16 @@ def main(argv=None) -> int:
     ap.add_argument('--repeats', type=int, default=5, help='interleaved rounds (default 5)')
     ap.add_argument('--baseline', metavar='DIR',
                     help='another checkout of the package: its simulate timed in the same rounds')
+    ap.add_argument('--write', action='store_true',
+                    help=f'append the table to {os.path.relpath(RESULTS_MD, REPO)}')
     args = ap.parse_args(argv)
     best = measure(args.n, args.repeats, args.baseline)
-    print(table(args.n, best, args.repeats))
+    text = table(args.n, best, args.repeats)
+    print(text)
+    if args.write:
+        stamp = time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())
+        with open(RESULTS_MD, 'a', encoding='utf-8') as fh:
+            fh.write(f'\n### {stamp}\n\n{text}')
     return 0
 
 
