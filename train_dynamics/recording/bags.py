@@ -26,6 +26,14 @@ bag directory still opens as an empty bag. SIGINT/SIGTERM handled by the caller 
 ``close()`` lose nothing. The files carry no wall-clock time: the same messages give
 byte-identical bags.
 
+Speed. The offline command's outputs have a fixed shape (the same topics at every sample, each
+message of a fixed size), so they are not written one message at a time: a
+:class:`RecordBlock` holds the MCAP message records of up to about 1 MiB of samples, encoded in
+place (:class:`train_dynamics.recording.outputs.OutputRows`), and :meth:`BagRecorder.attach`
+writes its rows with one copy into the rosbags writer's chunk (:class:`_BlockMcap`), before
+any other message and whenever the block is full. The messages are those of the per-message
+path, byte for byte and in the same order (test/test_bag_blocks.py).
+
 Reading: :func:`read_topics` reads MCAP or sqlite3 rosbag2 directories (or a bare ``.mcap`` /
 ``.db3`` file) through ``rosbags.highlevel.AnyReader`` with the ROS 2 Jazzy typestore for bags
 that do not embed their message definitions. Topic names are returned without a leading
@@ -384,7 +392,9 @@ class BagRecorder:
         """
         Write the rows of ``block`` from now on (its topics must be added); None: detach.
 
-        The rows filled so far (of the block attached before) are written first.
+        The rows filled so far (of the block attached before) are written first. A row
+        (:meth:`row`) must be filled before the next call to the recorder, from the same
+        thread: the rows are written as they are then.
         """
         with self._lock:
             self._check_open()
