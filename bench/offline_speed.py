@@ -25,6 +25,12 @@ load it), each figure the BEST of its repeats:
   numba cache, parameter file, bag set-up) is removed by taking the difference of the two wall
   times: RTF = (T_LONG - T_SHORT) / (wall_long - wall_short), each wall the best of its repeats.
 
+Each figure is given twice: from wall-clock time and from CPU time (user + system of this
+process, or of the command's process from ``getrusage(RUSAGE_CHILDREN)``). On a host shared
+with other work the wall times include waiting for a core; the CPU times do not (they still
+include the slow-down of sharing caches and memory bandwidth), so with a load average above
+the core count compare the CPU row.
+
 The split per simulated second [ms]: kernel = kernel / T; encode = (encode - kernel) / T;
 write = (bag - encode) / T. ``--baseline DIR`` times the command of another checkout (e.g.
 ``git archive`` of the commit before a change) in the same rounds: before and after under the
@@ -35,6 +41,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import resource
 import subprocess
 import sys
 import tempfile
@@ -107,8 +114,8 @@ class _Encode:
         self.rows.write(self.rec, time_ns(s.t), s.sim, s.head_gauge + self.atm)
 
 
-def run_inprocess(params: str, mode: str, duration: float, tmp: str) -> float:
-    """Return the wall time [s] of one whole run of ``duration`` [s] in this process."""
+def run_inprocess(params: str, mode: str, duration: float, tmp: str) -> tuple[float, float]:
+    """Return the wall and CPU times [s] of one whole run of ``duration`` [s] here."""
     from train_dynamics.cli.scenario import brake_inputs, load_config
     from train_dynamics.simulation.runner import run_simulation
     cfg = load_config(params)
@@ -126,26 +133,30 @@ def run_inprocess(params: str, mode: str, duration: float, tmp: str) -> float:
         rec = BagRecorder(out, atomic=True, file_stem='bag')
         sink = BagSink(rec, cfg)
         rec.add_topic(topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE)
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     sim = run_simulation(cfg, duration, inputs, on_sample=sink.sample,
                          on_input=getattr(sink, 'input', None))
     if rec is not None:
         rec.close()
-    wall = time.perf_counter() - t0
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
     assert sim.fault is None, sim.fault
     assert float(sim.v.min()) > 1.0, 'the train must be moving over the whole timed span'
-    return wall
+    return wall, cpu
 
 
-def run_command(params: str, duration: float, tmp: str, repo: str = REPO) -> float:
-    """Return the wall time [s] of ``train-dynamics simulate`` (of ``repo``) in a new process."""
+def run_command(params: str, duration: float, tmp: str, repo: str = REPO
+                ) -> tuple[float, float]:
+    """Return wall and CPU times [s] of ``train-dynamics simulate`` of ``repo`` (a new process)."""
     out = os.path.join(tmp, f'cli_{time.monotonic_ns()}')
     env = dict(os.environ, PYTHONPATH=repo)
     cmd = [sys.executable, '-m', 'train_dynamics.cli.offline', 'simulate', '-q',
            '--params', params, '--duration', repr(duration), '--output', out]
+    r0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     subprocess.run(cmd, check=True, env=env, cwd=tmp)
-    return time.perf_counter() - t0
+    wall = time.perf_counter() - t0
+    r1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return wall, (r1.ru_utime + r1.ru_stime) - (r0.ru_utime + r0.ru_stime)
 
 
 def write_speed(tmp: str, mib: int = 32) -> float:
@@ -178,10 +189,11 @@ def measure(n: int, repeats: int, baseline: str | None = None, log=print) -> dic
         best['load_before'] = os.getloadavg()[0]
         for r in range(repeats):
             for mode, t, repo in plan:
-                wall = (run_command(params, t, tmp, repo) if t is not None
-                        else run_inprocess(params, mode, T_LONG, tmp))
+                wall, cpu = (run_command(params, t, tmp, repo) if t is not None
+                             else run_inprocess(params, mode, T_LONG, tmp))
                 best[mode] = min(best.get(mode, float('inf')), wall)
-                log(f'  round {r + 1}/{repeats} {mode:15s} {wall:7.3f} s')
+                best['cpu_' + mode] = min(best.get('cpu_' + mode, float('inf')), cpu)
+                log(f'  round {r + 1}/{repeats} {mode:15s} {wall:7.3f} s wall {cpu:7.3f} s CPU')
             mb = write_speed(tmp)
             best['new_file_mb_s'] = max(best.get('new_file_mb_s', 0.0), mb)
             bags = sorted((e for e in os.listdir(tmp) if e.startswith('cli_')),
@@ -197,26 +209,30 @@ def measure(n: int, repeats: int, baseline: str | None = None, log=print) -> dic
     return best
 
 
-def table(n: int, best: dict, repeats: int) -> str:
-    """Return the results as a markdown table."""
-    k, e, b = best['kernel'], best['encode'], best['bag']
+def _row(n: int, best: dict, what: str, pre: str) -> str:
+    k, e, b = best[pre + 'kernel'], best[pre + 'encode'], best[pre + 'bag']
     span = T_LONG - T_SHORT
-    cli = best['simulate_long'] - best['simulate_short']
-    startup = best['simulate_short'] - T_SHORT / span * cli
-    base = ''
-    if 'baseline_long' in best:
-        base_cli = best['baseline_long'] - best['baseline_short']
-        base = f' | {span / base_cli:.0f}x ({1e3 * base_cli / span:.1f} ms/s)'
+    cli = best[pre + 'simulate_long'] - best[pre + 'simulate_short']
+    startup = best[pre + 'simulate_short'] - T_SHORT / span * cli
+    row = (f'| {n} | {what} | {T_LONG / k:.0f}x | {T_LONG / e:.0f}x | {T_LONG / b:.0f}x | '
+           f'{span / cli:.0f}x ({1e3 * cli / span:.1f} ms/s) | {startup:.2f} | '
+           f'{1e3 * k / T_LONG:.1f} / {1e3 * (e - k) / T_LONG:.1f} / '
+           f'{1e3 * (b - e) / T_LONG:.1f} |')
+    if pre + 'baseline_long' in best:
+        base = best[pre + 'baseline_long'] - best[pre + 'baseline_short']
+        row += f' {span / base:.0f}x ({1e3 * base / span:.1f} ms/s) |'
+    return row
+
+
+def table(n: int, best: dict, repeats: int) -> str:
+    """Return the results as a markdown table: wall-clock and CPU time."""
+    base = 'baseline_long' in best
     rows = [
-        '| N | in-process model only | in-process with encoding | in-process with the bag '
+        '| N | time | in-process model only | in-process with encoding | in-process with the bag '
         '| `train-dynamics simulate`, start-up removed | start-up [s] | kernel / encode / write '
         '[ms per simulated s] |' + (' baseline checkout: simulate |' if base else ''),
-        '| ---: | ---: | ---: | ---: | ---: | ---: | --- |' + (' ---: |' if base else ''),
-        f'| {n} | {T_LONG / k:.0f}x | {T_LONG / e:.0f}x | {T_LONG / b:.0f}x | '
-        f'{span / cli:.0f}x ({1e3 * cli / span:.1f} ms/s) | {startup:.2f} | '
-        f'{1e3 * k / T_LONG:.1f} / {1e3 * (e - k) / T_LONG:.1f} / '
-        f'{1e3 * (b - e) / T_LONG:.1f} |' + (base[2:] + ' |' if base else ''),
-    ]
+        '| ---: | --- | ---: | ---: | ---: | ---: | ---: | --- |' + (' ---: |' if base else ''),
+        _row(n, best, 'wall', ''), _row(n, best, 'CPU', 'cpu_')]
     return '\n'.join(rows) + (
         f'\n\nBest of {repeats} interleaved rounds; whole runs of {T_LONG:g} s (command: '
         f'{T_LONG:g} s minus {T_SHORT:g} s). The bag: {best["bag_mb_per_s"]:.2f} MB per '
