@@ -83,6 +83,8 @@ def write_params(path: str, n: int) -> str:
 
 
 class _Null:
+    """A sink that keeps nothing (the model alone)."""
+
     def sample(self, s) -> None:
         pass
 
