@@ -144,3 +144,18 @@ def test_rows_filled_before_close_are_in_the_bag_and_keep_drops_the_open_file(tm
             rec.keep('disk full')                            # the file 0.20 - 0.24 s is dropped
             info = bag_info(bag)
             assert info.message_count == 20 * 4 and info.end_ns == 19 * 10_000_000
+
+
+def test_blocks_keep_the_chunks_of_about_1_mib(tmp_path):
+    """A reader holds one chunk's messages at a time: blocks must not make chunks larger."""
+    from rosbags.rosbag2.storage_mcap import McapReader
+    chunks = []
+    for bag in _write_both(tmp_path, 40, 600, reservoirs=False, forces=False):
+        reader = McapReader(next(bag.glob('*.mcap')))
+        reader.open()
+        chunks.append([c.uncompressed_size for c in reader.chunks])
+        reader.close()
+    # rosbags closes a chunk after the message that takes it past 1 MiB, the blocks after the
+    # sample that does (a sample of 40 coaches: 5 messages, about 5 kB)
+    assert len(chunks[0]) == len(chunks[1]) >= 3, chunks
+    assert max(chunks[0] + chunks[1]) <= 2 ** 20 + 8192, chunks

@@ -198,7 +198,26 @@ class _BlockMcap(McapWriter):
 
     def write_rows(self, ids: list[int], offsets: tuple[int, ...], times: np.ndarray,
                    rows: np.ndarray) -> None:
-        """Append ``rows`` (records at ``offsets`` of each row, channel ``ids``) at ``times``."""
+        """
+        Append ``rows`` (records at ``offsets`` of each row, channel ``ids``) at ``times``.
+
+        A chunk is closed after the row that takes it past :data:`_CHUNK_BYTES`, as rosbags
+        closes it after such a message: chunks stay about 1 MiB (a reader holds one chunk's
+        messages at a time).
+        """
+        size = rows.shape[1]
+        start = 0
+        while start < len(times):
+            room = _CHUNK_BYTES - self.chunk.bio.tell()
+            end = min(len(times), start + max(0, room) // size + 1)
+            self._append(ids, offsets, times[start:end], rows[start:end])
+            if self.chunk.bio.tell() > _CHUNK_BYTES:
+                self.close_chunk()
+            start = end
+
+    def _append(self, ids: list[int], offsets: tuple[int, ...], times: np.ndarray,
+                rows: np.ndarray) -> None:
+        """Append ``rows`` to the pending chunk; index them as rosbags' ``write`` does."""
         chunk = self.chunk
         base = chunk.bio.tell()
         chunk.bio.write(memoryview(np.ascontiguousarray(rows)).cast('B'))
@@ -212,8 +231,6 @@ class _BlockMcap(McapWriter):
         for cid, at in zip(ids, offsets):
             chunk.msgs[cid].extend(zip(t_list, (row_at + at).tolist()))
             self.channel_stats[cid] += len(t_list)
-        if chunk.bio.tell() > _CHUNK_BYTES:
-            self.close_chunk()
 
     def close_chunk(self) -> None:
         """
