@@ -211,6 +211,7 @@ def measure(n: int, repeats: int, baseline: str | None = None, log=print) -> dic
                     wall, cpu = run_inprocess(params, mode, T_LONG, tmp)
                 best[mode] = min(best.get(mode, float('inf')), wall)
                 best['cpu_' + mode] = min(best.get('cpu_' + mode, float('inf')), cpu)
+                best.setdefault('rounds', {}).setdefault(mode, []).append((wall, cpu))
                 log(f'  round {r + 1}/{repeats} {mode:15s} {wall:7.3f} s wall {cpu:7.3f} s CPU')
             mb = write_speed(tmp)
             best['new_file_mb_s'] = max(best.get('new_file_mb_s', 0.0), mb)
@@ -256,6 +257,22 @@ def _baseline_line(best: dict) -> str:
             'timing): ' + '; '.join(parts) + '.\n')
 
 
+def _median_line(best: dict) -> str:
+    """Return the command's figures from the median of each round's long - short difference."""
+    rounds, span = best['rounds'], T_LONG - T_SHORT
+    parts = []
+    for name, pre in (('this checkout', 'simulate'), ('baseline', 'baseline')):
+        if pre + '_long' not in rounds:
+            continue
+        diffs = [[lo[i] - sh[i] for lo, sh in zip(rounds[pre + '_long'], rounds[pre + '_short'])]
+                 for i in (0, 1)]
+        wall, cpu = (sorted(d)[len(d) // 2] for d in diffs)
+        parts.append(f'{name} {span / wall:.0f}x wall ({1e3 * wall / span:.1f} ms/s), '
+                     f'{span / cpu:.0f}x CPU ({1e3 * cpu / span:.1f} ms/s)')
+    return ('\nThe command from the median of the per-round differences (long - short of the '
+            'same round): ' + '; '.join(parts) + '.\n')
+
+
 def table(n: int, best: dict, repeats: int) -> str:
     """Return the results as a markdown table: wall-clock and CPU time."""
     base = 'baseline_long' in best
@@ -270,7 +287,7 @@ def table(n: int, best: dict, repeats: int) -> str:
         f'{T_LONG:g} s minus {T_SHORT:g} s). The bag: {best["bag_mb_per_s"]:.2f} MB per '
         f'simulated second; this host writes new file data at {best["new_file_mb_s"]:.0f} MB/s '
         f'(best of the rounds). Load average (1 min) {best["load_before"]:.1f} before, '
-        f'{best["load_after"]:.1f} after.\n' + _baseline_line(best))
+        f'{best["load_after"]:.1f} after.\n' + _median_line(best) + _baseline_line(best))
 
 
 def main(argv=None) -> int:
