@@ -40,6 +40,7 @@ SETTINGS = (
     ('tolerance 1e-5', {'integration_tolerance': 1e-5}),
     ('multirate 1e-2', {'multirate_tolerance': 1e-2}),
     ('multirate 1e-3', {'multirate_tolerance': 1e-3}),
+    ('multirate 3e-4', {'multirate_tolerance': 3e-4}),
     ('multirate 1e-4', {'multirate_tolerance': 1e-4}),
 )
 #: error control offline: a budget out of reach, so that no period falls back to the fixed step
