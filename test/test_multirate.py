@@ -90,7 +90,7 @@ def test_impact_at_end_of_free_play_resolved_locally():
     F = _samples(sim, t_eval)
     assert np.abs(F - ref.F).max() < 0.01 * peak
     assert abs(np.abs(F).max() / peak - 1.0) < 0.01
-    per_coupler = sim.integration_stats['mr_substeps_per_coupler']
+    per_coupler = sim.substeps_per_coupler
     assert per_coupler[-1] > sim.steps              # several sub-steps per long step
     assert np.all(per_coupler[:5] == 0)
     assert np.abs(ref.F[:, :5]).max() < 3e-3 * peak
@@ -116,7 +116,7 @@ def test_momentum_exact_with_refinement():
         worst = max(worst, abs((sim.momentum - p0) - (sim.external_impulse - e0)))
     stats = sim.integration_stats
     assert stats['mr_groups'] > 50
-    per_coupler = stats['mr_substeps_per_coupler']
+    per_coupler = sim.substeps_per_coupler
     # groups that ended inside the train (boundary couplers held at the long step's impulse)
     assert per_coupler.min() < per_coupler.max()
     assert worst < 1e-9 * sim.momentum / N_IMPACT

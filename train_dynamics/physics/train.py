@@ -605,7 +605,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         iteration cap with the set still inconsistent (the step finishes all the same).
         Multirate (``multirate_tolerance`` > 0): mr_groups, the vehicle groups re-integrated
         in sub-steps, mr_substeps their sub-steps, mr_declined the groups left at the long
-        step (a vehicle held or stopping), mr_substeps_per_coupler (array of N-1).
+        step (a vehicle held or stopping); per coupler: :attr:`substeps_per_coupler`.
         """
         sc, iv = self.sc, self.iv
         return {'adaptive': self.adaptive, 'steps': int(iv[COUNT.NSTEPS]),
@@ -618,8 +618,12 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                 'hold_capped': int(iv[COUNT.HOLD_CAPPED]),
                 'mr_groups': int(iv[COUNT.MR_CLUSTERS]),
                 'mr_substeps': int(iv[COUNT.MR_SUBSTEPS]),
-                'mr_declined': int(iv[COUNT.MR_DECLINED]),
-                'mr_substeps_per_coupler': self.ws[WORK.NSUB, :self.n - 1].astype(int)}
+                'mr_declined': int(iv[COUNT.MR_DECLINED])}
+
+    @property
+    def substeps_per_coupler(self) -> np.ndarray:
+        """Return the multirate sub-steps each coupler took since reset (int, N-1; 0: none)."""
+        return self.ws[WORK.NSUB, :self.n - 1].astype(int)
 
     def advance_to(self, t: float) -> int:
         """Integrate whole steps until ``self.t >= t - h/2``; return the steps done."""

@@ -366,6 +366,12 @@ _PARAMS = [
               "vehicle's weight) [-]; ROS2 with its embedded first-order estimate, PI step "
               'control, landing on every output instant. 0 = fixed step integration_step.',
               low=0.0, high=0.1),
+    ParamSpec('integration_max_steps', 100, INTEGER,
+              'Work budget of the error-controlled integration: steps per output period; '
+              'beyond it the rest of the period takes at most as many equal steps without '
+              'error control (counted in /diagnostics fallback_periods). At most ~0.25 s of '
+              'work per period: 25000 / (1 + N / 20) steps for N vehicles.', low=1,
+              high=1000000),
     ParamSpec('multirate_tolerance', MULTIRATE_TOLERANCE, DOUBLE,
               'Multirate fixed step: after each integration_step, a coupler whose local force '
               'error (ROS2 embedded estimate) exceeds this fraction of the largest coupler force '
@@ -373,12 +379,6 @@ _PARAMS = [
               'two neighbouring vehicles on either side in error-controlled sub-steps, the rest '
               'of the train keeping the step (momentum exact). 0 = off; not with '
               'integration_tolerance > 0.', low=0.0, high=0.1),
-    ParamSpec('integration_max_steps', 100, INTEGER,
-              'Work budget of the error-controlled integration: steps per output period; '
-              'beyond it the rest of the period takes at most as many equal steps without '
-              'error control (counted in /diagnostics fallback_periods). At most ~0.25 s of '
-              'work per period: 25000 / (1 + N / 20) steps for N vehicles.', low=1,
-              high=1000000),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
