@@ -9,6 +9,7 @@ coupler law's breakpoints, restarted at every input instant) fed the same inputs
   the filling table from 1 s + the pipe delay of each coach), 0-20 s;
 - ``khz_unequal``: 4 coaches 45/30/60/25 t, tanh u = 700, cylinder pressures replayed at
   1 kHz (edges every few tens of ms, half of them between the 2 ms ticks), 0-3 s;
+- ``paper30``: the paper's scenario with 30 coaches (default strokes: buffers block), 0-8 s;
 - ``mixed_freeplay``: a 90 t locomotive and 7 loaded/empty wagons (80/22 t), free play
   4-12 mm, strokes 20-30 mm, blocked stiffness 5e7-8e7 N/m, brakes applied front to rear
   in three steps (run-in through the free play to blocking), 0-4 s.
@@ -27,6 +28,7 @@ import numpy as np
 
 from train_dynamics.physics.chain_reference import ChainLaw, solve_chain
 from train_dynamics.physics.config import SimConfig
+from train_dynamics.physics.config.budgets import max_period_steps
 from train_dynamics.physics.kernel.layout import COUPLER
 from train_dynamics.physics.train import TrainSimulator
 
@@ -43,14 +45,11 @@ SETTINGS = (
     ('multirate 3e-4', {'multirate_tolerance': 3e-4}),
     ('multirate 1e-4', {'multirate_tolerance': 1e-4}),
 )
-#: error control offline: a budget out of reach, so that no period falls back to the fixed step
-BUDGET = {'integration_max_steps': 1_000_000, 'publish_rate': 500.0}
 DT = 0.002      # [s] read-out
 
 
-def _paper():
-    base = {}
-    t_end = 20.0
+def _paper(n=3, t_end=20.0):
+    base = {'num_coaches': n}
 
     def make(**o):
         sim = TrainSimulator(SimConfig.from_dict({**base, **o}))
@@ -123,7 +122,8 @@ def _mixed_freeplay(t_end=4.0):
     return make, (times, on * full), None, t_end, cfg.initial_speed
 
 
-CASES = {'paper': _paper, 'khz_unequal': _khz_unequal, 'mixed_freeplay': _mixed_freeplay}
+CASES = {'paper': _paper, 'khz_unequal': _khz_unequal, 'mixed_freeplay': _mixed_freeplay,
+         'paper30': lambda: _paper(30, 8.0)}
 
 
 def run_case(name: str, only=None) -> list[dict]:
@@ -136,10 +136,11 @@ def run_case(name: str, only=None) -> list[dict]:
     peak_f = np.abs(ref.F).max()
     peak_y = np.abs(ref.y).max()
     rows = []
+    budget = {'integration_max_steps': max_period_steps(sim.n), 'publish_rate': 1.0 / DT}
     for label, over in SETTINGS:
         if only and not any(label.startswith(o) for o in only):
             continue
-        opts = {**over, **(BUDGET if 'integration_tolerance' in over else {})}
+        opts = {**over, **(budget if 'integration_tolerance' in over else {})}
         sim = make(**opts)
         F = np.empty_like(ref.F)
         Y = np.empty_like(ref.y)
