@@ -12,7 +12,9 @@ into the moving part and the part with every vehicle at rest at an output period
 - ``uniformN``: N of the paper's coaches, ``SimConfig.from_dict({'num_coaches': N})``,
   flat, default step (the strokes as the defaults set them: long trains block);
 - ``paperN``: the same with the strokes out of reach (the paper's idealisation, as a
-  kernel without strokes computed it).
+  kernel without strokes computed it);
+- ``CASE+mrTOL``, ``CASE+tolTOL``: any of these with ``multirate_tolerance`` or
+  ``integration_tolerance`` TOL (e.g. ``uniform100+mr1e-3``).
 
 ``--python PY --path DIR`` (repeatable, pairwise) adds a kernel version: the case runs with
 ``PY`` and ``PYTHONPATH=DIR`` (e.g. a worktree of an older commit); the uniform and paper
@@ -53,6 +55,10 @@ def drive(sim, events, t: float) -> None:
 def _config(case: str):
     """Return the SimConfig of a case (see the module docstring)."""
     from train_dynamics.physics.config import load_param_file, SimConfig
+    for suffix, name in (('+mr', 'multirate_tolerance'), ('+tol', 'integration_tolerance')):
+        if suffix in case:       # ``uniform100+mr1e-3``, ``uniform100+tol1e-3``
+            case, tol = case.split(suffix)
+            return _config(case).replace(**{name: float(tol)})
     if case == 'freight':
         return load_param_file(os.path.join(ROOT, 'config', 'freight_750m.yaml'))
     if case.startswith('uniform'):

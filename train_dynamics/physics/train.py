@@ -193,6 +193,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             cfg.max_coupler_displacement, self.tolerance,
             1e-3 * float(np.max(self.masses)) * float(cfg.gravity)]
         sc[PARAM.FRICTION] = float(np.any(c[VEHICLE.MATERIAL] != friction.PAPER))
+        sc[PARAM.MRTOL] = float(cfg.multirate_tolerance)
         # the pneumatic brake hands the chain its cylinder pressures (cylinder_per_coach)
         iv[OPTION.MODE] = brakes.CYLINDER_PER_COACH if self.pneu is not None else self.mode
         iv[OPTION.EXT] = int(cfg.external_forces)
@@ -233,7 +234,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         sc[CONTROL.HMIN] = np.inf
         sc[CONTROL.INT_HMIN] = np.inf
         self.iv[len(OPTION):] = 0       # clocks, counters; CACHE.WS_VALID = 0
-        self.ws[[WORK.FHI, WORK.FLO]] = 0.0             # the force envelope starts again
+        self.ws[[WORK.FHI, WORK.FLO, WORK.NSUB]] = 0.0  # the force envelope starts again
         if self.pneu is not None:
             self.pneu.reset()
             c[INPUT.CYL] = self.pneu.cylinder_pressure
@@ -615,6 +616,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         stepping modes): hold_solves, the chain solves beyond the first of each step (the
         holding LCP's new sets, coaches stopping); hold_capped, steps that reached the
         iteration cap with the set still inconsistent (the step finishes all the same).
+        Multirate (``multirate_tolerance`` > 0): mr_groups, the vehicle groups re-integrated
+        in sub-steps, mr_substeps their sub-steps, mr_declined the groups left at the long
+        step (a vehicle held or stopping); per coupler: :attr:`substeps_per_coupler`.
         """
         sc, iv = self.sc, self.iv
         return {'adaptive': self.adaptive, 'steps': int(iv[COUNT.NSTEPS]),
@@ -624,7 +628,15 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                 'steps_max_period': int(iv[COUNT.INT_STEPS_MAX]),
                 'fallback_periods': int(iv[COUNT.NFALLBACK]),
                 'hold_solves': int(iv[COUNT.HOLD_SOLVES]),
-                'hold_capped': int(iv[COUNT.HOLD_CAPPED])}
+                'hold_capped': int(iv[COUNT.HOLD_CAPPED]),
+                'mr_groups': int(iv[COUNT.MR_CLUSTERS]),
+                'mr_substeps': int(iv[COUNT.MR_SUBSTEPS]),
+                'mr_declined': int(iv[COUNT.MR_DECLINED])}
+
+    @property
+    def substeps_per_coupler(self) -> np.ndarray:
+        """Return the multirate sub-steps each coupler took since reset (int, N-1; 0: none)."""
+        return self.ws[WORK.NSUB, :self.n - 1].astype(int)
 
     def advance_to(self, t: float) -> int:
         """Integrate whole steps until ``self.t >= t - h/2``; return the steps done."""

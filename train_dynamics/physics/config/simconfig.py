@@ -30,7 +30,8 @@ from train_dynamics.physics.config.files import simulator_params
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERVICE_PRESSURE,
                                                  G_FILL_TIME, G_RELEASE_TIME,
-                                                 INTEGRATION_TOLERANCE, P_FILL_FRACTION,
+                                                 INTEGRATION_TOLERANCE, MULTIRATE_TOLERANCE,
+                                                 P_FILL_FRACTION,
                                                  P_FILL_TIME, P_RELEASE_FRACTION, P_RELEASE_TIME,
                                                  PARAMETERS, PIPE_NOMINAL_PRESSURE, validate_value)
 from train_dynamics.quoting import quote
@@ -152,6 +153,7 @@ class SimConfig:
     # error-controlled stepping
     integration_tolerance: float = INTEGRATION_TOLERANCE  # [-]; 0 = fixed step
     integration_max_steps: int = 100                  # steps per output period
+    multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = off (fixed step only)
 
     #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
     _consist = None
@@ -362,6 +364,10 @@ class SimConfig:
 
     def _check_work(self) -> None:
         """Refuse an error-control work budget that could keep one output period busy."""
+        if self.integration_tolerance > 0.0 and self.multirate_tolerance > 0.0:
+            raise ConfigError('multirate_tolerance refines the fixed step; with '
+                              'integration_tolerance > 0 the whole chain is error-controlled '
+                              'already: set one of them to 0')
         limit = max_period_steps(self.n_coaches)
         if self.integration_tolerance > 0.0 and self.integration_max_steps > limit:
             raise ConfigError(

@@ -44,6 +44,8 @@ G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
 
 #: default integration_tolerance: 0 = fixed step
 INTEGRATION_TOLERANCE = 0.0
+#: default multirate_tolerance: 0 = every coupler at the fixed step
+MULTIRATE_TOLERANCE = 0.0
 
 #: the most vehicles of a train, however given (num_coaches, masses, a consist file's counts)
 MAX_VEHICLES = 100_000
@@ -397,6 +399,13 @@ _PARAMS = [
               'error control (counted in /diagnostics fallback_periods). At most ~0.25 s of '
               'work per period: 25000 / (1 + N / 20) steps for N vehicles.', low=1,
               high=1000000),
+    ParamSpec('multirate_tolerance', MULTIRATE_TOLERANCE, DOUBLE,
+              'Multirate fixed step: after each integration_step, a coupler whose local force '
+              'error (ROS2 embedded estimate) exceeds this fraction of the largest coupler force '
+              "in the train (at least 1e-3 of a vehicle's weight) [-] is re-integrated with its "
+              'two neighbouring vehicles on either side in error-controlled sub-steps, the rest '
+              'of the train keeping the step (momentum exact). 0 = off; not with '
+              'integration_tolerance > 0.', low=0.0, high=0.1),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
