@@ -68,7 +68,7 @@ class TrainOutputs:
             return coupler_force_travel(y, self.ydot, c[COUPLER.KE], c[COUPLER.KF],
                                         c[COUPLER.KEC], c[COUPLER.KFC], c[COUPLER.GT],
                                         c[COUPLER.GC], c[COUPLER.ST], c[COUPLER.SC],
-                                        c[COUPLER.KB], self.model, self.u)
+                                        c[COUPLER.KB], self.model, self.u, c)
         return self.ws[WORK.F, :self.n - 1].copy()
 
     @property

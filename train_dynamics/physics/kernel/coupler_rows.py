@@ -36,7 +36,7 @@ def invalidate_caches(ws):
 
 
 @jit
-def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h):
+def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h, cpl, j):
     """
     Return one coupler's F [N], dF/dy [N/m] and the dF/dydot [N s/m] of the stage matrix.
 
@@ -60,13 +60,21 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h):
     else:
         s = np.sign(ydot)
         ratio = 0.0
-    f, stiff, amp = couplers.coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb)
-    return f, _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb), amp * u * ratio
+    f, stiff, amp = couplers.coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb,
+                                                   cpl, j)
+    return (f, _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb, cpl, j),
+            amp * u * ratio)
 
 
 @jit
-def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb):
-    """Return the elastic (friction-free) force [N] of the law with free play and blocking."""
+def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb, cpl, j):
+    """
+    Return the elastic (friction-free) force [N] of the law with free play and blocking.
+
+    A tabled coupling (``cpl[COUPLER.TAB, j]``): its law at s = 0, the tables' mean force.
+    """
+    if cpl[COUPLER.TAB, j] != 0.0:
+        return couplers.coupler_branch_table(y, 0.0, gt, gc, st, sc, kb, cpl, j)[0]
     if y > gt:
         d = y - gt
         return kec * d + kb * max(d - st, 0.0)
@@ -77,7 +85,7 @@ def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb):
 
 
 @jit(inline=True)
-def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
+def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb, cpl, j):
     """
     Return the dF/dy [N/m] of the stage matrix: the secant over the step's predicted move.
 
@@ -85,7 +93,9 @@ def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
     tangent at y (0 in free play, k before blocking) would leave the stiff contact
     explicit for the whole step: the secant of the elastic force between y and y + h ydot
     puts it in the matrix (K_b when the step blocks). ROS2 is a W-method, so any slope keeps
-    order two. Without a crossing: the tangent ``stiff``.
+    order two. Without a crossing: the tangent ``stiff``. A tabled coupling's preload ramp
+    (stiff, d_1 = ``cpl[COUPLER.T_D1 / C_D1, j]`` beyond the free play) counts as a crossing
+    too.
     """
     yp = y + h * ydot
     lo = min(y, yp)
@@ -95,10 +105,13 @@ def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
         cross = cross or (lo < gt < hi)
     if gc > 0.0:
         cross = cross or (lo < -gc < hi)
+    if cpl[COUPLER.TAB, j] != 0.0:
+        cross = cross or (lo < gt + cpl[COUPLER.T_D1, j] < hi) or (
+            lo < -(gc + cpl[COUPLER.C_D1, j]) < hi)
     if not cross:
         return stiff
-    return (_elastic_travel(yp, ke, kec, gt, gc, st, sc, kb)
-            - _elastic_travel(y, ke, kec, gt, gc, st, sc, kb)) / (yp - y)
+    return (_elastic_travel(yp, ke, kec, gt, gc, st, sc, kb, cpl, j)
+            - _elastic_travel(y, ke, kec, gt, gc, st, sc, kb, cpl, j)) / (yp - y)
 
 
 @jit(inline=True)
@@ -113,7 +126,7 @@ def _store_coupler(j, y, ydot, cpl, model, u, gh, ws):
     f, dy, dv = _coupler_w(y, ydot, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j],
                            cpl[COUPLER.KEC, j], cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j],
                            cpl[COUPLER.GC, j], cpl[COUPLER.ST, j], cpl[COUPLER.SC, j],
-                           cpl[COUPLER.KB, j], model, u, gh / GAMMA)
+                           cpl[COUPLER.KB, j], model, u, gh / GAMMA, cpl, j)
     ws[WORK.F, j] = f
     ws[WORK.DFDY, j] = dy
     ws[WORK.KK, j] = gh * dv + gh * gh * dy

@@ -203,7 +203,7 @@ def ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
         db = b1[j] - b1[j + 1]
         f, _, _ = couplers.coupler_force_travel_scalar(
             x[j] - x[j + 1] + h * (dv + gh * db), dv + h * db, ke[j], kf[j], kec[j], kfc[j],
-            gt[j], gc[j], st[j], scs[j], kb[j], model, u)
+            gt[j], gc[j], st[j], scs[j], kb[j], model, u, cpl, j)
         F2[j] = f
     if ext:       # the external forces at stage 2, (x + h a1, v + h b1)
         _stage_external(coach, x, v, h, ws, gx, gv, gpc, track, WORK.GR2, WORK.RD2,
