@@ -13,6 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from train_dynamics.physics.kernel.couplers import coupler_force, MODEL_CODES
+from train_dynamics.physics.kernel.layout import TABLE_KNOTS
 
 
 def force_law(y, ydot, *, ke=2.8e6, kf=1.4e6, kec=5.46e6, kfc=2.43e6, model='tanh', u=1000.0):
@@ -38,17 +39,39 @@ def elastic_energy_travel(y, ke, kec, gt, gc, st, sc, kb) -> np.ndarray:
             + 0.5 * ke * dc * dc + 0.5 * kb * np.maximum(dc - sc, 0.0) ** 2)
 
 
-def law_breakpoints(gt, gc, st, sc) -> np.ndarray:
+def law_breakpoints(gt, gc, st, sc, tables=None) -> np.ndarray:
     """
-    Return the displacements y [m] where the coupler law changes branch: (4, N-1) or (4,).
+    Return the displacements y [m] where the coupler law changes branch: (B, N-1) or (B,).
 
     The ends of the free play -g_c and g_t (the kink at y = 0 of a tight coupling) and the
     strokes' ends, where blocking starts, -(g_c + S_c) and g_t + S_t (the law of
     :func:`train_dynamics.physics.kernel.couplers.coupler_branch_travel`). Across each the
-    slope of F(y) jumps: an integrator of order > 1 must not step over one.
+    slope of F(y) jumps: an integrator of order > 1 must not step over one. ``tables``: the
+    couplers' table rows (``layout.TABLE_ROWS``, (len, N-1)): a tabled coupling's knots
+    (:func:`table_knots`, beyond the free play on either side) are breakpoints too (B = 4 +
+    2 (K - 1); an untabled coupler repeats g_t there).
     """
     gt, gc, st, sc = (np.asarray(a, dtype=float) for a in (gt, gc, st, sc))
-    return np.array(np.broadcast_arrays(-(gc + sc), -gc, gt, gt + st))
+    base = np.array(np.broadcast_arrays(-(gc + sc), -gc, gt, gt + st))
+    if tables is None:
+        return base
+    tables = np.asarray(tables, dtype=float)
+    extra = np.broadcast_to(gt, (2 * (TABLE_KNOTS - 1),) + gt.shape).copy()
+    for j in np.flatnonzero(tables[0] != 0.0):
+        extra[:TABLE_KNOTS - 1, j] = gt[j] + table_knots(tables[:, j], 0)[1:]
+        extra[TABLE_KNOTS - 1:, j] = -(gc[j] + table_knots(tables[:, j], 1)[1:])
+    return np.concatenate((base, extra))
+
+
+def table_knots(rows: np.ndarray, side: int) -> np.ndarray:
+    """
+    Return the knots d_k [m] of one side of a coupling table (side 0 draw gear, 1 buffers).
+
+    d_0 = 0, d_1 (end of the preload ramp), then equal spacing 1 / ``ih`` (rows of
+    ``layout.COUPLER``, TAB onwards: TAB, T_D1, T_IH, C_D1, C_IH, ...).
+    """
+    d1, ih = rows[1 + 2 * side], rows[2 + 2 * side]
+    return np.concatenate(([0.0], d1 + np.arange(TABLE_KNOTS - 1) / ih))
 
 
 def deflection_bounds(force, gt, gc, st, sc, kb):
@@ -83,9 +106,6 @@ def end_energy_to_blocking(k, k_friction, stroke):
 
 
 # ---------------------------------------------------------------- preload and progressive ends
-#: the per-end fields of a preloaded or progressive characteristic, per device (prefix)
-CHARACTERISTIC = ('preload', 'final_force', 'energy')
-
 #: points of the dense curves the series rule inverts (the tables are sampled from them)
 _DENSE = 4001
 
@@ -214,12 +234,12 @@ def coupling_table(rear: dict, front: dict, knots: int) -> np.ndarray:
     return np.concatenate(([1.0], head, *body))
 
 
-def table_energy(rows: np.ndarray, device: str, knots: int) -> float:
+def table_energy(rows: np.ndarray, device: str) -> float:
     """Return the energy [J] a tabled coupling's loading branch absorbs to its stroke."""
     side = 0 if device == 'draw_gear' else 1
-    d1, ih = rows[1 + 2 * side], rows[2 + 2 * side]
-    e = rows[5 + 2 * side * knots:5 + (2 * side + 1) * knots]
-    r = rows[5 + (2 * side + 1) * knots:5 + (2 * side + 2) * knots]
-    grid = np.concatenate(([0.0], d1 + np.arange(knots - 1) / ih))
+    k = TABLE_KNOTS
+    e = rows[5 + 2 * side * k:5 + (2 * side + 1) * k]
+    r = rows[5 + (2 * side + 1) * k:5 + (2 * side + 2) * k]
+    grid = table_knots(rows, side)
     load = e + r
     return float(np.sum(0.5 * (load[1:] + load[:-1]) * np.diff(grid)))

@@ -46,9 +46,10 @@ from train_dynamics.physics.config import spec
 from train_dynamics.physics.config.budgets import fmt_bytes
 from train_dynamics.physics.config.files import config_dirs, FastRosParamLoader, resolve_path
 from train_dynamics.physics.config.spec import ConfigError
-from train_dynamics.physics.kernel.layout import TABLE_KNOTS, TABLE_ROWS
 from train_dynamics.physics.config.table import (MAX_VEHICLES, PARAMETERS, validate_value,
                                                  VEHICLE_PARAMETERS)
+# as modules: they import this package's table first (the attributes are read at call time)
+from train_dynamics.physics.kernel import layout
 from train_dynamics.quoting import clip, quote
 import yaml
 
@@ -72,7 +73,7 @@ COUPLER_FIELDS = ('buffer_stiffness', 'buffer_friction', 'draw_gear_stiffness',
 
 #: the fields of a preloaded or progressive end (a coupling of such ends is tabled)
 CHARACTERISTIC_FIELDS = tuple(f'{device}_{what}' for device in ('buffer', 'draw_gear')
-                              for what in couplers.CHARACTERISTIC)
+                              for what in ('preload', 'final_force', 'energy'))
 
 #: the fields one vehicle end may have of its own (``front:`` / ``rear:``)
 END_FIELDS = COUPLER_FIELDS + CHARACTERISTIC_FIELDS
@@ -391,7 +392,7 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
         couplings[f] = np.full(n - 1, float(v))
     if whole:
         check_friction_below_stiffness(couplings, f'{source}: couplings: ')
-        tables = np.zeros((len(TABLE_ROWS), n - 1))
+        tables = np.zeros((len(layout.TABLE_ROWS), n - 1))
     else:
         tables = coupling_tables(ends['rear'], ends['front'], entry_of[:-1], entry_of[1:])
     return Consist(types, fields, regimes, couplings, tables)
@@ -423,7 +424,7 @@ def coupling_tables(rear: Mapping[str, np.ndarray], front: Mapping[str, np.ndarr
     :func:`~train_dynamics.physics.couplers.coupling_table` (the ends' characteristics in
     series: equal force, strokes add), computed once per distinct pair of ends.
     """
-    out = np.zeros((len(TABLE_ROWS), rear_of.shape[0]))
+    out = np.zeros((len(layout.TABLE_ROWS), rear_of.shape[0]))
     done: dict[tuple[int, int], np.ndarray] = {}
     for j, pair in enumerate(zip(rear_of.tolist(), front_of.tolist())):
         if pair not in done:
@@ -431,7 +432,7 @@ def coupling_tables(rear: Mapping[str, np.ndarray], front: Mapping[str, np.ndarr
             b = {f: float(v[pair[1]]) for f, v in front.items()}
             if any(couplers.has_characteristic(e, dev) for e in (a, b)
                    for dev in ('buffer', 'draw_gear')):
-                done[pair] = couplers.coupling_table(a, b, TABLE_KNOTS)
+                done[pair] = couplers.coupling_table(a, b, layout.TABLE_KNOTS)
             else:
                 done[pair] = None
         if done[pair] is not None:

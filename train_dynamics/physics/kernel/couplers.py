@@ -193,9 +193,7 @@ def table_force(cpl, j: int, d: float, d1_row: int, ih_row: int, e_row: int, r_r
     the loading branch is E + R, the unloading branch E - R.
     """
     d1 = cpl[d1_row, j]
-    if d <= d1:
-        if d1 <= 0.0:
-            return 0.0, 0.0, 0.0, 0.0
+    if d <= d1 and d1 > 0.0:
         se = cpl[e_row + 1, j] / d1
         sr = cpl[r_row + 1, j] / d1
         return se * d, sr * d, se, sr
