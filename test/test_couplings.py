@@ -199,29 +199,31 @@ def test_kernel_follows_the_reference_with_preloaded_progressive_ends():
     Four coaches, preloaded progressive buffers and preloaded draw gear, front braked first.
 
     The kernel (error control 1e-4) against the independent reference (numpy tables, Radau
-    restarted at every knot of the tables): every 10 ms sample within 1 % of the peak force.
+    restarted at every knot of the tables): every 10 ms sample within 0.5 % of the peak force
+    (0.05 % when written).
     """
     masses = [45000.0, 30000.0, 60000.0, 25000.0]
     cfg = SimConfig.from_dict({
         'masses': masses, 'brake_input': 'cylinder_per_coach', 'scale_factor': 700.0,
-        'initial_speed': 20.0, 'integration_tolerance': 1e-4, 'buffer_preload': 20000.0,
-        'buffer_final_force': 4.0e5, 'buffer_energy': 12000.0, 'buffer_stroke': 0.06,
-        'draw_gear_preload': 10000.0})
+        'initial_speed': 20.0, 'integration_tolerance': 1e-4, 'buffer_preload': 5000.0,
+        'buffer_final_force': 2.0e5, 'buffer_energy': 4000.0, 'buffer_stroke': 0.04,
+        'draw_gear_preload': 5000.0})
     sim = TrainSimulator(cfg)
     assert np.all(sim.cpl[COUPLER.TAB] == 1.0)
     full = cfg.adhesion_coefficient * np.array(masses) * cfg.gravity
     on = np.array([[1.0, 0.0, 0.0, 0.0], [1.0, 1.0, 1.0, 1.0]])
-    times = np.array([0.1, 0.6])
+    times = np.array([0.1, 0.5])
     for t, p in zip(times, on * cfg.max_cylinder_pressure):
         sim.schedule(t, lambda p=p: sim.set_cylinder_pressure(p))
-    t_eval = np.round(np.arange(1, 151) * 0.01, 10)
+    t_eval = np.round(np.arange(1, 101) * 0.01, 10)
     ref = solve_chain(sim.inertia, ChainLaw.of_simulator(sim), 20.0, (times, on * full), t_eval)
     assert ref.segments > 10                        # knots of the tables crossed
+    assert ref.y.min() < -0.01 and ref.y.max() > 0.005     # both sides well into the tables
     F = []
     for t in t_eval:
         sim.advance_to(t)
         F.append(sim.coupler_force)
     F = np.array(F)
     peak = np.abs(ref.F).max()
-    assert peak > 3 * 20000.0                       # beyond the preloads
-    assert np.abs(F - ref.F).max() < 0.01 * peak
+    assert peak > 5 * 5000.0                        # beyond the preloads
+    assert np.abs(F - ref.F).max() < 0.005 * peak
