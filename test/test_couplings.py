@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from train_dynamics.physics import couplers
+from train_dynamics.physics import characteristics, couplers, equilibrium
 from train_dynamics.physics.chain_reference import ChainLaw, solve_chain
 from train_dynamics.physics.config import consist, SimConfig
 from train_dynamics.physics.couplers import end_deflection, end_energy_to_blocking
@@ -187,8 +187,8 @@ def test_a_progressive_and_a_degressive_end_in_series_carry_one_force(tmp_path):
     d = np.linspace(0.0, 0.105, 200001)
     kw = {'k': 7.0e6, 'k_friction': 4.2e6, 'stroke': 0.105, 'preload': 30000.0,
           'final_force': 1.0e6, 'kb': 2.0e8}
-    load_a = couplers.end_loading(d, energy=30000.0, **kw)
-    load_c = couplers.end_loading(d, energy=70000.0, **kw)
+    load_a = characteristics.end_loading(d, energy=30000.0, **kw)
+    load_c = characteristics.end_loading(d, energy=70000.0, **kw)
     for force in (2.0e5, 5.0e5, 8.0e5):
         y = -(np.interp(force, load_a, d) + np.interp(force, load_c, d))
         assert -quasi_static_force(c, 0, [y])[0] == pytest.approx(force, rel=0.01)
@@ -227,3 +227,25 @@ def test_kernel_follows_the_reference_with_preloaded_progressive_ends():
     peak = np.abs(ref.F).max()
     assert peak > 5 * 5000.0                        # beyond the preloads
     assert np.abs(F - ref.F).max() < 0.005 * peak
+
+
+def test_tabled_couplings_at_rest_static_deflection_and_stored_energy():
+    """The static solve inverts the tables (F(y, 0) = T) and the stored energy is int E dy."""
+    cfg = SimConfig.from_dict({'num_coaches': 3, 'buffer_preload': 3.0e4,
+                               'buffer_final_force': 1.0e6, 'buffer_energy': 3.0e4,
+                               'draw_gear_preload': 2.0e4})
+    sim = TrainSimulator(cfg)
+    c = sim.cpl
+    rows = [c[getattr(COUPLER, r)] for r in ('KE', 'KF', 'KEC', 'KFC', 'GT', 'GC', 'ST', 'SC',
+                                             'KB')]
+    force = np.array([1.5e5, -4.0e5])
+    y = equilibrium.static_deflection(force, rows[0], rows[2], *rows[4:], c[TABLE_ROWS])
+    assert -0.105 < y[1] < -0.01 and 0.01 < y[0] < 0.06       # within the strokes
+    at_rest = coupler_force_travel(y, np.zeros(2), *rows, MODEL_CODES['tanh'], 1000.0, c)
+    assert at_rest == pytest.approx(force, rel=1e-9)
+    path = np.linspace(0.0, 1.0, 20001)[:, None] * y
+    f = np.array([coupler_force_travel(p, np.zeros(2), *rows, MODEL_CODES['tanh'], 1000.0, c)
+                  for p in path])
+    work = np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(path, axis=0), axis=0)
+    stored = couplers.elastic_energy_travel(y, rows[0], rows[2], *rows[4:], c[TABLE_ROWS])
+    assert stored == pytest.approx(work, rel=1e-6)

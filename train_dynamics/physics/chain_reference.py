@@ -27,8 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from train_dynamics.physics.couplers import law_breakpoints, table_knots
-from train_dynamics.physics.kernel.layout import COUPLER, TABLE_KNOTS, TABLE_ROWS
+from train_dynamics.physics.couplers import law_breakpoints, table_knots, table_side
+from train_dynamics.physics.kernel.layout import COUPLER, TABLE_ROWS
 
 
 @dataclass(frozen=True)
@@ -62,9 +62,7 @@ class ChainLaw:
     def _side(self, j, side, a):
         """Return (E, R, dE/da, dR/da) of coupler j's table on one side at a >= 0 [m]."""
         rows = self.tables[:, j]
-        k = TABLE_KNOTS
-        e = rows[5 + 2 * side * k:5 + (2 * side + 1) * k]
-        r = rows[5 + (2 * side + 1) * k:5 + (2 * side + 2) * k]
+        e, r = table_side(rows, side)
         grid = table_knots(rows, side)
         if grid[1] == 0.0:           # no preload ramp: knot 0 is knot 1
             grid, e, r = grid[1:], e[1:], r[1:]

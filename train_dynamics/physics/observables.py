@@ -16,7 +16,8 @@ import numpy as np
 
 from train_dynamics.physics import couplers
 from train_dynamics.physics.kernel.couplers import coupler_force_travel
-from train_dynamics.physics.kernel.layout import COUPLER, OUTPUT, STATE, TOTAL, VEHICLE, WORK
+from train_dynamics.physics.kernel.layout import (COUPLER, OUTPUT, STATE, TABLE_ROWS, TOTAL,
+                                                  VEHICLE, WORK)
 
 
 class TrainOutputs:
@@ -208,7 +209,7 @@ class TrainBalances:
         c = self.cpl
         return float(np.sum(couplers.elastic_energy_travel(
             self.y, self.ke, self.kec, c[COUPLER.GT], c[COUPLER.GC], c[COUPLER.ST],
-            c[COUPLER.SC], c[COUPLER.KB])))
+            c[COUPLER.SC], c[COUPLER.KB], c[TABLE_ROWS])))
 
     @property
     def momentum(self) -> float:

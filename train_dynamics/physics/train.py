@@ -276,7 +276,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         cpl = self.cpl
         y = equilibrium.static_deflection(force, cpl[COUPLER.KE], cpl[COUPLER.KEC],
                                           cpl[COUPLER.GT], cpl[COUPLER.GC], cpl[COUPLER.ST],
-                                          cpl[COUPLER.SC], cpl[COUPLER.KB])
+                                          cpl[COUPLER.SC], cpl[COUPLER.KB], cpl[TABLE_ROWS])
         c[STATE.X] = equilibrium.positions(y)
         self.ws[WORK.XKEY] = np.nan      # the static resistance at the new positions
         self.iv[CACHE.WS_VALID] = 0

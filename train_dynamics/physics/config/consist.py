@@ -41,7 +41,7 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
-from train_dynamics.physics import couplers
+from train_dynamics.physics import characteristics
 from train_dynamics.physics.config import spec
 from train_dynamics.physics.config.budgets import fmt_bytes
 from train_dynamics.physics.config.files import config_dirs, FastRosParamLoader, resolve_path
@@ -401,10 +401,10 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
 def _check_characteristic(end: Mapping[str, float], where: str) -> None:
     """Raise ConfigError unless one end's preload, final force and energy make a curve."""
     for device in ('buffer', 'draw_gear'):
-        if not couplers.has_characteristic(end, device):
+        if not characteristics.has_characteristic(end, device):
             continue
         try:
-            couplers.end_loading(
+            characteristics.end_loading(
                 0.0, k=end[f'{device}_stiffness'], k_friction=end[f'{device}_friction'],
                 stroke=end[f'{device}_stroke'], preload=end[f'{device}_preload'],
                 final_force=end[f'{device}_final_force'], energy=end[f'{device}_energy'],
@@ -421,7 +421,7 @@ def coupling_tables(rear: Mapping[str, np.ndarray], front: Mapping[str, np.ndarr
     ``rear``, ``front``: end field -> array per entry; coupling j joins the rear end of entry
     ``rear_of[j]`` to the front end of entry ``front_of[j]``. A coupling whose two ends have
     no preload and no final force keeps the linear law (rows 0); the others get
-    :func:`~train_dynamics.physics.couplers.coupling_table` (the ends' characteristics in
+    :func:`~train_dynamics.physics.characteristics.coupling_table` (the ends' characteristics in
     series: equal force, strokes add), computed once per distinct pair of ends.
     """
     out = np.zeros((len(layout.TABLE_ROWS), rear_of.shape[0]))
@@ -430,9 +430,9 @@ def coupling_tables(rear: Mapping[str, np.ndarray], front: Mapping[str, np.ndarr
         if pair not in done:
             a = {f: float(v[pair[0]]) for f, v in rear.items()}
             b = {f: float(v[pair[1]]) for f, v in front.items()}
-            if any(couplers.has_characteristic(e, dev) for e in (a, b)
+            if any(characteristics.has_characteristic(e, dev) for e in (a, b)
                    for dev in ('buffer', 'draw_gear')):
-                done[pair] = couplers.coupling_table(a, b, layout.TABLE_KNOTS)
+                done[pair] = characteristics.coupling_table(a, b, layout.TABLE_KNOTS)
             else:
                 done[pair] = None
         if done[pair] is not None:

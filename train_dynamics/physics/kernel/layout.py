@@ -118,7 +118,7 @@ COACH = range(len(VEHICLE) + len(STATE) + len(INPUT) + len(OUTPUT))
 
 # -- cpl: one column per coupler ------------------------------------------------------------
 #: knots of each coupling table: d = 0, the end of the preload ramp, then equal spacing to
-#: the coupling's stroke (physics/couplers.py; enough for 0.5 % of the energy of a x^3 curve)
+#: the coupling's stroke (physics/characteristics.py; enough for 0.5 % of the energy of a x^3 curve)
 TABLE_KNOTS = 16
 COUPLER = _group('CouplerRows', [
     'KE',           # buffer stiffness k_e [N/m]
@@ -131,7 +131,7 @@ COUPLER = _group('CouplerRows', [
     'SC',           # buffer stroke S_c [m]
     'KB',           # blocked stiffness K_b [N/m]
     # a coupling with a preloaded or progressive end: its characteristic as tables
-    # (physics/couplers.py builds them, kernel/couplers.py reads them); TAB = 0: none, the
+    # (physics/characteristics.py builds them, kernel/couplers.py reads them); TAB = 0: none, the
     # linear law of the rows above
     'TAB',          # 1.0: the coupling's law is its tables
     'T_D1',         # draw gear: end of the preload ramp [m] (knot 1; knot 0 is d = 0)
