@@ -142,7 +142,8 @@ def test_library_locomotives_match_their_sources():
 
 
 # ----------------------------------------------------------- preloaded and progressive ends
-CATEGORY_C = ('  cat_c: {buffer_stroke: 0.105, buffer_final_force: 1.0e6, buffer_energy: 70000.0,\n'
+CATEGORY_C = ('  cat_c: {buffer_stroke: 0.105, buffer_final_force: 1.0e6,\n'
+              '          buffer_energy: 70000.0,\n'
               '          buffer_preload: 30000.0, buffer_stiffness: 7.0e6, '
               'buffer_friction: 4.2e6, brake_regime: G}')
 

@@ -12,7 +12,8 @@ tanh friction eq. 14, slack g_t, g_c, strokes S_t, S_c, blocked stiffness K_b [N
 and, for a coupling of preloaded or progressive ends, its tables instead of the linear springs
 (elastic force E and friction amplitude R linear between knots, constant beyond the last:
 F = E_t(d) + s R_t(d) in tension, F = -(E_c(a) - s R_c(a)) in compression, a = -(y + g_c);
-evaluated here with numpy's interp from the knots), with its analytical Jacobian, and the equations of motion m_i a_i = F_{i-1} - F_i - Fb_i + E_i
+evaluated here with numpy's interp from the knots), with its analytical Jacobian, and the
+equations of motion m_i a_i = F_{i-1} - F_i - Fb_i + E_i
 (eqs. 5-7; E_i a constant external force [N], e.g. gravity on a constant gradient). The
 integration is restarted at every input instant (the braking forces are a staircase: zero-order
 hold) and at every crossing of a breakpoint of the law

@@ -49,8 +49,8 @@ class ParamSpec:
     ``vehicle``: the field of a consist's vehicle this parameter is the default of (its name
     in a consist file), '' when not per vehicle; ``connection``: how the field of two
     vehicle ends makes the value of the coupling between them (:data:`SERIES`,
-    :data:`ADDED`, :data:`EQUAL_FORCE`), '' when it is no coupling constant; ``row``: the name of the
-    per-vehicle constant row of the kernel (``layout.VEHICLE``) that holds the field's value
+    :data:`ADDED`, :data:`EQUAL_FORCE`), '' when it is no coupling constant; ``row``: the name
+    of the per-vehicle constant row of the kernel (``layout.VEHICLE``) that holds the field's value
     of each vehicle as is, '' when the kernel has no such row. A per-vehicle field is this one
     declaration: the consist field list, the docs' tables, the kernel row and the copy into
     it are derived from it.

@@ -246,8 +246,8 @@ _PARAMS = [
               'Stiffness K_b [N/m] once a buffer or draw gear is at the end of its stroke '
               '(vehicle underframe, ~1e8 N/m).', low=0.0, high=1.0e12, low_exclusive=True,
               vehicle='blocked_stiffness', connection=SERIES),
-    # Preloaded and progressive ends (physics/characteristics.py end_loading): the datasheet figures
-    # of a buffer (EN 15551) or draw gear; all 0: the paper's linear law.
+    # Preloaded and progressive ends (physics/characteristics.py end_loading): the datasheet
+    # figures of a buffer (EN 15551) or draw gear; all 0: the paper's linear law.
     ParamSpec('buffer_preload', 0.0, DOUBLE,
               'Buffer preload P [N]: the force below which the buffer does not move (its '
               'spring is pre-compressed); 0 = none.', low=0.0, high=1.0e7,

@@ -186,9 +186,9 @@ def table_force(cpl, j: int, d: float, d1_row: int, ih_row: int, e_row: int, r_r
     Return (E [N], R [N], dE/dd [N/m], dR/dd [N/m]) of coupling j's table at deflection d >= 0.
 
     The table of a coupling with a preloaded or progressive end (rows of ``layout.COUPLER``,
-    built by :func:`train_dynamics.physics.characteristics.coupling_table`): knot 0 at d = 0 (E = R =
-    0), knot 1 at d_1 (the end of the preload ramp), knots 2 .. K-1 equally spaced up to the
-    coupling's stroke; linear between knots, constant beyond the last (the blocked stiffness
+    built by :func:`train_dynamics.physics.characteristics.coupling_table`): knot 0 at d = 0
+    (E = R = 0), knot 1 at d_1 (the end of the preload ramp), knots 2 .. K-1 equally spaced up
+    to the coupling's stroke; linear between knots, constant beyond the last (the blocked stiffness
     K_b takes over at the stroke). E is the elastic (mean) force, R the friction amplitude:
     the loading branch is E + R, the unloading branch E - R.
     """

@@ -29,7 +29,8 @@ Each group below says what it holds and who writes it.
 ``cpl``: float, shape (len(COUPLER), N-1), one column per coupler
 
 - ``COUPLER``: per-coupler constants (stiffness, friction, slack, stroke, blocked
-  stiffness; the tables of a coupling with a preloaded or progressive end); written by ``TrainSimulator.__init__`` only.
+  stiffness; the tables of a coupling with a preloaded or progressive end); written by
+  ``TrainSimulator.__init__`` only.
 
 ``sc``: float, shape (len(SCALAR),)
 
@@ -118,7 +119,8 @@ COACH = range(len(VEHICLE) + len(STATE) + len(INPUT) + len(OUTPUT))
 
 # -- cpl: one column per coupler ------------------------------------------------------------
 #: knots of each coupling table: d = 0, the end of the preload ramp, then equal spacing to
-#: the coupling's stroke (physics/characteristics.py; enough for 0.5 % of the energy of a x^3 curve)
+#: the coupling's stroke (physics/characteristics.py; the trapezoids keep the energy of an x^3
+#: curve within 0.5 %)
 TABLE_KNOTS = 16
 COUPLER = _group('CouplerRows', [
     'KE',           # buffer stiffness k_e [N/m]
