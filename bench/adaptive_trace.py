@@ -108,11 +108,11 @@ def _err(h, coach, cpl, model, u, held, ws, tol, f_floor, mode, scr, info):
             fa, _, _ = couplers.coupler_force_travel_scalar(
                 y, yd, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j], cpl[COUPLER.KEC, j],
                 cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j], cpl[COUPLER.GC, j],
-                cpl[COUPLER.ST, j], cpl[COUPLER.SC, j], cpl[COUPLER.KB, j], model, u, cpl, j)
+                cpl[COUPLER.ST, j], cpl[COUPLER.SC, j], cpl[COUPLER.KB, j], model, u)
             fb, _, _ = couplers.coupler_force_travel_scalar(
                 y - dy, yd - dyd, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j], cpl[COUPLER.KEC, j],
                 cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j], cpl[COUPLER.GC, j],
-                cpl[COUPLER.ST, j], cpl[COUPLER.SC, j], cpl[COUPLER.KB, j], model, u, cpl, j)
+                cpl[COUPLER.ST, j], cpl[COUPLER.SC, j], cpl[COUPLER.KB, j], model, u)
             e = abs(fa - fb)
         else:
             e = abs(dfdy[j] * dy + dfdv * dyd)

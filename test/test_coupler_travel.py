@@ -17,7 +17,7 @@ def law(y, ydot, model='sign', u=1000.0, **over):
     c = {**K, **over}
     return kernel_couplers.coupler_force_travel_scalar(
         y, ydot, c['ke'], c['kf'], c['kec'], c['kfc'], c['gt'], c['gc'], c['st'], c['sc'],
-        c['kb'], kernel_couplers.MODEL_CODES[model], u, couplers.no_tables(), 0)
+        c['kb'], kernel_couplers.MODEL_CODES[model], u)
 
 
 @pytest.mark.parametrize('model', ['sign', 'tanh'])
@@ -76,7 +76,7 @@ def test_tight_unblocked_coupling_is_the_papers_law_bit_for_bit(model):
                                                    1000.0)
         new = kernel_couplers.coupler_force_travel_scalar(a, b, 2.8e6, 1.4e6, 5.46e6, 2.43e6,
                                                           0.0, 0.0, 0.06, 0.105, 1.0e8, code,
-                                                          1000.0, couplers.no_tables(), 0)
+                                                          1000.0)
         assert ref[0] == new[0] and ref[1] == new[1] and ref[2] == new[2]
 
 

@@ -36,7 +36,7 @@ def invalidate_caches(ws):
 
 
 @jit
-def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h, cpl, j):
+def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h):
     """
     Return one coupler's F [N], dF/dy [N/m] and the dF/dydot [N s/m] of the stage matrix.
 
@@ -51,6 +51,14 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h, cpl, 
     (:func:`couplers.coupler_branch_travel`; with no slack and below the strokes it is the
     paper's law bit for bit).
     """
+    s, ratio = _sign_ratio(ydot, model, u)
+    f, stiff, amp = couplers.coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb)
+    return f, _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb), amp * u * ratio
+
+
+@jit(inline=True)
+def _sign_ratio(ydot, model, u):
+    """Return (s, tanh(u ydot) / (u ydot)) of the tanh model (eq. 14), (sgn ydot, 0) of sign."""
     if model == couplers.TANH:
         z = u * ydot
         a = abs(z)
@@ -60,21 +68,36 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h, cpl, 
     else:
         s = np.sign(ydot)
         ratio = 0.0
-    f, stiff, amp = couplers.coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb,
-                                                   cpl, j)
-    return (f, _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb, cpl, j),
-            amp * u * ratio)
+    return s, ratio
 
 
 @jit
-def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb, cpl, j):
+def _coupler_w_table(y, ydot, gt, gc, st, sc, kb, model, u, h, cpl, j):
     """
-    Return the elastic (friction-free) force [N] of the law with free play and blocking.
+    Return :func:`_coupler_w` of tabled coupler j (preloaded or progressive ends, ``cpl``).
 
-    A tabled coupling (``cpl[COUPLER.TAB, j]``): its law at s = 0, the tables' mean force.
+    The law is :func:`couplers.coupler_branch_table`; the stage matrix takes the secant of
+    its elastic force when the step crosses the end of the free play, of a stroke or of the
+    preload ramp (:func:`_travel_slope`'s rule), else the tangent.
     """
-    if cpl[COUPLER.TAB, j] != 0.0:
-        return couplers.coupler_branch_table(y, 0.0, gt, gc, st, sc, kb, cpl, j)[0]
+    s, ratio = _sign_ratio(ydot, model, u)
+    f, stiff, amp = couplers.coupler_branch_table(y, s, gt, gc, st, sc, kb, cpl, j)
+    yp = y + h * ydot
+    lo = min(y, yp)
+    hi = max(y, yp)
+    cross = ((lo < gt + st < hi) or (lo < -(gc + sc) < hi) or (lo < gt < hi)
+             or (lo < -gc < hi) or (lo < gt + cpl[COUPLER.T_D1, j] < hi)
+             or (lo < -(gc + cpl[COUPLER.C_D1, j]) < hi))
+    if cross:
+        stiff = (couplers.coupler_branch_table(yp, 0.0, gt, gc, st, sc, kb, cpl, j)[0]
+                 - couplers.coupler_branch_table(y, 0.0, gt, gc, st, sc, kb, cpl, j)[0]) / (
+                     yp - y)
+    return f, stiff, amp * u * ratio
+
+
+@jit
+def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb):
+    """Return the elastic (friction-free) force [N] of the law with free play and blocking."""
     if y > gt:
         d = y - gt
         return kec * d + kb * max(d - st, 0.0)
@@ -85,7 +108,7 @@ def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb, cpl, j):
 
 
 @jit(inline=True)
-def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb, cpl, j):
+def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
     """
     Return the dF/dy [N/m] of the stage matrix: the secant over the step's predicted move.
 
@@ -93,9 +116,7 @@ def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb, cpl, j):
     tangent at y (0 in free play, k before blocking) would leave the stiff contact
     explicit for the whole step: the secant of the elastic force between y and y + h ydot
     puts it in the matrix (K_b when the step blocks). ROS2 is a W-method, so any slope keeps
-    order two. Without a crossing: the tangent ``stiff``. A tabled coupling's preload ramp
-    (stiff, d_1 = ``cpl[COUPLER.T_D1 / C_D1, j]`` beyond the free play) counts as a crossing
-    too.
+    order two. Without a crossing: the tangent ``stiff``.
     """
     yp = y + h * ydot
     lo = min(y, yp)
@@ -105,13 +126,10 @@ def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb, cpl, j):
         cross = cross or (lo < gt < hi)
     if gc > 0.0:
         cross = cross or (lo < -gc < hi)
-    if cpl[COUPLER.TAB, j] != 0.0:
-        cross = cross or (lo < gt + cpl[COUPLER.T_D1, j] < hi) or (
-            lo < -(gc + cpl[COUPLER.C_D1, j]) < hi)
     if not cross:
         return stiff
-    return (_elastic_travel(yp, ke, kec, gt, gc, st, sc, kb, cpl, j)
-            - _elastic_travel(y, ke, kec, gt, gc, st, sc, kb, cpl, j)) / (yp - y)
+    return (_elastic_travel(yp, ke, kec, gt, gc, st, sc, kb)
+            - _elastic_travel(y, ke, kec, gt, gc, st, sc, kb)) / (yp - y)
 
 
 @jit(inline=True)
@@ -123,10 +141,15 @@ def _store_coupler(j, y, ydot, cpl, model, u, gh, ws):
     g h dF/dydot + (g h)^2 dF/dy (rows WORK.F, DFDY, KK). (y, ydot) go to WORK.YKEY, VKEY:
     the key of :func:`eval_couplers_work`'s cache.
     """
-    f, dy, dv = _coupler_w(y, ydot, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j],
-                           cpl[COUPLER.KEC, j], cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j],
-                           cpl[COUPLER.GC, j], cpl[COUPLER.ST, j], cpl[COUPLER.SC, j],
-                           cpl[COUPLER.KB, j], model, u, gh / GAMMA, cpl, j)
+    if cpl[COUPLER.TAB, j] != 0.0:       # preloaded or progressive ends: the tables
+        f, dy, dv = _coupler_w_table(y, ydot, cpl[COUPLER.GT, j], cpl[COUPLER.GC, j],
+                                     cpl[COUPLER.ST, j], cpl[COUPLER.SC, j],
+                                     cpl[COUPLER.KB, j], model, u, gh / GAMMA, cpl, j)
+    else:
+        f, dy, dv = _coupler_w(y, ydot, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j],
+                               cpl[COUPLER.KEC, j], cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j],
+                               cpl[COUPLER.GC, j], cpl[COUPLER.ST, j], cpl[COUPLER.SC, j],
+                               cpl[COUPLER.KB, j], model, u, gh / GAMMA)
     ws[WORK.F, j] = f
     ws[WORK.DFDY, j] = dy
     ws[WORK.KK, j] = gh * dv + gh * gh * dy

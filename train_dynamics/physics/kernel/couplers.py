@@ -250,7 +250,7 @@ def coupler_branch_table(y: float, s: float, gt: float, gc: float, st: float, sc
 
 @jit
 def coupler_branch_travel(y: float, s: float, ke: float, kf: float, kec: float, kfc: float,
-                          gt: float, gc: float, st: float, sc: float, kb: float, cpl, j: int):
+                          gt: float, gc: float, st: float, sc: float, kb: float):
     """
     Return the branch of the extended law at y [m]: (F [N], dF/dy [N/m], k_fr d [N/m * m]).
 
@@ -265,10 +265,9 @@ def coupler_branch_travel(y: float, s: float, ke: float, kf: float, kec: float, 
     arithmetic (bit for bit below the strokes), y = 0 included. Blocking adds K_b to the
     slope, so the integrator's stage matrix sees the stiff block. A coupling with a
     preloaded or progressive end (``cpl[COUPLER.TAB, j]`` set) has its tables instead of the
-    linear springs: :func:`coupler_branch_table`.
+    linear springs: :func:`coupler_branch_table` (the callers choose: no array reaches this
+    function, whose calls stay free of reference counting).
     """
-    if cpl[C_TAB, j] != 0.0:
-        return coupler_branch_table(y, s, gt, gc, st, sc, kb, cpl, j)
     if y > gt:
         d = y - gt
         k = kec
@@ -296,16 +295,38 @@ def coupler_branch_travel(y: float, s: float, ke: float, kf: float, kec: float, 
 @jit
 def coupler_force_travel_scalar(y: float, ydot: float, ke: float, kf: float, kec: float,
                                 kfc: float, gt: float, gc: float, st: float, sc: float,
-                                kb: float, model: int, u: float, cpl, j: int):
+                                kb: float, model: int, u: float):
     """
     Return (F [N], dF/dy [N/m], dF/dydot [N s/m]) of one coupler with free play and blocking.
 
-    s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14) in :func:`coupler_branch_travel`; ``cpl``
-    the couplers' constants (``layout.COUPLER``), j the coupler (its tables, if any).
+    s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14) in :func:`coupler_branch_travel`.
     """
     s, dsdv = friction_sign(ydot, model, u)
-    f, stiff, amp = coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb, cpl, j)
+    f, stiff, amp = coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb)
     return f, stiff, amp * dsdv
+
+
+@jit
+def coupler_force_table_scalar(y: float, ydot: float, gt: float, gc: float, st: float,
+                               sc: float, kb: float, model: int, u: float, cpl, j: int):
+    """
+    Return (F [N], dF/dy [N/m], dF/dydot [N s/m]) of tabled coupler j (``cpl`` its tables).
+
+    s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14) in :func:`coupler_branch_table`.
+    """
+    s, dsdv = friction_sign(ydot, model, u)
+    f, stiff, amp = coupler_branch_table(y, s, gt, gc, st, sc, kb, cpl, j)
+    return f, stiff, amp * dsdv
+
+
+@jit
+def coupler_force_any(y: float, ydot: float, ke: float, kf: float, kec: float, kfc: float,
+                      gt: float, gc: float, st: float, sc: float, kb: float, model: int,
+                      u: float, cpl, j: int):
+    """Return :func:`coupler_force_table_scalar` for a tabled coupler j, else the linear law's."""
+    if cpl[C_TAB, j] != 0.0:
+        return coupler_force_table_scalar(y, ydot, gt, gc, st, sc, kb, model, u, cpl, j)
+    return coupler_force_travel_scalar(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u)
 
 
 @jit
@@ -320,9 +341,8 @@ def coupler_force_travel(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf: np
     """
     out = np.empty(y.shape[0])
     for j in range(y.shape[0]):
-        out[j] = coupler_force_travel_scalar(y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j],
-                                             gt[j], gc[j], st[j], sc[j], kb[j], model, u,
-                                             cpl, j)[0]
+        out[j] = coupler_force_any(y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j],
+                                   st[j], sc[j], kb[j], model, u, cpl, j)[0]
     return out
 
 
@@ -335,7 +355,7 @@ def coupler_jacobian_travel(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf:
     dfdy = np.empty(y.shape[0])
     dfdv = np.empty(y.shape[0])
     for j in range(y.shape[0]):
-        _, dfdy[j], dfdv[j] = coupler_force_travel_scalar(
-            y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j], sc[j], kb[j],
-            model, u, cpl, j)
+        _, dfdy[j], dfdv[j] = coupler_force_any(y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j],
+                                                gt[j], gc[j], st[j], sc[j], kb[j], model, u,
+                                                cpl, j)
     return dfdy, dfdv
