@@ -51,14 +51,25 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h):
     (:func:`couplers.coupler_branch_travel`; with no slack and below the strokes it is the
     paper's law bit for bit).
     """
-    s, ratio = _sign_ratio(ydot, model, u)
+    if model == couplers.TANH:
+        z = u * ydot
+        a = abs(z)
+        t = couplers.fast_tanh(a)               # tanh|z|
+        s = math.copysign(t, z)
+        ratio = t / a if a > 1e-3 else 1.0     # tanh(z) / z, within 4e-7 of 1 below 1e-3
+    else:
+        s = np.sign(ydot)
+        ratio = 0.0
     f, stiff, amp = couplers.coupler_branch_travel(y, s, ke, kf, kec, kfc, gt, gc, st, sc, kb)
     return f, _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb), amp * u * ratio
 
 
 @jit(inline=True)
 def _sign_ratio(ydot, model, u):
-    """Return (s, tanh(u ydot) / (u ydot)) of the tanh model (eq. 14), (sgn ydot, 0) of sign."""
+    """Return (s, tanh(u ydot) / (u ydot)) of the tanh model (eq. 14), (sgn ydot, 0) of sign.
+
+    As :func:`_coupler_w` computes them (written there too: the linear law's hot path).
+    """
     if model == couplers.TANH:
         z = u * ydot
         a = abs(z)
@@ -132,6 +143,19 @@ def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
             - _elastic_travel(y, ke, kec, gt, gc, st, sc, kb)) / (yp - y)
 
 
+@jit
+def _store_coupler_table(j, y, ydot, cpl, model, u, gh, ws):
+    """Do :func:`_store_coupler` for tabled coupler j (:func:`_coupler_w_table`)."""
+    f, dy, dv = _coupler_w_table(y, ydot, cpl[COUPLER.GT, j], cpl[COUPLER.GC, j],
+                                 cpl[COUPLER.ST, j], cpl[COUPLER.SC, j], cpl[COUPLER.KB, j],
+                                 model, u, gh / GAMMA, cpl, j)
+    ws[WORK.F, j] = f
+    ws[WORK.DFDY, j] = dy
+    ws[WORK.KK, j] = gh * dv + gh * gh * dy
+    ws[WORK.YKEY, j] = y
+    ws[WORK.VKEY, j] = ydot
+
+
 @jit(inline=True)
 def _store_coupler(j, y, ydot, cpl, model, u, gh, ws):
     """
@@ -142,14 +166,12 @@ def _store_coupler(j, y, ydot, cpl, model, u, gh, ws):
     the key of :func:`eval_couplers_work`'s cache.
     """
     if cpl[COUPLER.TAB, j] != 0.0:       # preloaded or progressive ends: the tables
-        f, dy, dv = _coupler_w_table(y, ydot, cpl[COUPLER.GT, j], cpl[COUPLER.GC, j],
-                                     cpl[COUPLER.ST, j], cpl[COUPLER.SC, j],
-                                     cpl[COUPLER.KB, j], model, u, gh / GAMMA, cpl, j)
-    else:
-        f, dy, dv = _coupler_w(y, ydot, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j],
-                               cpl[COUPLER.KEC, j], cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j],
-                               cpl[COUPLER.GC, j], cpl[COUPLER.ST, j], cpl[COUPLER.SC, j],
-                               cpl[COUPLER.KB, j], model, u, gh / GAMMA)
+        _store_coupler_table(j, y, ydot, cpl, model, u, gh, ws)
+        return
+    f, dy, dv = _coupler_w(y, ydot, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j],
+                           cpl[COUPLER.KEC, j], cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j],
+                           cpl[COUPLER.GC, j], cpl[COUPLER.ST, j], cpl[COUPLER.SC, j],
+                           cpl[COUPLER.KB, j], model, u, gh / GAMMA)
     ws[WORK.F, j] = f
     ws[WORK.DFDY, j] = dy
     ws[WORK.KK, j] = gh * dv + gh * gh * dy
