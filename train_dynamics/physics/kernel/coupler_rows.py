@@ -66,7 +66,8 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h):
 
 @jit(inline=True)
 def _sign_ratio(ydot, model, u):
-    """Return (s, tanh(u ydot) / (u ydot)) of the tanh model (eq. 14), (sgn ydot, 0) of sign.
+    """
+    Return (s, tanh(u ydot) / (u ydot)) of the tanh model (eq. 14), (sgn ydot, 0) of sign.
 
     As :func:`_coupler_w` computes them (written there too: the linear law's hot path).
     """
