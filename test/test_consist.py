@@ -154,9 +154,17 @@ def test_the_per_vehicle_declarations_elsewhere_name_fields_of_the_table():
     assert consist.VEHICLE_FIELDS == tuple(VEHICLE_PARAMETERS)
     assert consist.PARAM_OF == {'mass': 'coach_mass', 'length': 'coach_length'}
     connections = {f for f, s in VEHICLE_PARAMETERS.items() if s.connection}
-    assert set(consist.COUPLER_FIELDS) == connections == {*consist.SERIES, *consist.ADDED}
+    assert set(consist.END_FIELDS) == connections
+    # the kernel's constants are joined by the linear rules; the characteristics' figures
+    # (preload, final force: equal force; energy: added) make the coupling's tables
+    equal_force = {f for f, s in VEHICLE_PARAMETERS.items() if s.connection == 'equal force'}
+    assert set(consist.COUPLER_FIELDS) == {*consist.SERIES, *consist.ADDED} - set(
+        consist.CHARACTERISTIC_FIELDS)
+    assert set(consist.CHARACTERISTIC_FIELDS) - equal_force == {'buffer_energy',
+                                                                'draw_gear_energy'}
     assert set(TrainSimulator._VEHICLE_ROWS) <= set(VEHICLE_PARAMETERS)
-    assert {*TrainSimulator._TRAVEL_ROWS, *TrainSimulator._COUPLER_ROWS} == connections
+    assert {*TrainSimulator._TRAVEL_ROWS, *TrainSimulator._COUPLER_ROWS} == set(
+        consist.COUPLER_FIELDS)
 
 
 #: parameters a field's consist needs to be valid (remote brake valves: the pneumatic brake)

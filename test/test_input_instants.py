@@ -153,7 +153,7 @@ def test_chain_reference_locates_free_play_and_blocking():
     assert np.min(ref.y) < -(0.01 + 0.02)           # a buffer blocked
     F = couplers.coupler_force_travel(
         ref.y[-1], ref.v[-1, :-1] - ref.v[-1, 1:], law.ke, law.kf, law.kec, law.kfc, law.gt,
-        law.gc, law.st, law.sc, law.kb, couplers.TANH, 700.0)
+        law.gc, law.st, law.sc, law.kb, couplers.TANH, 700.0, sim.cpl)
     assert np.allclose(F, ref.F[-1], rtol=1e-12, atol=1e-6)
 
 

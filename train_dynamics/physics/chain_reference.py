@@ -9,7 +9,11 @@ tanh friction eq. 14, slack g_t, g_c, strokes S_t, S_c, blocked stiffness K_b [N
     y < -g_c:   d = y + g_c, F = (k_e  - k_f  s) d + K_b min(d + S_c, 0)
     otherwise:  F = 0 (free play),                 s = tanh(u ydot),
 
-with its analytical Jacobian, and the equations of motion m_i a_i = F_{i-1} - F_i - Fb_i + E_i
+and, for a coupling of preloaded or progressive ends, its tables instead of the linear springs
+(elastic force E and friction amplitude R linear between knots, constant beyond the last:
+F = E_t(d) + s R_t(d) in tension, F = -(E_c(a) - s R_c(a)) in compression, a = -(y + g_c);
+evaluated here with numpy's interp from the knots), with its analytical Jacobian, and the
+equations of motion m_i a_i = F_{i-1} - F_i - Fb_i + E_i
 (eqs. 5-7; E_i a constant external force [N], e.g. gravity on a constant gradient). The
 integration is restarted at every input instant (the braking forces are a staircase: zero-order
 hold) and at every crossing of a breakpoint of the law
@@ -24,8 +28,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from train_dynamics.physics.couplers import law_breakpoints
-from train_dynamics.physics.kernel.layout import COUPLER
+from train_dynamics.physics.couplers import law_breakpoints, table_knots, table_side
+from train_dynamics.physics.kernel.layout import COUPLER, TABLE_ROWS
 
 
 @dataclass(frozen=True)
@@ -42,20 +46,67 @@ class ChainLaw:
     sc: np.ndarray
     kb: np.ndarray
     u: float
+    tables: np.ndarray | None = None     # (len(TABLE_ROWS), N-1) or None: no tabled coupling
 
     @classmethod
     def of_simulator(cls, sim) -> ChainLaw:
         """Return the law of the couplers of a built ``TrainSimulator`` (its constants only)."""
         return cls(sim.ke.copy(), sim.kf.copy(), sim.kec.copy(), sim.kfc.copy(),
                    sim.draw_gear_slack, sim.buffer_slack, sim.draw_gear_stroke,
-                   sim.buffer_stroke, sim.cpl[COUPLER.KB].copy(), float(sim.u))
+                   sim.buffer_stroke, sim.cpl[COUPLER.KB].copy(), float(sim.u),
+                   sim.cpl[TABLE_ROWS].copy())
 
     def force(self, y: np.ndarray, ydot: np.ndarray) -> np.ndarray:
         """Return F [N] (tension > 0) of every coupler at y [m], ydot [m/s]."""
         return self._law(y, ydot)[0]
 
+    def _side(self, j, side, a):
+        """Return (E, R, dE/da, dR/da) of coupler j's table on one side at a >= 0 [m]."""
+        rows = self.tables[:, j]
+        e, r = table_side(rows, side)
+        grid = table_knots(rows, side)
+        if grid[1] == 0.0:           # no preload ramp: knot 0 is knot 1
+            grid, e, r = grid[1:], e[1:], r[1:]
+        seg = np.clip(np.searchsorted(grid, a, side='right') - 1, 0, grid.size - 2)
+        inside = a < grid[-1]
+        width = np.diff(grid)[seg]
+        de = np.where(inside, np.diff(e)[seg] / width, 0.0)
+        dr = np.where(inside, np.diff(r)[seg] / width, 0.0)
+        return np.interp(a, grid, e), np.interp(a, grid, r), de, dr
+
+    def _tabled(self, j, y, s, ds):
+        """Return (F, dF/dy, dF/dydot) of tabled coupler j at y (any shape), s, ds/dydot."""
+        gt, gc, st, sc, kb = self.gt[j], self.gc[j], self.st[j], self.sc[j], self.kb[j]
+        dt = np.maximum(y - gt, 0.0)
+        dc = np.maximum(-(y + gc), 0.0)
+        et, rt, det, drt = self._side(j, 0, dt)
+        ec, rc, dec, drc = self._side(j, 1, dc)
+        draw = y > gt
+        buff = y < -gc
+        f_t = et + s * rt + kb * np.maximum(dt - st, 0.0)
+        k_t = det + s * drt + np.where(dt > st, kb, 0.0)
+        f_c = s * rc - ec - kb * np.maximum(dc - sc, 0.0)
+        k_c = dec - s * drc + np.where(dc > sc, kb, 0.0)
+        tight = (gt == 0.0) & (gc == 0.0)
+        f = np.where(draw, f_t, np.where(buff, f_c, 0.0))
+        slope = np.where(draw, k_t, np.where(buff, k_c, 0.5 * (k_t + k_c) if tight else 0.0))
+        dfdv = np.where(draw, rt * ds, np.where(buff, rc * ds, 0.0))
+        return f, slope, dfdv
+
     def _law(self, y, ydot):
         """Return (F, dF/dy, dF/dydot) of every coupler."""
+        f, slope, dfdv = self._linear(y, ydot)
+        if self.tables is None or not np.any(self.tables[0]):
+            return f, slope, dfdv
+        s = np.tanh(self.u * ydot)
+        ds = self.u * (1.0 - s * s)
+        for j in np.flatnonzero(self.tables[0] != 0.0):
+            f[..., j], slope[..., j], dfdv[..., j] = self._tabled(
+                j, y[..., j], s[..., j], ds[..., j])
+        return f, slope, dfdv
+
+    def _linear(self, y, ydot):
+        """Return (F, dF/dy, dF/dydot) of every coupler with linear springs."""
         s = np.tanh(self.u * ydot)
         ds = self.u * (1.0 - s * s)
         draw = y > self.gt
@@ -109,7 +160,8 @@ def solve_chain(inertia, law: ChainLaw, v0, brake_steps, t_eval, *, external=Non
     times, forces = (np.asarray(a, float) for a in brake_steps)
     t_eval = np.asarray(t_eval, float)
     t_end = float(t_eval[-1])
-    bps = [np.unique(b) for b in law_breakpoints(law.gt, law.gc, law.st, law.sc).T]
+    bps = [np.unique(b) for b in law_breakpoints(law.gt, law.gc, law.st, law.sc,
+                                                 law.tables).T]
     all_ = np.arange(n)
 
     def rhs_of(fb):

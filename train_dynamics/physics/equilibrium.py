@@ -19,6 +19,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from train_dynamics.physics.couplers import table_knots, table_side
+
 
 def chain_forces(external, inertia) -> np.ndarray:
     """Return the coupler forces T_j [N] (N-1, tension > 0) of vehicles with forces F_i [N]."""
@@ -28,12 +30,31 @@ def chain_forces(external, inertia) -> np.ndarray:
     return np.cumsum(f - m * a)[:-1]
 
 
-def static_deflection(force, ke, kec, gt, gc, st, sc, kb) -> np.ndarray:
-    """Return each coupler's deflection y [m] at rest under ``force`` [N] (arrays of N-1)."""
+def static_deflection(force, ke, kec, gt, gc, st, sc, kb, tables=None) -> np.ndarray:
+    """
+    Return each coupler's deflection y [m] at rest under ``force`` [N] (arrays of N-1).
+
+    ``tables``: the couplers' table rows (``layout.TABLE_ROWS``); a tabled coupling (a
+    preloaded or progressive end) carries its elastic force E(d) at rest (s = 0), inverted
+    between its knots, then K_b beyond the stroke (E constant there).
+    """
     t = np.asarray(force, dtype=float)
     tension = np.where(t / kec <= st, gt + t / kec, gt + st + (t - kec * st) / (kec + kb))
     comp = np.where(-t / ke <= sc, -gc + t / ke, -gc - sc + (t + ke * sc) / (ke + kb))
-    return np.where(t > 0.0, tension, np.where(t < 0.0, comp, 0.0))
+    y = np.where(t > 0.0, tension, np.where(t < 0.0, comp, 0.0))
+    if tables is None:
+        return y
+    for j in np.flatnonzero(np.asarray(tables)[0] != 0.0):
+        if t[j] == 0.0:
+            continue
+        side = 0 if t[j] > 0.0 else 1
+        grid = table_knots(tables[:, j], side)
+        e = table_side(tables[:, j], side)[0]
+        slack, stroke = (gt[j], st[j]) if side == 0 else (gc[j], sc[j])
+        a = abs(t[j])
+        d = (np.interp(a, e, grid) if a <= e[-1] else stroke + (a - e[-1]) / kb[j])
+        y[j] = slack + d if side == 0 else -(slack + d)
+    return y
 
 
 def positions(y) -> np.ndarray:

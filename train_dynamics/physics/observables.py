@@ -16,7 +16,8 @@ import numpy as np
 
 from train_dynamics.physics import couplers
 from train_dynamics.physics.kernel.couplers import coupler_force_travel
-from train_dynamics.physics.kernel.layout import COUPLER, OUTPUT, STATE, TOTAL, VEHICLE, WORK
+from train_dynamics.physics.kernel.layout import (COUPLER, OUTPUT, STATE, TABLE_ROWS, TOTAL,
+                                                  VEHICLE, WORK)
 
 
 class TrainOutputs:
@@ -68,7 +69,7 @@ class TrainOutputs:
             return coupler_force_travel(y, self.ydot, c[COUPLER.KE], c[COUPLER.KF],
                                         c[COUPLER.KEC], c[COUPLER.KFC], c[COUPLER.GT],
                                         c[COUPLER.GC], c[COUPLER.ST], c[COUPLER.SC],
-                                        c[COUPLER.KB], self.model, self.u)
+                                        c[COUPLER.KB], self.model, self.u, c)
         return self.ws[WORK.F, :self.n - 1].copy()
 
     @property
@@ -239,7 +240,7 @@ class TrainBalances:
         c = self.cpl
         return float(np.sum(couplers.elastic_energy_travel(
             self.y, self.ke, self.kec, c[COUPLER.GT], c[COUPLER.GC], c[COUPLER.ST],
-            c[COUPLER.SC], c[COUPLER.KB])))
+            c[COUPLER.SC], c[COUPLER.KB], c[TABLE_ROWS])))
 
     @property
     def momentum(self) -> float:

@@ -32,7 +32,8 @@ from train_dynamics.physics.config.table import KERNEL_ROWS
 from train_dynamics.physics.kernel import adaptive, brakes, couplers, fixed_step
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, COUNT, COUPLER,
                                                   INPUT, INTEGER, OPTION, PARAM, SCALAR,
-                                                  SCALAR_INPUT, STATE, VEHICLE, WORK)
+                                                  SCALAR_INPUT, STATE, TABLE_ROWS, VEHICLE,
+                                                  WORK)
 from train_dynamics.physics.kernel.resistance import running_resistance
 from train_dynamics.physics.kernel.step import (available_braking_force, make_workspace, OK,
                                                 STATUS_TEXT)
@@ -120,6 +121,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self.cpl = np.empty((len(COUPLER), n - 1))
         for name, row in self._TRAVEL_ROWS.items():
             self.cpl[row] = consist.coupler(name)
+        self.cpl[TABLE_ROWS] = consist.tables      # preloaded or progressive ends
         extra = dict(coupler_constants or {})
         for name, row in self._COUPLER_ROWS.items():
             value = extra.pop(name, consist.coupler(name))
@@ -276,7 +278,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         cpl = self.cpl
         y = equilibrium.static_deflection(force, cpl[COUPLER.KE], cpl[COUPLER.KEC],
                                           cpl[COUPLER.GT], cpl[COUPLER.GC], cpl[COUPLER.ST],
-                                          cpl[COUPLER.SC], cpl[COUPLER.KB])
+                                          cpl[COUPLER.SC], cpl[COUPLER.KB], cpl[TABLE_ROWS])
         c[STATE.X] = equilibrium.positions(y)
         self.ws[WORK.XKEY] = np.nan      # the static resistance at the new positions
         self.iv[CACHE.WS_VALID] = 0

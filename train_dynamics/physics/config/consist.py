@@ -41,12 +41,15 @@ from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+from train_dynamics.physics import characteristics
 from train_dynamics.physics.config import spec
 from train_dynamics.physics.config.budgets import fmt_bytes
 from train_dynamics.physics.config.files import config_dirs, FastRosParamLoader, resolve_path
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (MAX_VEHICLES, PARAMETERS, validate_value,
                                                  VEHICLE_PARAMETERS)
+# as modules: they import this package's table first (the attributes are read at call time)
+from train_dynamics.physics.kernel import layout
 from train_dynamics.quoting import clip, quote
 import yaml
 
@@ -67,6 +70,13 @@ END_KEYS = ('front', 'rear')
 COUPLER_FIELDS = ('buffer_stiffness', 'buffer_friction', 'draw_gear_stiffness',
                   'draw_gear_friction', 'draw_gear_slack', 'buffer_slack', 'draw_gear_stroke',
                   'buffer_stroke', 'blocked_stiffness')
+
+#: the fields of a preloaded or progressive end (a coupling of such ends is tabled)
+CHARACTERISTIC_FIELDS = tuple(f'{device}_{what}' for device in ('buffer', 'draw_gear')
+                              for what in ('preload', 'final_force', 'energy'))
+
+#: the fields one vehicle end may have of its own (``front:`` / ``rear:``)
+END_FIELDS = COUPLER_FIELDS + CHARACTERISTIC_FIELDS
 
 #: the parameters a consist is built from: a configuration whose values of these are
 #: unchanged keeps its consist (no file is read again)
@@ -157,11 +167,11 @@ def check_field(field: str, value: Any, where: str) -> Any:
     if field in END_KEYS:
         if not isinstance(value, dict):
             raise ConfigError(f'{where}: {field}: a mapping of end fields '
-                              f'({", ".join(COUPLER_FIELDS)})')
-        bad = set(value) - set(COUPLER_FIELDS)
+                              f'({", ".join(END_FIELDS)})')
+        bad = set(value) - set(END_FIELDS)
         if bad:
             raise ConfigError(f'{where}: {field}: not an end field: {", ".join(sorted(bad))} '
-                              f'(end fields: {", ".join(COUPLER_FIELDS)})')
+                              f'(end fields: {", ".join(END_FIELDS)})')
         return {k: check_field(k, v, f'{where}: {field}') for k, v in value.items()}
     if field not in VEHICLE_FIELDS:
         raise ConfigError(f'{where}: unknown field {quote(field)} (fields: '
@@ -277,13 +287,16 @@ class Consist:
     The vehicles front to rear: type names, each field's values (arrays of N), the couplings.
 
     ``fields`` holds a vehicle's fields (the end fields of ends without their own values);
-    ``couplings`` the constants of each coupling, :data:`COUPLER_FIELDS` -> array of N-1.
+    ``couplings`` the constants of each coupling, :data:`COUPLER_FIELDS` -> array of N-1;
+    ``tables`` the table rows of each coupling (``layout.TABLE_ROWS``, one column per
+    coupling; all 0 for a coupling of linear ends without preload: the paper's law).
     """
 
     types: list[str]
     fields: dict[str, np.ndarray]      # numeric fields, arrays of N
     regimes: list[str]                 # brake_regime per vehicle
     couplings: dict[str, np.ndarray]   # coupling constants, arrays of N-1
+    tables: np.ndarray                 # (len(TABLE_ROWS), N-1)
 
     @property
     def n(self) -> int:
@@ -331,7 +344,7 @@ class Consist:
 def _end(row: dict[str, Any], key: str) -> dict[str, float]:
     """Return the end fields of one end (``front`` or ``rear``) of a complete field dict."""
     own = row.get(key) or {}
-    return {f: float(own.get(f, row[f])) for f in COUPLER_FIELDS}
+    return {f: float(own.get(f, row[f])) for f in END_FIELDS}
 
 
 def _number(field: str, value: Any) -> float:
@@ -361,8 +374,10 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
     ends = {}
     for key in END_KEYS:
         own = [_end(e[1], key) for e in entries]
-        ends[key] = {f: np.array([o[f] for o in own]) for f in COUPLER_FIELDS}
+        ends[key] = {f: np.array([o[f] for o in own]) for f in END_FIELDS}
         check_friction_below_stiffness(ends[key], f'{source}: {key} end: ', 'vehicle', labels)
+        for i, end in enumerate(own):
+            _check_characteristic(end, f'{source}: vehicle {labels[i]}: {key} end: ')
     check_traction_power(per_entry, f'{source}: ', labels)
     n = int(counts.sum())
     if n < 2:
@@ -377,7 +392,52 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
         couplings[f] = np.full(n - 1, float(v))
     if whole:
         check_friction_below_stiffness(couplings, f'{source}: couplings: ')
-    return Consist(types, fields, regimes, couplings)
+        tables = np.zeros((len(layout.TABLE_ROWS), n - 1))
+    else:
+        tables = coupling_tables(ends['rear'], ends['front'], entry_of[:-1], entry_of[1:])
+    return Consist(types, fields, regimes, couplings, tables)
+
+
+def _check_characteristic(end: Mapping[str, float], where: str) -> None:
+    """Raise ConfigError unless one end's preload, final force and energy make a curve."""
+    for device in ('buffer', 'draw_gear'):
+        if not characteristics.has_characteristic(end, device):
+            continue
+        try:
+            characteristics.end_loading(
+                0.0, k=end[f'{device}_stiffness'], k_friction=end[f'{device}_friction'],
+                stroke=end[f'{device}_stroke'], preload=end[f'{device}_preload'],
+                final_force=end[f'{device}_final_force'], energy=end[f'{device}_energy'],
+                kb=end['blocked_stiffness'])
+        except ValueError as exc:
+            raise ConfigError(f'{where}{device}: {exc}') from None
+
+
+def coupling_tables(rear: Mapping[str, np.ndarray], front: Mapping[str, np.ndarray],
+                    rear_of: np.ndarray, front_of: np.ndarray) -> np.ndarray:
+    """
+    Return the table rows (``layout.TABLE_ROWS``) of every coupling: (len, N-1).
+
+    ``rear``, ``front``: end field -> array per entry; coupling j joins the rear end of entry
+    ``rear_of[j]`` to the front end of entry ``front_of[j]``. A coupling whose two ends have
+    no preload and no final force keeps the linear law (rows 0); the others get
+    :func:`~train_dynamics.physics.characteristics.coupling_table` (the ends' characteristics in
+    series: equal force, strokes add), computed once per distinct pair of ends.
+    """
+    out = np.zeros((len(layout.TABLE_ROWS), rear_of.shape[0]))
+    done: dict[tuple[int, int], np.ndarray] = {}
+    for j, pair in enumerate(zip(rear_of.tolist(), front_of.tolist())):
+        if pair not in done:
+            a = {f: float(v[pair[0]]) for f, v in rear.items()}
+            b = {f: float(v[pair[1]]) for f, v in front.items()}
+            if any(characteristics.has_characteristic(e, dev) for e in (a, b)
+                   for dev in ('buffer', 'draw_gear')):
+                done[pair] = characteristics.coupling_table(a, b, layout.TABLE_KNOTS)
+            else:
+                done[pair] = None
+        if done[pair] is not None:
+            out[:, j] = done[pair]
+    return out
 
 
 def _whole_couplings(doc: Any, source: str) -> dict[str, float]:
@@ -474,8 +534,11 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
     fields = {f: np.full(n, _number(f, v)) for f, v in defaults.items() if f != 'brake_regime'}
     fields['mass'] = np.array([float(m) for m in masses])
     ends = {f: fields[f][1:] for f in COUPLER_FIELDS}
+    one = {f: fields[f][:1] for f in END_FIELDS}
+    _check_characteristic({f: float(v[0]) for f, v in one.items()}, 'parameters: ')
     return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n,
-                   coupling_of_ends(ends, ends))
+                   coupling_of_ends(ends, ends),
+                   coupling_tables(one, one, np.zeros(n - 1, int), np.zeros(n - 1, int)))
 
 
 def consist_of(values: dict[str, Any], base_dir: str | None = None) -> Consist:

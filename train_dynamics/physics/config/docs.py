@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from typing import Any
 
-from train_dynamics.physics.config.spec import ADDED, ParamSpec, SERIES
+from train_dynamics.physics.config.spec import ADDED, EQUAL_FORCE, ParamSpec, SERIES
 from train_dynamics.physics.config.table import PARAMETERS, VEHICLE_PARAMETERS
 
 
@@ -45,7 +45,8 @@ def fmt_range(s: ParamSpec) -> str:
 
 
 #: how a connection field joins two vehicles, in words
-_CONNECTION_WORDS = {SERIES: 'ends in series (compliances add)', ADDED: 'ends add'}
+_CONNECTION_WORDS = {SERIES: 'ends in series (compliances add)', ADDED: 'ends add',
+                     EQUAL_FORCE: 'ends in series (equal force, strokes add: one table)'}
 
 
 def vehicle_table() -> str:

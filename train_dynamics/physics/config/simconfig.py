@@ -116,6 +116,12 @@ class SimConfig:
     buffer_slack: float = 0.0                         # g_c [m]
     draw_gear_slack: float = 0.0                      # g_t [m]
     blocked_stiffness: float = 1.0e8                  # K_b [N/m]
+    buffer_preload: float = 0.0                       # [N]; 0 = none
+    draw_gear_preload: float = 0.0                    # [N]; 0 = none
+    buffer_final_force: float = 0.0                   # [N] at the stroke; 0 = linear law
+    draw_gear_final_force: float = 0.0                # [N] at the stroke; 0 = linear law
+    buffer_energy: float = 0.0                        # [J] to the stroke; 0 = linear
+    draw_gear_energy: float = 0.0                     # [J] to the stroke; 0 = linear
     max_tractive_force: float = 0.0                   # [N]; 0 = no traction
     max_power: float = 0.0                            # traction power at the rim [W]
     max_dynamic_brake_force: float = 0.0              # [N]

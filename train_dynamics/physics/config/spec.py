@@ -27,6 +27,7 @@ ARRAY_KINDS = (DOUBLE_ARRAY, STRING_ARRAY)
 #: how a per-vehicle field joins two vehicles into one coupler (see config.consist)
 SERIES = 'series'   # the two ends' springs in series: compliances add, k_a k_b / (k_a + k_b)
 ADDED = 'added'     # the two ends' travels add: a + b
+EQUAL_FORCE = 'equal force'  # the ends' characteristics in series: equal force, strokes add
 
 #: the most values an array parameter may hold (checked before any value is looked at)
 MAX_ITEMS = 100_000
@@ -48,8 +49,8 @@ class ParamSpec:
     ``vehicle``: the field of a consist's vehicle this parameter is the default of (its name
     in a consist file), '' when not per vehicle; ``connection``: how the field of two
     vehicle ends makes the value of the coupling between them (:data:`SERIES`,
-    :data:`ADDED`), '' when it is no coupling constant; ``row``: the name of the
-    per-vehicle constant row of the kernel (``layout.VEHICLE``) that holds the field's value
+    :data:`ADDED`, :data:`EQUAL_FORCE`), '' when it is no coupling constant; ``row``: the name
+    of the per-vehicle constant row of the kernel (``layout.VEHICLE``) that holds the field's value
     of each vehicle as is, '' when the kernel has no such row. A per-vehicle field is this one
     declaration: the consist field list, the docs' tables, the kernel row and the copy into
     it are derived from it.

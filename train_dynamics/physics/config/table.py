@@ -14,8 +14,8 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
-                                                DOUBLE_ARRAY, INTEGER, ParamSpec, SERIES, STRING,
-                                                STRING_ARRAY)
+                                                DOUBLE_ARRAY, EQUAL_FORCE, INTEGER, ParamSpec,
+                                                SERIES, STRING, STRING_ARRAY)
 # the friction materials in the order of their codes in the kernel (the models and their
 # sources: physics/friction.py)
 from train_dynamics.physics.kernel.friction import MATERIALS as FRICTION_MATERIALS
@@ -267,6 +267,30 @@ _PARAMS = [
               'Stiffness K_b [N/m] once a buffer or draw gear is at the end of its stroke '
               '(vehicle underframe, ~1e8 N/m).', low=0.0, high=1.0e12, low_exclusive=True,
               vehicle='blocked_stiffness', connection=SERIES),
+    # Preloaded and progressive ends (physics/characteristics.py end_loading): the datasheet
+    # figures of a buffer (EN 15551) or draw gear; all 0: the paper's linear law.
+    ParamSpec('buffer_preload', 0.0, DOUBLE,
+              'Buffer preload P [N]: the force below which the buffer does not move (its '
+              'spring is pre-compressed); 0 = none.', low=0.0, high=1.0e7,
+              vehicle='buffer_preload', connection=EQUAL_FORCE),
+    ParamSpec('draw_gear_preload', 0.0, DOUBLE,
+              'Draw-gear preload [N] (as buffer_preload).', low=0.0, high=1.0e7,
+              vehicle='draw_gear_preload', connection=EQUAL_FORCE),
+    ParamSpec('buffer_final_force', 0.0, DOUBLE,
+              'Buffer final force F_f [N] at the end of the stroke on the loading branch '
+              '(datasheet); 0 = the linear law of buffer_stiffness and buffer_friction.',
+              low=0.0, high=1.0e8, vehicle='buffer_final_force', connection=EQUAL_FORCE),
+    ParamSpec('draw_gear_final_force', 0.0, DOUBLE,
+              'Draw-gear final force [N] (as buffer_final_force).', low=0.0, high=1.0e8,
+              vehicle='draw_gear_final_force', connection=EQUAL_FORCE),
+    ParamSpec('buffer_energy', 0.0, DOUBLE,
+              'Energy W [J] the buffer absorbs on loading to its stroke (datasheet, EN 15551 '
+              'category); with buffer_final_force it sets the progression, L = P + (F_f - P) '
+              'x^q; 0 = linear from the preload to the final force.', low=0.0, high=1.0e7,
+              vehicle='buffer_energy', connection=ADDED),
+    ParamSpec('draw_gear_energy', 0.0, DOUBLE,
+              'Energy [J] the draw gear absorbs to its stroke (as buffer_energy).', low=0.0,
+              high=1.0e7, vehicle='draw_gear_energy', connection=ADDED),
     ParamSpec('max_tractive_force', 0.0, DOUBLE,
               'Locomotive: starting tractive effort [N] (0: not a traction unit).',
               low=0.0, high=1.0e7, vehicle='max_tractive_force', row='T_FORCE'),

@@ -64,6 +64,49 @@ def _coupler_w(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u, h):
     return f, _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb), amp * u * ratio
 
 
+@jit(inline=True)
+def _sign_ratio(ydot, model, u):
+    """
+    Return (s, tanh(u ydot) / (u ydot)) of the tanh model (eq. 14), (sgn ydot, 0) of sign.
+
+    As :func:`_coupler_w` computes them (written there too: the linear law's hot path).
+    """
+    if model == couplers.TANH:
+        z = u * ydot
+        a = abs(z)
+        t = couplers.fast_tanh(a)               # tanh|z|
+        s = math.copysign(t, z)
+        ratio = t / a if a > 1e-3 else 1.0     # tanh(z) / z, within 4e-7 of 1 below 1e-3
+    else:
+        s = np.sign(ydot)
+        ratio = 0.0
+    return s, ratio
+
+
+@jit
+def _coupler_w_table(y, ydot, gt, gc, st, sc, kb, model, u, h, cpl, j):
+    """
+    Return :func:`_coupler_w` of tabled coupler j (preloaded or progressive ends, ``cpl``).
+
+    The law is :func:`couplers.coupler_branch_table`; the stage matrix takes the secant of
+    its elastic force when the step crosses the end of the free play, of a stroke or of the
+    preload ramp (:func:`_travel_slope`'s rule), else the tangent.
+    """
+    s, ratio = _sign_ratio(ydot, model, u)
+    f, stiff, amp = couplers.coupler_branch_table(y, s, gt, gc, st, sc, kb, cpl, j)
+    yp = y + h * ydot
+    lo = min(y, yp)
+    hi = max(y, yp)
+    cross = ((lo < gt + st < hi) or (lo < -(gc + sc) < hi) or (lo < gt < hi)
+             or (lo < -gc < hi) or (lo < gt + cpl[COUPLER.T_D1, j] < hi)
+             or (lo < -(gc + cpl[COUPLER.C_D1, j]) < hi))
+    if cross:
+        stiff = (couplers.coupler_branch_table(yp, 0.0, gt, gc, st, sc, kb, cpl, j)[0]
+                 - couplers.coupler_branch_table(y, 0.0, gt, gc, st, sc, kb, cpl, j)[0]) / (
+                     yp - y)
+    return f, stiff, amp * u * ratio
+
+
 @jit
 def _elastic_travel(y, ke, kec, gt, gc, st, sc, kb):
     """Return the elastic (friction-free) force [N] of the law with free play and blocking."""
@@ -101,6 +144,19 @@ def _travel_slope(y, ydot, h, stiff, ke, kec, gt, gc, st, sc, kb):
             - _elastic_travel(y, ke, kec, gt, gc, st, sc, kb)) / (yp - y)
 
 
+@jit
+def _store_coupler_table(j, y, ydot, cpl, model, u, gh, ws):
+    """Do :func:`_store_coupler` for tabled coupler j (:func:`_coupler_w_table`)."""
+    f, dy, dv = _coupler_w_table(y, ydot, cpl[COUPLER.GT, j], cpl[COUPLER.GC, j],
+                                 cpl[COUPLER.ST, j], cpl[COUPLER.SC, j], cpl[COUPLER.KB, j],
+                                 model, u, gh / GAMMA, cpl, j)
+    ws[WORK.F, j] = f
+    ws[WORK.DFDY, j] = dy
+    ws[WORK.KK, j] = gh * dv + gh * gh * dy
+    ws[WORK.YKEY, j] = y
+    ws[WORK.VKEY, j] = ydot
+
+
 @jit(inline=True)
 def _store_coupler(j, y, ydot, cpl, model, u, gh, ws):
     """
@@ -110,6 +166,9 @@ def _store_coupler(j, y, ydot, cpl, model, u, gh, ws):
     g h dF/dydot + (g h)^2 dF/dy (rows WORK.F, DFDY, KK). (y, ydot) go to WORK.YKEY, VKEY:
     the key of :func:`eval_couplers_work`'s cache.
     """
+    if cpl[COUPLER.TAB, j] != 0.0:       # preloaded or progressive ends: the tables
+        _store_coupler_table(j, y, ydot, cpl, model, u, gh, ws)
+        return
     f, dy, dv = _coupler_w(y, ydot, cpl[COUPLER.KE, j], cpl[COUPLER.KF, j],
                            cpl[COUPLER.KEC, j], cpl[COUPLER.KFC, j], cpl[COUPLER.GT, j],
                            cpl[COUPLER.GC, j], cpl[COUPLER.ST, j], cpl[COUPLER.SC, j],

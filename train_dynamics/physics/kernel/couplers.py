@@ -29,6 +29,7 @@ import math
 import numpy as np
 
 from train_dynamics.physics.kernel.compiler import jit
+from train_dynamics.physics.kernel.layout import COUPLER, TABLE_KNOTS
 
 
 #: model codes used inside the compiled kernels
@@ -39,6 +40,17 @@ TANH = 1
 
 
 MODEL_CODES = {'sign': SIGN, 'tanh': TANH}
+
+#: rows of the coupling tables in ``cpl`` (numba freezes these globals as constants)
+C_TAB = COUPLER.TAB
+C_T_D1 = COUPLER.T_D1
+C_T_IH = COUPLER.T_IH
+C_C_D1 = COUPLER.C_D1
+C_C_IH = COUPLER.C_IH
+C_T_E0 = COUPLER.T_E0
+C_T_R0 = COUPLER.T_R0
+C_C_E0 = COUPLER.C_E0
+C_C_R0 = COUPLER.C_R0
 
 
 @jit
@@ -168,6 +180,74 @@ def elastic_energy(y: np.ndarray, ke: np.ndarray, kec: np.ndarray) -> np.ndarray
 
 
 # ------------------------------------------------------------------ free play and blocking
+@jit(inline=True)
+def table_force(cpl, j: int, d: float, d1_row: int, ih_row: int, e_row: int, r_row: int):
+    """
+    Return (E [N], R [N], dE/dd [N/m], dR/dd [N/m]) of coupling j's table at deflection d >= 0.
+
+    The table of a coupling with a preloaded or progressive end (rows of ``layout.COUPLER``,
+    built by :func:`train_dynamics.physics.characteristics.coupling_table`): knot 0 at d = 0
+    (E = R = 0), knot 1 at d_1 (the end of the preload ramp), knots 2 .. K-1 equally spaced up
+    to the coupling's stroke; linear between knots, constant beyond the last (the blocked stiffness
+    K_b takes over at the stroke). E is the elastic (mean) force, R the friction amplitude:
+    the loading branch is E + R, the unloading branch E - R.
+    """
+    d1 = cpl[d1_row, j]
+    if d <= d1 and d1 > 0.0:
+        se = cpl[e_row + 1, j] / d1
+        sr = cpl[r_row + 1, j] / d1
+        return se * d, sr * d, se, sr
+    t = (d - d1) * cpl[ih_row, j]
+    last = TABLE_KNOTS - 2          # intervals after knot 1
+    if t >= last:
+        return cpl[e_row + TABLE_KNOTS - 1, j], cpl[r_row + TABLE_KNOTS - 1, j], 0.0, 0.0
+    i = int(t)
+    w = t - i
+    e0 = cpl[e_row + 1 + i, j]
+    e1 = cpl[e_row + 2 + i, j]
+    r0 = cpl[r_row + 1 + i, j]
+    r1 = cpl[r_row + 2 + i, j]
+    ih = cpl[ih_row, j]
+    return e0 + w * (e1 - e0), r0 + w * (r1 - r0), (e1 - e0) * ih, (r1 - r0) * ih
+
+
+@jit
+def coupler_branch_table(y: float, s: float, gt: float, gc: float, st: float, sc: float,
+                         kb: float, cpl, j: int):
+    """
+    Return (F [N], dF/dy [N/m], friction amplitude [N]) of coupling j's tabled law at y [m].
+
+    The law of :func:`coupler_branch_travel` with the tables of :func:`table_force` for the
+    springs: y > g_t: d = y - g_t, F = E_t(d) + s R_t(d); y < -g_c: a = -(y + g_c),
+    F = -(E_c(a) - s R_c(a)) (friction opposing the motion as in eqs. 2-3); blocking beyond
+    the strokes adds K_b as there; 0 in free play (a tight coupling at y = 0: the mean slope
+    of both sides).
+    """
+    if y > gt:
+        d = y - gt
+        e, r, de, dr = table_force(cpl, j, d, C_T_D1, C_T_IH, C_T_E0, C_T_R0)
+        f = e + s * r
+        stiff = de + s * dr
+        if d > st:
+            f += kb * (d - st)
+            stiff += kb
+        return f, stiff, r
+    if y < -gc:
+        d = y + gc
+        e, r, de, dr = table_force(cpl, j, -d, C_C_D1, C_C_IH, C_C_E0, C_C_R0)
+        f = s * r - e
+        stiff = de - s * dr
+        if d < -sc:
+            f += kb * (d + sc)
+            stiff += kb
+        return f, stiff, r
+    if gt == 0.0 and gc == 0.0:
+        _, _, det, drt = table_force(cpl, j, 0.0, C_T_D1, C_T_IH, C_T_E0, C_T_R0)
+        _, _, dec, drc = table_force(cpl, j, 0.0, C_C_D1, C_C_IH, C_C_E0, C_C_R0)
+        return 0.0, 0.5 * (det + s * drt) + 0.5 * (dec - s * drc), 0.0
+    return 0.0, 0.0, 0.0
+
+
 @jit
 def coupler_branch_travel(y: float, s: float, ke: float, kf: float, kec: float, kfc: float,
                           gt: float, gc: float, st: float, sc: float, kb: float):
@@ -183,7 +263,10 @@ def coupler_branch_travel(y: float, s: float, ke: float, kf: float, kec: float, 
 
     With no slack at all it is :func:`coupler_branch` (eqs. 2-4 / 15-16) with the same
     arithmetic (bit for bit below the strokes), y = 0 included. Blocking adds K_b to the
-    slope, so the integrator's stage matrix sees the stiff block.
+    slope, so the integrator's stage matrix sees the stiff block. A coupling with a
+    preloaded or progressive end (``cpl[COUPLER.TAB, j]`` set) has its tables instead of the
+    linear springs: :func:`coupler_branch_table` (the callers choose: no array reaches this
+    function, whose calls stay free of reference counting).
     """
     if y > gt:
         d = y - gt
@@ -224,15 +307,42 @@ def coupler_force_travel_scalar(y: float, ydot: float, ke: float, kf: float, kec
 
 
 @jit
+def coupler_force_table_scalar(y: float, ydot: float, gt: float, gc: float, st: float,
+                               sc: float, kb: float, model: int, u: float, cpl, j: int):
+    """
+    Return (F [N], dF/dy [N/m], dF/dydot [N s/m]) of tabled coupler j (``cpl`` its tables).
+
+    s = sgn(ydot) (eq. 1) or tanh(u ydot) (eq. 14) in :func:`coupler_branch_table`.
+    """
+    s, dsdv = friction_sign(ydot, model, u)
+    f, stiff, amp = coupler_branch_table(y, s, gt, gc, st, sc, kb, cpl, j)
+    return f, stiff, amp * dsdv
+
+
+@jit
+def coupler_force_any(y: float, ydot: float, ke: float, kf: float, kec: float, kfc: float,
+                      gt: float, gc: float, st: float, sc: float, kb: float, model: int,
+                      u: float, cpl, j: int):
+    """Return :func:`coupler_force_table_scalar` for a tabled coupler j, else the linear law's."""
+    if cpl[C_TAB, j] != 0.0:
+        return coupler_force_table_scalar(y, ydot, gt, gc, st, sc, kb, model, u, cpl, j)
+    return coupler_force_travel_scalar(y, ydot, ke, kf, kec, kfc, gt, gc, st, sc, kb, model, u)
+
+
+@jit
 def coupler_force_travel(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf: np.ndarray,
                          kec: np.ndarray, kfc: np.ndarray, gt: np.ndarray, gc: np.ndarray,
                          st: np.ndarray, sc: np.ndarray, kb: np.ndarray, model: int,
-                         u: float) -> np.ndarray:
-    """Return the force F [N] of every coupler with free play and blocking (arrays of N-1)."""
+                         u: float, cpl: np.ndarray) -> np.ndarray:
+    """
+    Return the force F [N] of every coupler with free play and blocking (arrays of N-1).
+
+    ``cpl``: (len(COUPLER), N-1), whose table rows are read (TAB = 0: the linear law).
+    """
     out = np.empty(y.shape[0])
     for j in range(y.shape[0]):
-        out[j] = coupler_force_travel_scalar(y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j],
-                                             gt[j], gc[j], st[j], sc[j], kb[j], model, u)[0]
+        out[j] = coupler_force_any(y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j],
+                                   st[j], sc[j], kb[j], model, u, cpl, j)[0]
     return out
 
 
@@ -240,12 +350,12 @@ def coupler_force_travel(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf: np
 def coupler_jacobian_travel(y: np.ndarray, ydot: np.ndarray, ke: np.ndarray, kf: np.ndarray,
                             kec: np.ndarray, kfc: np.ndarray, gt: np.ndarray, gc: np.ndarray,
                             st: np.ndarray, sc: np.ndarray, kb: np.ndarray, model: int,
-                            u: float):
+                            u: float, cpl: np.ndarray):
     """Return (dF/dy [N/m], dF/dydot [N s/m]) of every coupler with free play and blocking."""
     dfdy = np.empty(y.shape[0])
     dfdv = np.empty(y.shape[0])
     for j in range(y.shape[0]):
-        _, dfdy[j], dfdv[j] = coupler_force_travel_scalar(
-            y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j], gt[j], gc[j], st[j], sc[j], kb[j],
-            model, u)
+        _, dfdy[j], dfdv[j] = coupler_force_any(y[j], ydot[j], ke[j], kf[j], kec[j], kfc[j],
+                                                gt[j], gc[j], st[j], sc[j], kb[j], model, u,
+                                                cpl, j)
     return dfdy, dfdv

@@ -29,7 +29,8 @@ Each group below says what it holds and who writes it.
 ``cpl``: float, shape (len(COUPLER), N-1), one column per coupler
 
 - ``COUPLER``: per-coupler constants (stiffness, friction, slack, stroke, blocked
-  stiffness); written by ``TrainSimulator.__init__`` only.
+  stiffness; the tables of a coupling with a preloaded or progressive end); written by
+  ``TrainSimulator.__init__`` only.
 
 ``sc``: float, shape (len(SCALAR),)
 
@@ -117,6 +118,10 @@ OUTPUT = _group('OutputRows', [
 COACH = range(len(VEHICLE) + len(STATE) + len(INPUT) + len(OUTPUT))
 
 # -- cpl: one column per coupler ------------------------------------------------------------
+#: knots of each coupling table: d = 0, the end of the preload ramp, then equal spacing to
+#: the coupling's stroke (physics/characteristics.py; the trapezoids keep the energy of an x^3
+#: curve within 0.5 %)
+TABLE_KNOTS = 16
 COUPLER = _group('CouplerRows', [
     'KE',           # buffer stiffness k_e [N/m]
     'KF',           # buffer friction k_f [N/m]
@@ -127,7 +132,19 @@ COUPLER = _group('CouplerRows', [
     'ST',           # draw-gear stroke S_t [m]
     'SC',           # buffer stroke S_c [m]
     'KB',           # blocked stiffness K_b [N/m]
-])
+    # a coupling with a preloaded or progressive end: its characteristic as tables
+    # (physics/characteristics.py builds them, kernel/couplers.py reads them); TAB = 0: none, the
+    # linear law of the rows above
+    'TAB',          # 1.0: the coupling's law is its tables
+    'T_D1',         # draw gear: end of the preload ramp [m] (knot 1; knot 0 is d = 0)
+    'T_IH',         # draw gear: 1 / spacing of the knots 1 .. TABLE_KNOTS - 1 [1/m]
+    'C_D1',         # buffers: as T_D1
+    'C_IH',         # buffers: as T_IH
+] + [f'{side}_{what}{k}' for side in 'TC' for what in 'ER' for k in range(TABLE_KNOTS)])
+#: draw gear (T) and buffers (C): the elastic (mean) force E_k [N] and the friction
+#: amplitude R_k [N] at each knot k: F = E + s R on the spring's deflection (s the friction
+#: sign, eqs. 1 / 14); rows T_E0, T_R0, C_E0, C_R0 + k
+TABLE_ROWS = range(COUPLER.TAB, len(COUPLER))
 
 # -- sc: float scalars ---------------------------------------------------------------------
 PARAM = _group('ParamSlots', [

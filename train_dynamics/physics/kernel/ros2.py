@@ -136,6 +136,7 @@ def ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     st = cpl[COUPLER.ST]
     scs = cpl[COUPLER.SC]
     kb = cpl[COUPLER.KB]
+    tab = cpl[COUPLER.TAB]
     gx = gprof[0]
     gv = gprof[1]
     gpc = gprof[2]
@@ -201,9 +202,14 @@ def ros2_step(h, coach, cpl, model, u, held, ws, ext, track, gprof):
     for j in range(m):
         dv = v[j] - v[j + 1]
         db = b1[j] - b1[j + 1]
-        f, _, _ = couplers.coupler_force_travel_scalar(
-            x[j] - x[j + 1] + h * (dv + gh * db), dv + h * db, ke[j], kf[j], kec[j], kfc[j],
-            gt[j], gc[j], st[j], scs[j], kb[j], model, u)
+        if tab[j] != 0.0:     # preloaded or progressive ends: the coupling's tables
+            f, _, _ = couplers.coupler_force_table_scalar(
+                x[j] - x[j + 1] + h * (dv + gh * db), dv + h * db, gt[j], gc[j], st[j],
+                scs[j], kb[j], model, u, cpl, j)
+        else:
+            f, _, _ = couplers.coupler_force_travel_scalar(
+                x[j] - x[j + 1] + h * (dv + gh * db), dv + h * db, ke[j], kf[j], kec[j],
+                kfc[j], gt[j], gc[j], st[j], scs[j], kb[j], model, u)
         F2[j] = f
     if ext:       # the external forces at stage 2, (x + h a1, v + h b1)
         _stage_external(coach, x, v, h, ws, gx, gv, gpc, track, WORK.GR2, WORK.RD2,
