@@ -601,7 +601,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         of ``integration_max_steps`` and finished at the fixed step. Standstill (both
         stepping modes): hold_solves, the chain solves beyond the first of each step (the
         holding LCP's new sets, coaches stopping); hold_capped, steps that reached the
-        iteration cap with the set still inconsistent (the step finishes all the same).
+        iteration cap with the set still inconsistent (the step finishes all the same);
+        block_solves, the chain solves redone with a blocked coupler's stiffness in the
+        stage matrix (stiff blocking, both modes).
         """
         sc, iv = self.sc, self.iv
         return {'adaptive': self.adaptive, 'steps': int(iv[COUNT.NSTEPS]),
@@ -611,7 +613,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                 'steps_max_period': int(iv[COUNT.INT_STEPS_MAX]),
                 'fallback_periods': int(iv[COUNT.NFALLBACK]),
                 'hold_solves': int(iv[COUNT.HOLD_SOLVES]),
-                'hold_capped': int(iv[COUNT.HOLD_CAPPED])}
+                'hold_capped': int(iv[COUNT.HOLD_CAPPED]),
+                'block_solves': int(iv[COUNT.BLOCK_SOLVES])}
 
     def advance_to(self, t: float) -> int:
         """Integrate whole steps until ``self.t >= t - h/2``; return the steps done."""

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 from train_dynamics.physics.kernel import standstill
 from train_dynamics.physics.kernel.compiler import jit
-from train_dynamics.physics.kernel.coupler_rows import eval_couplers
+from train_dynamics.physics.kernel.coupler_rows import eval_couplers, raise_blocked_slopes
 from train_dynamics.physics.kernel.layout import COUNT, OPTION, PARAM, STATE, TOTAL, VEHICLE, WORK
 from train_dynamics.physics.kernel.ros2 import GAMMA, ros2_step
 
@@ -24,6 +24,8 @@ from train_dynamics.physics.kernel.ros2 import GAMMA, ros2_step
 HOLD_SOLVES = 6
 #: tridiagonal solves of one holding LCP at most (standstill.pivot)
 HOLD_PIVOTS = 12
+#: solves of one chain solve at most with blocked slopes added (coupler_rows.raise_blocked_slopes)
+BLOCK_SOLVES = 8
 
 #: [m/s] a braked coach slower than this is at rest (standstill.V_REST)
 V_REST = standstill.V_REST
@@ -176,6 +178,23 @@ def _settle(h, held, ws):
 
 
 @jit(inline=True)
+def _blocked_solve(h, coach, cpl, model, u, held, ws, iv, gprof):
+    """
+    Do :func:`~.ros2.ros2_step` with the blocked slope of every coupler the step blocks.
+
+    A step that drives couplers into their blocks without their blocked stiffness in the
+    stage matrix is solved again with it (:func:`raise_blocked_slopes`), at most
+    BLOCK_SOLVES times; the extra solves are counted (COUNT.BLOCK_SOLVES).
+    """
+    for k in range(BLOCK_SOLVES + 1):
+        ros2_step(h, coach, cpl, model, u, held, ws, iv[OPTION.EXT], iv[OPTION.TRACK], gprof)
+        if k == BLOCK_SOLVES or raise_blocked_slopes(h, coach[STATE.X], ws[WORK.VSTART],
+                                                      coach[VEHICLE.MASS], cpl, ws) == 0:
+            break
+        iv[COUNT.BLOCK_SOLVES] += 1
+
+
+@jit(inline=True)
 def active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
     """
     Do one ROS2 step of the chain with the active set of held coaches; return work [J].
@@ -212,7 +231,7 @@ def active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
             eval_couplers(x, v_start, cpl, model, u, GAMMA * h, ws)
             stale = False
         _signed_brake(ws)
-        ros2_step(h, coach, cpl, model, u, held, ws, iv[OPTION.EXT], iv[OPTION.TRACK], gprof)
+        _blocked_solve(h, coach, cpl, model, u, held, ws, iv, gprof)
         if it == HOLD_SOLVES - 1:
             if _stopping(held, ws) + standstill.inconsistent(held, ws, False) > 0:
                 iv[COUNT.HOLD_CAPPED] += 1

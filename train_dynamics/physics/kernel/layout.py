@@ -191,6 +191,7 @@ COUNT = _group('CountSlots', [
     'INT_STEPS_MAX',    # largest INT_STEPS since reset
     'HOLD_SOLVES',  # chain solves beyond the first of each step (active set changes)
     'HOLD_CAPPED',  # steps that ended at the iteration cap with the set still inconsistent
+    'BLOCK_SOLVES',     # chain solves redone with a blocked coupler's slope in the matrix
 ], after=(OPTION, CLOCK, CACHE))
 #: all slots of ``iv``; OPTION first, so ``iv[len(OPTION):]`` is what reset() rewrites
 INTEGER = range(len(OPTION) + len(CLOCK) + len(CACHE) + len(COUNT))
