@@ -99,19 +99,21 @@ def _hold_stopping(held, masses, ws, extra_work, sc):
 
 
 @jit(inline=True)
-def _undo_stops(held, masses, ws, extra_work, sc):
+def _undo_stops(h, held, masses, ws, extra_work, sc):
     """
     Undo the stops of the coaches that their friction cannot hold; return (any, work [J]).
 
     Stopping a coach at the step's start (:func:`_hold_stopping`) gives its momentum m v
     [N s] to its brake: right when the friction stops it and then holds it, |WORK.HOLD| <=
     WORK.FB (Coulomb friction can stop a motion, never reverse it). A coach held over that
-    limit is reversed by its couplers (a stiff impact of buffers or blocked draw gear
+    limit whose momentum is more than its friction gives over the step, m |v| > Fb h (h
+    [s]), is reversed by its couplers (a stiff impact of buffers or blocked draw gear
     reverses a coach within a step): it keeps its speed (WORK.VSTOP back in VSTART, the
     momentum and energy booked back) and moves through the step braked against its
     starting motion, as a free coach whose speed changes sign within a step; STOPPED = -1.
-    Released from rest instead, as the holding LCP would release it, the momentum would be
-    lost: 96 % of a 20-wagon train's within 0.5 s at a blocked stiffness of 1e12 N/m.
+    Released from rest instead, as the holding LCP releases the others (a coach that
+    creeps against its brake, whose momentum the brake can take), the momentum would be
+    lost: 96 % of a 20-wagon train's within 5 s at a blocked stiffness of 1e12 N/m.
     """
     v_start = ws[WORK.VSTART]
     hold = ws[WORK.HOLD]
@@ -120,9 +122,9 @@ def _undo_stops(held, masses, ws, extra_work, sc):
     v_stop = ws[WORK.VSTOP]
     changed = False
     for i in range(held.shape[0]):
-        if (stopped[i] == 1.0 and held[i]
+        vi = v_stop[i]
+        if (stopped[i] == 1.0 and held[i] and masses[i] * abs(vi) > fb[i] * h
                 and abs(hold[i]) > fb[i] * (1.0 + standstill.HOLD_MARGIN)):
-            vi = v_stop[i]
             held[i] = False
             v_start[i] = vi
             extra_work -= 0.5 * masses[i] * vi * vi
@@ -186,10 +188,12 @@ def _blocked_solve(h, coach, cpl, model, u, held, ws, iv, gprof):
     stage matrix is solved again with it (:func:`raise_blocked_slopes`), at most
     BLOCK_SOLVES times; the extra solves are counted (COUNT.BLOCK_SOLVES).
     """
+    masses = coach[VEHICLE.MASS]
     for k in range(BLOCK_SOLVES + 1):
         ros2_step(h, coach, cpl, model, u, held, ws, iv[OPTION.EXT], iv[OPTION.TRACK], gprof)
-        if k == BLOCK_SOLVES or raise_blocked_slopes(h, coach[STATE.X], ws[WORK.VSTART],
-                                                      coach[VEHICLE.MASS], cpl, ws) == 0:
+        if k == BLOCK_SOLVES:
+            break
+        if raise_blocked_slopes(h, coach[STATE.X], ws[WORK.VSTART], masses, cpl, ws) == 0:
             break
         iv[COUNT.BLOCK_SOLVES] += 1
 
@@ -236,7 +240,7 @@ def active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
             if _stopping(held, ws) + standstill.inconsistent(held, ws, False) > 0:
                 iv[COUNT.HOLD_CAPPED] += 1
             break
-        stale, extra_work = _undo_stops(held, coach[VEHICLE.MASS], ws, extra_work, sc)
+        stale, extra_work = _undo_stops(h, held, coach[VEHICLE.MASS], ws, extra_work, sc)
         if not stale:
             stale, extra_work = _hold_stopping(held, coach[VEHICLE.MASS], ws, extra_work, sc)
         if not (stale or _settle(h, held, ws)):
