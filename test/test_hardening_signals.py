@@ -15,6 +15,7 @@ import sys
 import time
 
 import pytest
+from train_dynamics.physics.config.budgets import max_period_steps
 from train_dynamics.recording.bags import bag_info
 from train_dynamics.recording.history import load_history
 import yaml
@@ -94,3 +95,29 @@ def test_sweep_signal_stops_within_a_second_and_keeps_finished_cases(tmp_path):
     done = list((out / 'cases').glob('case_*.json'))
     assert 1 <= len(done) < 4
     assert all(json.loads(p.read_text())['row']['error'] == '' for p in done)
+
+
+@pytest.mark.parametrize('signum, code', [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
+def test_simulate_at_a_tolerance_no_step_meets_stops_within_a_second(tmp_path, signum, code):
+    """Tolerance 1e-15 with the highest accepted budget: a signal still stops it, bag kept."""
+    params = tmp_path / 'p.yaml'
+    params.write_text(Path(PAPER).read_text().replace(
+        'integration_step: 0.002', 'integration_step: 0.002\n    integration_tolerance: 1.0e-15\n'
+        f'    integration_max_steps: {max_period_steps(3)}'))
+    out = tmp_path / 'run'
+    proc = offline('simulate', '--params', params, '--duration', 100000, '--output', out, '-q')
+    try:
+        wait_for(lambda: staged_bytes(tmp_path, 'run') > 200_000, 600, 'a growing bag')
+        time.sleep(1.0)                        # braking from t = 1 s: every step rejected
+        t0 = time.monotonic()
+        proc.send_signal(signum)
+        _, err = proc.communicate(timeout=60)
+        took = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == code, err
+    assert took < 1.5, took
+    hist = load_history(out)                   # closed and readable, whole samples
+    assert len(hist.couplers) == len(hist.coaches) > 10
+    assert not list(tmp_path.glob('.run.partial-*'))

@@ -617,7 +617,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         of ``integration_max_steps`` and finished at the fixed step. Standstill (both
         stepping modes): hold_solves, the chain solves beyond the first of each step (the
         holding LCP's new sets, coaches stopping); hold_capped, steps that reached the
-        iteration cap with the set still inconsistent (the step finishes all the same).
+        iteration cap with the set still inconsistent (the step finishes all the same);
+        block_solves, the chain solves redone with a blocked coupler's stiffness in the
+        stage matrix (stiff blocking, both modes).
         Multirate (``multirate_tolerance`` > 0): mr_groups, the vehicle groups re-integrated
         in sub-steps, mr_substeps their sub-steps, mr_declined the groups left at the long
         step (a vehicle held or stopping); per coupler: :attr:`substeps_per_coupler`.
@@ -631,6 +633,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                 'fallback_periods': int(iv[COUNT.NFALLBACK]),
                 'hold_solves': int(iv[COUNT.HOLD_SOLVES]),
                 'hold_capped': int(iv[COUNT.HOLD_CAPPED]),
+                'block_solves': int(iv[COUNT.BLOCK_SOLVES]),
                 'mr_groups': int(iv[COUNT.MR_CLUSTERS]),
                 'mr_substeps': int(iv[COUNT.MR_SUBSTEPS]),
                 'mr_declined': int(iv[COUNT.MR_DECLINED])}

@@ -9,9 +9,10 @@ force, kept below tolerance x the largest coupler force in the train [-]
 output instant (:func:`_landing_step`). The brake system and the inputs keep the fixed tick
 PARAM.H of the fixed-step kernel (:func:`_brake_tick`), and the braking and traction forces
 are linear between ticks (:func:`_tick_means`), so the inputs act at the same tick as in the
-fixed-step kernel, offline and in the node. OPTION.BUDGET bounds the steps per output period:
-a period that runs out finishes in at most OPTION.BUDGET equal steps without error control
-(never coarser than the tick), counted (COUNT.NFALLBACK): at most twice the budget in all.
+fixed-step kernel, offline and in the node. OPTION.BUDGET bounds the accepted and the rejected
+steps per output period: a period that runs out of either finishes in at most OPTION.BUDGET
+equal steps without error control (never coarser than the tick), counted (COUNT.NFALLBACK): at
+most three times the budget in all.
 """
 from __future__ import annotations
 
@@ -154,9 +155,12 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
 
     Step-size control: :func:`_error_norm` <= 1 accepts, else the step is redone shorter;
     the next step from the PI controller, at most the landing period, clipped to land on
-    the tick TICK. After OPTION.BUDGET steps in the period the rest is done in at most
-    OPTION.BUDGET equal steps, each at most PARAM.H, accepted without error control (counted
-    in COUNT.NFALLBACK): the work per output period is bounded (twice the budget).
+    the tick TICK. After OPTION.BUDGET accepted or OPTION.BUDGET rejected steps in the
+    period the rest is done in at most OPTION.BUDGET equal steps, each at most PARAM.H,
+    accepted without error control (counted in COUNT.NFALLBACK): the work per output period
+    is bounded (three times the budget). The rejected steps count: a step landing a hair
+    above H_MIN (half of what is left of the period) cannot be shortened and, at a tolerance
+    no step meets (1e-15), was rejected for ever.
     Returns the status (OK or the fault).
     """
     h_tick = sc[PARAM.H]
@@ -170,13 +174,14 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
     ext = iv[OPTION.EXT]
     s = 0.0
     steps = 0
+    rejected = 0
     int_hmin = h_max
     fallback = False
     h_fallback = h_tick
     h = min(sc[CONTROL.HPROP], h_max)
     while s < total:
         rem = total - s
-        if steps >= iv[OPTION.BUDGET] and not fallback:
+        if (steps >= iv[OPTION.BUDGET] or rejected >= iv[OPTION.BUDGET]) and not fallback:
             fallback = True
             iv[COUNT.NFALLBACK] += 1
             # the rest of the period in at most BUDGET equal steps (never coarser than the
@@ -197,6 +202,7 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
         if err > 1.0 and not fallback and hs > H_MIN:
             sc[TOTAL.PEXT] = pext
             iv[COUNT.NREJ] += 1
+            rejected += 1
             sc[CONTROL.HEVAL] = -1.0     # the active set may have left other slopes in ws
             h = max(hs * max(FAC_MIN, SAFETY * err ** -0.5), H_MIN)
             continue

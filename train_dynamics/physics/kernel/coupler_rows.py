@@ -20,6 +20,15 @@ from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.layout import COUPLER, STATE, WORK
 from train_dynamics.physics.kernel.ros2 import GAMMA
 
+#: [-] a coupler whose step reaches its blocked branch has the blocked slope k + K_b in the
+#: stage matrix when the slope it lacks would weigh more than this fraction of its reduced
+#: mass there, (g h)^2 (k + K_b - dF/dy) > BLOCK_WEIGHT mu: (g h)^2 K / mu = g^2 (h w)^2, so
+#: 0.25 lets at most h w = 0.29 of a block be explicit (ROS2 without its matrix is explicit
+#: and unstable on an undamped spring; at h w = 6, K_b = 1e12 N/m at 2 ms, a chain of
+#: blocking impacts gained energy without bound). The shipped trains (K_b = 1e8 N/m per
+#: coupling, 2 ms, >= 22 t reduced mass) stay below 0.06: their steps are never redone.
+BLOCK_WEIGHT = 0.25
+
 
 @jit(inline=True)
 def invalidate_caches(ws):
@@ -233,3 +242,47 @@ def eval_couplers_work(coach, cpl, model, u, gh, ws):
             f_lo[j] = f
     vkey[n - 1] = gh
     return wc
+
+
+@jit(inline=True)
+def raise_blocked_slopes(h, x, v, masses, cpl, ws):
+    """
+    Put the blocked slope in the stage matrix of the couplers the step just solved blocks.
+
+    The slope of the stage matrix is chosen at the step's start (:func:`_travel_slope`:
+    the tangent, or the secant over the move y + h ydot predicted from the coupler's own
+    speed). In a chain of impacts a coupler is driven into its block within the step by its
+    neighbours' motion: the blocked stiffness K_b [N/m] then acts only through the stage-2
+    force, explicitly. A coupler whose step (y at the start, at the stage-2 point
+    y + h a1 and at the end, from WORK.B1, XNEW; x, v [m, m/s] the start, h [s]) reaches a
+    blocked branch takes that branch's slope k + K_b into WORK.DFDY and KK when the slope
+    it lacks weighs more than BLOCK_WEIGHT of its reduced mass ``masses`` [kg]
+    (:data:`BLOCK_WEIGHT`); its rows are no longer those of its state (WORK.YKEY = NaN).
+    ROS2 is a W-method: any matrix keeps its order, and a stiffer one damps the stiff mode
+    (L-stable). Return how many couplers took it: the caller solves the step again.
+    """
+    gh = GAMMA * h
+    b1 = ws[WORK.B1]
+    x_new = ws[WORK.XNEW]
+    dfdy = ws[WORK.DFDY]
+    kk = ws[WORK.KK]
+    ykey = ws[WORK.YKEY]
+    raised = 0
+    for j in range(x.shape[0] - 1):
+        y = x[j] - x[j + 1]
+        y2 = y + h * (v[j] - v[j + 1] + gh * (b1[j] - b1[j + 1]))
+        ye = x_new[j] - x_new[j + 1]
+        hi = max(y, max(y2, ye))
+        lo = min(y, min(y2, ye))
+        k = 0.0
+        if hi > cpl[COUPLER.GT, j] + cpl[COUPLER.ST, j]:
+            k = cpl[COUPLER.KEC, j] + cpl[COUPLER.KB, j]
+        if lo < -(cpl[COUPLER.GC, j] + cpl[COUPLER.SC, j]):
+            k = max(k, cpl[COUPLER.KE, j] + cpl[COUPLER.KB, j])
+        lack = gh * gh * (k - dfdy[j])
+        if lack > BLOCK_WEIGHT * masses[j] * masses[j + 1] / (masses[j] + masses[j + 1]):
+            kk[j] += lack
+            dfdy[j] = k
+            ykey[j] = np.nan
+            raised += 1
+    return raised

@@ -212,6 +212,7 @@ COUNT = _group('CountSlots', [
     'MR_CLUSTERS',  # multirate: vehicle groups re-integrated in sub-steps since reset
     'MR_SUBSTEPS',  # multirate: their accepted sub-steps since reset
     'MR_DECLINED',  # multirate: groups kept at the long step (a vehicle held or stopping)
+    'BLOCK_SOLVES',     # chain solves redone with a blocked coupler's slope in the matrix
 ], after=(OPTION, CLOCK, CACHE))
 #: all slots of ``iv``; OPTION first, so ``iv[len(OPTION):]`` is what reset() rewrites
 INTEGER = range(len(OPTION) + len(CLOCK) + len(CACHE) + len(COUNT))
@@ -234,6 +235,8 @@ WORK = _group('WorkRows', [
     'SIGNED',       # braking force signed against the motion [N]
     'VSTART',       # speeds at the step's start, stopped coaches at 0 [m/s]
     'RELDIR',       # direction of a released coach's brake (+-1, 0 = by its motion)
+    'VSTOP',        # speed [m/s] a coach was stopped from at this step's start (0: none)
+    'STOPPED',      # 1: stopped at this step's start; -1: its stop undone (moves on); 0
     'HOLD',         # holding force of each held coach [N]
     'TARGET',       # distributors' target cylinder pressure [Pa]
     'FBNEXT',       # braking force available at the step's end [N]
