@@ -121,3 +121,47 @@ def test_simulate_at_a_tolerance_no_step_meets_stops_within_a_second(tmp_path, s
     hist = load_history(out)                   # closed and readable, whole samples
     assert len(hist.couplers) == len(hist.coaches) > 10
     assert not list(tmp_path.glob('.run.partial-*'))
+
+
+@pytest.mark.parametrize('signum', [signal.SIGINT, signal.SIGTERM])
+def test_sim_node_at_a_tolerance_no_step_meets_stops_within_a_second(tmp_path, signum):
+    """
+    ``sim_node`` at tolerance 1e-15 with the highest accepted budget, braking: a signal stops it.
+
+    No brake valve runs, so the stale pipe input applies the emergency brake
+    (``on_input_timeout: emergency``): every step is rejected down to the smallest. The
+    kernel is called one output period at a time (each bounded by the step budget, rejected
+    steps included), so the node takes the signal within a second and closes its bag.
+    """
+    import os
+
+    params = tmp_path / 'p.yaml'
+    params.write_text(Path(PAPER).read_text().replace(
+        'integration_step: 0.002', 'integration_step: 0.002\n    integration_tolerance: 1.0e-15\n'
+        f'    integration_max_steps: {max_period_steps(3)}\n'
+        '    on_input_timeout: emergency\n    input_timeout: 0.1'))
+    bag = tmp_path / 'bag'
+    env = dict(os.environ, PYTHONUNBUFFERED='1')
+    proc = subprocess.Popen(
+        [sys.executable, '-m', 'train_dynamics.ros.sim_node', '--ros-args', '--params-file',
+         str(params), '-p', f'record_bag:={bag}'],
+        stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, cwd=ROOT)
+    try:
+        lines = []
+        for line in proc.stdout:
+            lines.append(line)
+            if 'started:' in line:
+                break
+        time.sleep(3.0)                      # the emergency is on: the kernel spins
+        t0 = time.monotonic()
+        proc.send_signal(signum)
+        out = ''.join(lines) + proc.communicate(timeout=60)[0]
+        took = time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    assert proc.returncode == 0, out
+    assert took < 1.0, (took, out)
+    assert 'Traceback' not in out, out
+    info = bag_info(bag)                     # closed and readable
+    assert info.message_count > 0
