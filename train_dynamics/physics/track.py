@@ -37,7 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from train_dynamics.physics.kernel.track import profile_integral, track_forces
-from train_dynamics.physics.kernel.wheelset import DRY_ADHESION
+from train_dynamics.physics.kernel.traction import CK_AT_REST as DRY_ADHESION
 
 
 def roeckl(radius: float) -> float:
@@ -111,7 +111,7 @@ class Track:
 
     @property
     def adhesion_profile(self) -> np.ndarray:
-        """Return the adhesion profile (3, K) for the kernel: positions, mu_low - dry, integrals."""
+        """Return the adhesion profile (3, K) for the kernel: positions, mu_low - dry, integral."""
         return np.array([self.ax, self.av, self.ac], dtype=float).reshape(3, -1)
 
     def adhesion_at(self, s) -> np.ndarray:

@@ -35,9 +35,9 @@ from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, 
                                                   INPUT, INTEGER, OPTION, OUTPUT, PARAM, SCALAR,
                                                   SCALAR_INPUT, STATE, VEHICLE, WORK)
 from train_dynamics.physics.kernel.resistance import running_resistance
-from train_dynamics.physics.kernel.track import profile_integral
 from train_dynamics.physics.kernel.step import (available_braking_force, make_workspace, OK,
                                                 STATUS_TEXT)
+from train_dynamics.physics.kernel.track import profile_integral
 from train_dynamics.physics.kernel.traction import traction_force
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.resistance import equivalent_mass
@@ -366,7 +366,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
 
     def set_track_adhesion(self, positions, values) -> None:
         """
-        Change the track's adhesion profile live (``track_adhesion_positions``, ``track_adhesion``).
+        Change the track's adhesion profile live (track_adhesion_positions, track_adhesion).
 
         Acts from the next step (the vehicles' means are taken each step); raises ValueError
         on a bad profile. A train built without wheelsets keeps none: the new rail limits
@@ -392,7 +392,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         return out
 
     def set_wsp_valve(self, state: int, index: int) -> None:
-        """Set the slide-protection valve of vehicle ``index`` (0-based): 0, 1 or 2 (``wsp`` external)."""
+        """Set vehicle ``index``'s (0-based) slide-protection valve: 0, 1, 2 (wsp external)."""
         if self.wsp != wheelset.WSP_EXTERNAL:
             raise ValueError('coach_<i>/wsp/valve needs wsp external')
         if state not in (wheelset.NORMAL, wheelset.HOLD, wheelset.VENT):
