@@ -53,6 +53,13 @@ TRACTION_TOPIC_DISPLAY = 'coach_<i>/traction/command'
 #: brake_system ep / ecp: the command every vehicle's EP valves / car control device follows
 EP_COMMAND_TOPIC = 'brake_ep/command'
 
+# -- slide protection (std_msgs/Int8: 0 normal, 1 hold, 2 vent) -----------------------------------
+#: ``wsp: external``: the hold and vent valves on vehicle i's brake cylinder
+WSP_VALVE_TOPIC = 'coach_{i}/wsp/valve'
+WSP_VALVE_TOPIC_PATTERN = re.compile(r'coach_(\d+)/wsp/valve')
+WSP_VALVE_TOPIC_DISPLAY = 'coach_<i>/wsp/valve'
+INT8 = 'std_msgs/msg/Int8'
+
 # -- outputs (sensor_msgs/JointState, header.stamp = simulation time) ----------------------------
 COUPLERS_TOPIC = 'couplers'
 COACHES_TOPIC = 'coaches'
@@ -71,6 +78,12 @@ VEHICLE_FORCES_TOPIC = 'vehicle_forces'
 #: mean over the last output period (0 at t = 0)
 VEHICLE_MOTION_TOPIC = 'vehicle_motion'
 TRACK_FRAME = 'track'
+#: rotating wheelsets only (``wheelsets``, ``wsp``, low ``track_adhesion``): JointState
+#: ``coach_1..N``: position = available adhesion at the vehicle's speed [-] (the track's, with
+#: Curtius-Kniffler's fall with speed), velocity = wheel peripheral speed [m/s, >= 0 in the
+#: motion's sense], effort = creep force [N, on the vehicle, positive retarding]; the
+#: adhesion used is effort / (m g)
+WHEELSETS_TOPIC = 'wheelsets'
 CLOCK_TOPIC = '/clock'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 
@@ -85,6 +98,11 @@ def input_topic(mode: str, coach: int | None = None) -> str:
 def traction_topic(vehicle: int) -> str:
     """Return the traction-command topic of ``vehicle`` (1-based)."""
     return TRACTION_TOPIC.format(i=vehicle)
+
+
+def wsp_valve_topic(vehicle: int) -> str:
+    """Return the slide-protection valve topic of ``vehicle`` (1-based)."""
+    return WSP_VALVE_TOPIC.format(i=vehicle)
 
 
 def coupler_names(n_coaches: int) -> list[str]:

@@ -18,6 +18,9 @@ writes them to its bag. One definition of what each output topic carries:
   position of the vehicle's front [m], velocity = v [m/s], effort = acceleration [m/s^2,
   forward > 0]: (v(t_k) - v(t_{k-1})) / (t_k - t_{k-1}) over the last output period (exact
   as a mean: the integrator's speed change), 0 at t = 0.
+- ``wheelsets`` (a train with rotating wheelsets only): JointState ``coach_1..N``: position =
+  available adhesion [-], velocity = wheel peripheral speed [m/s], effort = creep force [N]
+  (:data:`train_dynamics.topics.WHEELSETS_TOPIC`).
 """
 from __future__ import annotations
 
@@ -74,6 +77,10 @@ class OutputEncoder:
         effort = gradient force; each [N] on the vehicle, forward > 0.
         """
         return self._coaches(t_ns, sim.traction_force, sim.resistance_force, sim.gradient_force)
+
+    def encode_wheelsets(self, t_ns: int, sim: Any) -> bytes:
+        """Return ``wheelsets``: available adhesion, wheel speed [m/s], creep force [N]."""
+        return self._coaches(t_ns, sim.adhesion_available, sim.wheel_speed, sim.creep_force)
 
     def encode_motion(self, t_ns: int, sim: Any) -> bytes:
         """

@@ -40,6 +40,9 @@ class BagSink:
         self.forces = bool(cfg.external_forces)
         if self.forces:
             rec.add_topic(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE)
+        self.wheelsets = bool(cfg.has_wheelsets)
+        if self.wheelsets:
+            rec.add_topic(topics.WHEELSETS_TOPIC, topics.JOINT_STATE)
 
     def sample(self, s: Sample) -> None:
         """Write the outputs at an output step (and the head-pipe pressure of a valve run)."""
@@ -50,12 +53,17 @@ class BagSink:
         write(topics.VEHICLE_MOTION_TOPIC, t_ns, self.encoder.encode_motion(t_ns, s.sim))
         if self.forces:
             write(topics.VEHICLE_FORCES_TOPIC, t_ns, self.encoder.encode_forces(t_ns, s.sim))
+        if self.wheelsets:
+            write(topics.WHEELSETS_TOPIC, t_ns, self.encoder.encode_wheelsets(t_ns, s.sim))
         if s.head_gauge is not None:
             write(topics.HEAD_PIPE_TOPIC, t_ns,
                   encode_fluid_pressure(t_ns, s.head_gauge + self.atm))
 
     def input(self, e: InputEvent | TractionEvent) -> None:  # noqa: A003 - runner's hook
         """Write an input message as applied, stamped with its time from the run's start."""
+        if isinstance(e, TractionEvent) and e.kind == 'wsp':     # std_msgs/Int8 as read
+            self.rec.write_msg(e.topic, e.t_ns, e.msg)
+            return
         if isinstance(e, TractionEvent):      # std_msgs/Float64: no header
             self.rec.add_topic(e.topic, topics.FLOAT64)
             self.rec.write(e.topic, e.t_ns, encode_float64(e.command))

@@ -62,6 +62,7 @@ from train_dynamics.recording.outputs import time_ns
 from train_dynamics.ros.ep_inputs import EpInputs
 from train_dynamics.ros.publishers import stamp
 from train_dynamics.ros.traction_inputs import TractionInputs
+from train_dynamics.ros.wsp_inputs import WspInputs
 
 HEAD = topics.PIPE_HEAD
 CYL = topics.CYLINDER_PER_COACH
@@ -209,6 +210,8 @@ class BrakeInputs:
         self.traction = TractionInputs(node, INPUT_QOS, self._reject_traction)
         #: the EP / ECP train-line command (same validation counts and timeout)
         self.ep = EpInputs(node, INPUT_QOS, self._reject_traction)
+        #: the slide-protection valves (wsp external; same validation counts and timeout)
+        self.wsp = WspInputs(node, INPUT_QOS, self._reject_traction)
 
     def _reject_traction(self, resolved: str, reason: str, detail: str) -> None:
         self._reject(resolved, Rejected(reason, detail))
@@ -217,22 +220,23 @@ class BrakeInputs:
     @property
     def stale(self) -> bool:
         """Return True while a brake input or a traction command is stale."""
-        return self._stale or bool(self.traction.stale_names)
+        return self._stale or bool(self.traction.stale_names or self.wsp.stale_names)
 
     @property
     def emergency(self) -> bool:
         """Return True while a fail-safe holds (emergency brake, or a traction command 0)."""
-        return self._emergency or self.traction.emergency
+        return self._emergency or self.traction.emergency or self.wsp.emergency
 
     @property
     def stale_names(self) -> list[str]:
         """Return the stale brake inputs, then the stale traction-command topics."""
-        return (self._stale_names if self._stale else []) + self.traction.stale_names
+        return ((self._stale_names if self._stale else []) + self.traction.stale_names
+                + self.wsp.stale_names)
 
     @property
     def accepted(self) -> int:
         """Return the accepted brake inputs and traction commands."""
-        return self._accepted + self.traction.accepted + self.ep.accepted
+        return self._accepted + self.traction.accepted + self.ep.accepted + self.wsp.accepted
 
     # -- a run (executor thread, simulation lock held) -------------------------------------
     def start(self, cfg: SimConfig, n: int, recording: bool) -> None:
@@ -254,6 +258,7 @@ class BrakeInputs:
         self._update_subscriptions(mode, n)
         self.traction.start(cfg.consist.commanded if cfg.external_forces else [])
         self.ep.start(cfg.ep_commanded)
+        self.wsp.start(list(range(n)) if cfg.wsp == 'external' else [])
 
     def set_policy(self, timeout: float, on_timeout: str) -> None:
         """Report inputs older than ``timeout`` [s wall]; ``on_timeout``: hold/emergency."""
@@ -420,7 +425,7 @@ class BrakeInputs:
         with self._in_lock:
             ages = now - self._buffer.arrival
             age = float(np.max(ages)) if ages.size else 0.0
-        return max(age, self.traction.max_age(now))
+        return max(age, self.traction.max_age(now), self.wsp.max_age(now))
 
     # -- the simulation thread (simulation lock held) --------------------------------------
     def discard_records(self) -> None:
@@ -432,6 +437,7 @@ class BrakeInputs:
         """Put the inputs received since the last call (or the fail-safe) into ``sim``."""
         self.traction.apply(now, sim, record, self.timeout, self.on_timeout == 'emergency')
         self.ep.apply(now, sim, record, self.timeout)
+        self.wsp.apply(now, sim, record, self.timeout, False)
         if self.by_stamp:
             self._release_due(sim)
         news = self._take(now)

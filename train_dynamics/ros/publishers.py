@@ -14,6 +14,8 @@ simulation time, at the integration steps nearest to k / publish_rate
 - ``vehicle_forces`` (a train with resistance, track or traction): JointState ``coach_1..N``:
   position = traction / dynamic-brake force, velocity = running + curve resistance, effort =
   gradient force [N, on the vehicle, forward > 0];
+- ``wheelsets`` (a train with rotating wheelsets): JointState ``coach_1..N``: position =
+  available adhesion [-], velocity = wheel peripheral speed [m/s], effort = creep force [N];
 - ``/clock`` (``rosgraph_msgs/Clock``) when ``publish_clock``.
 
 Output messages are CDR-encoded once per output (:class:`OutputEncoder`: names and header
@@ -73,6 +75,8 @@ class Outputs:
         self._node = node
         self._pub_forces = None         # vehicle_forces, created for a train that has them
         self._forces = False
+        self._pub_wheelsets = None      # wheelsets, created for a train that has them
+        self._wheelsets = False
         self.writer: BagWriter | None = None
         self.publish_clock = False
         self.rate = 0.0                 # [Hz] publish_rate of the run
@@ -88,12 +92,14 @@ class Outputs:
 
     def start(self, n: int, rate: float, h: float, publish_clock: bool,
               writer: BagWriter | None, reservoirs: bool = False,
-              forces: bool = False, metrics: RunMetrics | None = None) -> None:
+              forces: bool = False, metrics: RunMetrics | None = None,
+              wheelsets: bool = False) -> None:
         """
         Begin a run of ``n`` coaches at t = 0: outputs at ``rate`` [Hz] on steps ``h``.
 
         ``reservoirs``: also publish ``brake_reservoirs`` (pneumatic brake); ``forces``:
         also publish ``vehicle_forces`` (a train with resistance, track or traction);
+        ``wheelsets``: also publish ``wheelsets`` (a train with rotating wheelsets);
         ``metrics``: the run metrics, fed with every published sample (as the offline
         command does).
         """
@@ -103,6 +109,10 @@ class Outputs:
         if self._forces and self._pub_forces is None:
             self._pub_forces = self._node.create_publisher(
                 JointState, topics.VEHICLE_FORCES_TOPIC, OUTPUT_QOS)
+        self._wheelsets = bool(wheelsets)
+        if self._wheelsets and self._pub_wheelsets is None:
+            self._pub_wheelsets = self._node.create_publisher(
+                JointState, topics.WHEELSETS_TOPIC, OUTPUT_QOS)
         self.rate = float(rate)
         self._h = h
         self.publish_clock = bool(publish_clock)
@@ -148,6 +158,9 @@ class Outputs:
         forces = self._encoder.encode_forces(t_ns, sim) if self._forces else None
         if forces is not None:
             self._pub_forces.publish(forces)
+        wheels = self._encoder.encode_wheelsets(t_ns, sim) if self._wheelsets else None
+        if wheels is not None:
+            self._pub_wheelsets.publish(wheels)
         self.metrics.put(sim)
         clock = None
         if self.publish_clock:
@@ -160,6 +173,8 @@ class Outputs:
             w.write(topics.VEHICLE_MOTION_TOPIC, topics.JOINT_STATE, t_ns, motion)
             if forces is not None:
                 w.write(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE, t_ns, forces)
+            if wheels is not None:
+                w.write(topics.WHEELSETS_TOPIC, topics.JOINT_STATE, t_ns, wheels)
             if clock is not None:
                 w.write(topics.CLOCK_TOPIC, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
         self.published += 1

@@ -127,12 +127,15 @@ def sample_topics(cfg: Any) -> tuple[str, ...]:
     Return the JointState topics a run of ``cfg`` records at every output instant.
 
     The outputs (couplers, coaches, brake_cylinders), ``brake_reservoirs`` with the pneumatic
-    brake, ``vehicle_motion``, ``vehicle_forces`` for a train with external forces.
+    brake, ``vehicle_motion``, ``vehicle_forces`` for a train with external forces,
+    ``wheelsets`` for a train with rotating wheelsets.
     """
     out = topics.OUTPUT_TOPICS + ((topics.BRAKE_RESERVOIRS_TOPIC,) if has_reservoirs(cfg)
                                   else ()) + (topics.VEHICLE_MOTION_TOPIC,)
     if cfg.external_forces:
         out += (topics.VEHICLE_FORCES_TOPIC,)
+    if getattr(cfg, 'has_wheelsets', False):
+        out += (topics.WHEELSETS_TOPIC,)
     return out
 
 
