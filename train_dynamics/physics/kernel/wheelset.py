@@ -58,12 +58,21 @@ SLIP_HOLD_A = 0.2
 SLIP_HOLD_B = 0.01
 DECEL_VENT = 2.0
 ACCEL_HOLD = 3.0
+#: [m/s] below this reference speed the slide protection leaves the brake alone (normal): a
+#: train at rest must stay braked (a vent on the creep of a stopped train's couplers would
+#: release it); EN 15595 lets WSP switch off at a low speed, this figure is our choice
+WSP_MIN_SPEED = 0.05
 #: [s] cylinder vent time constant through the dump valve (a guess: WSP dump valves empty a
 #: passenger cylinder from 3.8 bar to below 0.5 bar in about 0.3 s)
 VENT_TAU = 0.15
 #: [s] refill time constant of an input-driven cylinder after the valves released it (a
 #: guess, of the order of the P brake's first filling second)
 REFILL_TAU = 1.0
+#: [m/s] below this speed a vehicle's wheels roll with it and the rail's friction is the
+#: brake's, limited by the adhesion (Coulomb, as at rest): the creep law's slip reference V0
+#: makes the friction vanish with the slip, so without this a stopped train on locked wheels
+#: would creep on for ever at micrometres per second (our choice, in the WSP's dead band)
+V_STICK = WSP_MIN_SPEED
 #: iterations of the safeguarded Newton solve at most, and its tolerance on the wheel speed
 #: relative to 1 m/s + the vehicle's speed (round-off)
 ITERATIONS = 60
@@ -102,6 +111,8 @@ def sliding(v: float, u: float) -> bool:
 @jit(inline=True)
 def builtin_valve(v_ref: float, u: float, decel: float) -> int:
     """Return the valve state of the reference slide protection (module docstring)."""
+    if v_ref < WSP_MIN_SPEED:
+        return NORMAL
     slip = v_ref - u
     if sliding(v_ref, u) or decel > DECEL_VENT:
         return VENT
@@ -250,13 +261,13 @@ def wheelset_substep(coach, sc, ws):
         u0 = wheel[i]
         vabs[i] = s
         coach[OUTPUT.ADH_AVAIL, i] = mu
-        if s == 0.0:
+        if s < V_STICK:     # at rest or nearly: Coulomb friction, wheels rolling
             fb[i] = min(fb[i], mu * load)
-            wheel[i] = 0.0
+            wheel[i] = s
             wdecel[i] = 0.0
-            umean[i] = 0.0
-            coach[OUTPUT.F_CREEP, i] = 0.0
-            coach[OUTPUT.ADH_USED, i] = 0.0
+            umean[i] = -1.0         # book_wheelsets: the friction's work is the brake's
+            coach[OUTPUT.F_CREEP, i] = fb[i] if s > 0.0 else 0.0
+            coach[OUTPUT.ADH_USED, i] = coach[OUTPUT.F_CREEP, i] / load
             continue
         material = int(coach[VEHICLE.MATERIAL, i])
         normal = max(coach[STATE.PCYL, i] * coach[VEHICLE.BRAKE_GAIN, i]
@@ -279,7 +290,8 @@ def book_wheelsets(coach, sc, ws):
     """
     Book the creep work and the sliding of the accepted step.
 
-    Creep work h F_c ((|v0| + |v1|) / 2 - (u0 + u1) / 2) [J] (TOTAL.WCREEP); a wheel that
+    Creep work h F_c ((|v0| + |v1|) / 2 - (u0 + u1) / 2) [J] (TOTAL.WCREEP); below V_STICK
+    the friction's work F |dx| is the brake's (TOTAL.WWB: the wheel rolls); a wheel that
     ends the step sliding (:func:`sliding`) adds h to OUTPUT.SLIDE_T [s] and the vehicle's
     displacement to OUTPUT.SLIDE_X [m]. A vehicle that stopped keeps its wheel at rest.
     """
@@ -292,6 +304,10 @@ def book_wheelsets(coach, sc, ws):
         if vabs[i] == 0.0:
             continue
         v1 = abs(coach[STATE.V, i])
+        if umean[i] < 0.0:
+            sc[TOTAL.WWB] += coach[OUTPUT.F_CREEP, i] * abs(coach[STATE.X, i] - x_old[i])
+            coach[STATE.WHEEL, i] = v1
+            continue
         if v1 == 0.0:
             coach[STATE.WHEEL, i] = 0.0
         wcreep += h * coach[OUTPUT.F_CREEP, i] * (0.5 * (vabs[i] + v1) - umean[i])
