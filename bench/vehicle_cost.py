@@ -12,7 +12,9 @@ into the moving part and the part with every vehicle at rest at an output period
 - ``uniformN``: N of the paper's coaches, ``SimConfig.from_dict({'num_coaches': N})``,
   flat, default step (the strokes as the defaults set them: long trains block);
 - ``paperN``: the same with the strokes out of reach (the paper's idealisation, as a
-  kernel without strokes computed it).
+  kernel without strokes computed it);
+- ``<case>+w``: the case with rotating wheelsets (``wheelsets: true``: the creep-law sub-step
+  per vehicle and step, dry rail), against the case without.
 
 ``--python PY --path DIR`` (repeatable, pairwise) adds a kernel version: the case runs with
 ``PY`` and ``PYTHONPATH=DIR`` (e.g. a worktree of an older commit); the uniform and paper
@@ -53,6 +55,8 @@ def drive(sim, events, t: float) -> None:
 def _config(case: str):
     """Return the SimConfig of a case (see the module docstring)."""
     from train_dynamics.physics.config import load_param_file, SimConfig
+    if case.endswith('+w'):
+        return _config(case[:-2]).replace(wheelsets=True)
     if case == 'freight':
         return load_param_file(os.path.join(ROOT, 'config', 'freight_750m.yaml'))
     if case.startswith('uniform'):
