@@ -1,4 +1,4 @@
-"""The offline command with wheelsets: ``coach_<i>/wsp/valve`` from an input bag, ``wheelsets`` out."""
+"""The offline command with wheelsets: valves from an input bag, ``wheelsets`` recorded."""
 import struct
 
 import numpy as np

@@ -462,9 +462,9 @@ class RunMetrics:
 
     def _vehicle_rows(self) -> list[dict]:
         slide = self.sliding
-        extra = [{} if slide is None else {'sliding_time': float(slide[0][i]),
-                                          'sliding_distance': float(slide[1][i])}
-                 for i in range(self.n)]
+        extra = [{} if slide is None else {
+            'sliding_time': float(slide[0][i]), 'sliding_distance': float(slide[1][i])}
+            for i in range(self.n)]
         return [{'name': name, 'max_deceleration': float(self.decel.value[i]),
                  'max_deceleration_time': _num(self.decel.t[i]),
                  'peak_deceleration': float(self.peak_decel.value[i]),
