@@ -138,3 +138,27 @@ def test_external_valves_vent_and_hold():
         sim.set_wsp_valve(3, 0)
     with pytest.raises(ValueError, match='wsp external'):
         _sim(wsp='builtin').set_wsp_valve(1, 0)
+
+
+def test_sliding_metrics_and_stopping_distance():
+    """The run metrics take the sliding time and distance of every step and the stop."""
+    from train_dynamics.physics.metrics import RunMetrics
+    from train_dynamics.simulation.runner import Sample
+    sim = _low()
+    metrics = RunMetrics.for_run(sim.cfg, sim)
+    sim.set_cylinder_pressure(P_FULL)
+    metrics.sample(Sample(0, 0.0, sim, None))
+    k = 0
+    while np.any(sim.v > 0.0) and sim.t < 200.0:
+        sim.advance(5)
+        k += 5
+        metrics.sample(Sample(k, sim.t, sim, None))
+    flat = metrics.result()['train']
+    assert flat['max_sliding_time'] == pytest.approx(float(np.max(sim.sliding_time)))
+    assert flat['max_sliding_distance'] == pytest.approx(float(np.max(sim.sliding_distance)))
+    assert flat['max_sliding_time'] > 0.9 * sim.t                 # locked nearly throughout
+    # every vehicle slid all the way: the sliding distance is the stopping distance (within
+    # the last output period and the run-out below the sliding threshold)
+    assert flat['max_sliding_distance'] == pytest.approx(flat['stopping_distance'], rel=0.01)
+    rows = metrics.result()['vehicles']
+    assert rows[0]['sliding_time'] == pytest.approx(sim.sliding_time[0])
