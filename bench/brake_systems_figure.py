@@ -22,6 +22,7 @@ sys.path.insert(0, ROOT)
 
 from train_dynamics.physics.brake_valve import BrakeValveModel  # noqa: E402
 from train_dynamics.physics.config import load_param_file  # noqa: E402
+from train_dynamics.physics.pneumatic import propagation_speed  # noqa: E402
 from train_dynamics.physics.train import TrainSimulator  # noqa: E402
 
 FIGURES = os.path.join(ROOT, 'docs', 'figures')
@@ -100,11 +101,10 @@ def accelerators() -> None:
         along(axes[0, col], axes[1, col], r,
               f'accelerators {"on" if on else "off"}')
         drop = first(r['t'], r['pipe'] < r['pipe'][0] - 1.0)
-        length = float(np.sum(cfg.consist['length'][:-1]))
+        speed = propagation_speed(cfg.consist['length'], drop)
         cyl = r['cyl'][:, -1]
         t95 = first(r['t'], (cyl >= 0.95 * 3.8)[:, None])[0] - 1.0
-        print(f'| accelerators {"on" if on else "off"} | {length / (drop[-1] - drop[0]):.0f} '
-              f'| {t95:.1f} |')
+        print(f'| accelerators {"on" if on else "off"} | {speed:.0f} | {t95:.1f} |')
     finish(fig, axes, 'brake_accelerators.png')
 
 

@@ -18,6 +18,10 @@ Reported:
   stamps (gaps in the 10 ms stamp sequence);
 - node RSS at the end.
 Targets: factor >= 0.99, p99 jitter <= 2 ms, first output within 3 s.
+
+Cases (``--case``): ``core`` (the above), ``pneumatic150`` (150 vehicles with the pneumatic
+brake, ``brake_model:=pneumatic``, 100 Hz, real time: the emergency then runs through the
+pipe, the distributors and the cylinders of every vehicle; same targets).
 """
 from __future__ import annotations
 
@@ -38,6 +42,11 @@ import nodeutil as U  # noqa: E402
 TARGET_RTF = 0.99
 TARGET_P99_MS = 2.0
 TARGET_STARTUP_S = 3.0
+
+
+#: named cases: coaches and extra sim_node parameters
+CASES = {'core': (300, {}),
+         'pneumatic150': (150, {'brake_model': 'pneumatic'})}
 
 
 def run(n: int = 300, rate: float = 100.0, duration: float = 60.0, log=print,
@@ -245,6 +254,8 @@ def _s(x) -> str:
 
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument('--case', choices=sorted(CASES), default=None,
+                    help='a named case (sets --coaches and parameters)')
     ap.add_argument('--coaches', type=int, default=300)
     ap.add_argument('--rate', type=float, default=100.0)
     ap.add_argument('--duration', type=float, default=60.0)
@@ -255,9 +266,11 @@ def main(argv=None) -> int:
                     metavar='NAME:=VALUE', help='another sim_node parameter, e.g. '
                     '-p integration_tolerance:=0.01 (the work budget: fallback_periods)')
     args = ap.parse_args(argv)
-    res = run(args.coaches, args.rate, args.duration, extra_params=dict(args.param))
+    coaches, params = CASES[args.case] if args.case else (args.coaches, {})
+    params = {**params, **dict(args.param)}
+    res = run(coaches, args.rate, args.duration, extra_params=params)
     if args.startup_trials:
-        res['startup_trials'] = startup_trials(args.coaches, args.startup_trials)
+        res['startup_trials'] = startup_trials(coaches, args.startup_trials)
         apply_startup_target(res)
     print(table(res))
     if args.json:

@@ -6,7 +6,8 @@ commanded to 0 (emergency) at t = 1 s, 60 s simulated in 10 ms chunks (the node'
 one core; the best of 3 runs. Trains: the paper's 3 coaches (P), the 750 m freight train
 (30 wagons of 25 m, G, 90 t), 150 vehicles (G) and 150 vehicles with emergency
 accelerators and a distributed-power remote (``consist_150_dp.yaml``, pneumatic only).
-Node: ``bench/node.py`` with 100 vehicles, ``brake_model: pneumatic``, 100 Hz, real time.
+Node: ``bench/node.py`` case ``pneumatic150``: 150 vehicles, ``brake_model: pneumatic``,
+100 Hz, real time, 60 s (emergency from the first output on).
 
 Run alone: ``python bench/pneumatic.py [--no-node]`` (writes bench/pneumatic_results.md,
 which ``bench/run_all.py`` includes in RESULTS.md).
@@ -74,11 +75,11 @@ def run_offline(log=print) -> list[dict]:
 
 
 def run_node(log=print) -> dict | None:
-    """Node with 100 vehicles, pneumatic brake, 100 Hz, 60 s."""
+    """Node: bench/node.py's case pneumatic150 (150 vehicles, pneumatic), 100 Hz, 60 s."""
     import node as nodebench     # rclpy: only when the node part runs
+    n, params = nodebench.CASES['pneumatic150']
     try:
-        return nodebench.run(n=100, rate=100.0, duration=60.0, log=log,
-                             extra_params={'brake_model': 'pneumatic'})
+        return nodebench.run(n=n, rate=100.0, duration=60.0, log=log, extra_params=params)
     except Exception as exc:  # noqa: BLE001 - report and keep the offline figures
         log(f'pneumatic node benchmark failed: {exc}')
         return None
@@ -107,8 +108,8 @@ def render(rows: list[dict], node_res: dict | None) -> str:
                 'the isothermal 1-D pipe with friction on ~6.5 m cells, lumped valves).']
     if node_res is not None:
         ok = node_res['rtf'] >= 0.99 and node_res['jitter_p99_ms'] <= 2.0
-        out += ['', f'Node, 100 vehicles, pneumatic, 100 Hz, 60 s real time: achieved '
-                f'real-time factor {node_res["rtf"]:.4f}, output period jitter p50 '
+        out += ['', f'Node, {node_res["n"]} vehicles, pneumatic, 100 Hz, 60 s real time: '
+                f'achieved real-time factor {node_res["rtf"]:.4f}, output period jitter p50 '
                 f'{node_res["jitter_p50_ms"]:.3f} ms, p99 {node_res["jitter_p99_ms"]:.3f} ms, '
                 f'max {node_res["jitter_max_ms"]:.3f} ms, CPU {node_res["cpu_share"]:.2f} '
                 f'cores: **{"PASS" if ok else "FAIL"}** (target p99 <= 2 ms).']

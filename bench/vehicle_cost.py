@@ -15,6 +15,8 @@ into the moving part and the part with every vehicle at rest at an output period
   kernel without strokes computed it);
 - ``<case>+w``: the case with rotating wheelsets (``wheelsets: true``: the creep-law sub-step
   per vehicle and step, dry rail), against the case without.
+- ``CASE+mrTOL``, ``CASE+tolTOL``: any of these with ``multirate_tolerance`` or
+  ``integration_tolerance`` TOL (e.g. ``uniform100+mr1e-3``).
 
 ``--python PY --path DIR`` (repeatable, pairwise) adds a kernel version: the case runs with
 ``PY`` and ``PYTHONPATH=DIR`` (e.g. a worktree of an older commit); the uniform and paper
@@ -57,6 +59,10 @@ def _config(case: str):
     from train_dynamics.physics.config import load_param_file, SimConfig
     if case.endswith('+w'):
         return _config(case[:-2]).replace(wheelsets=True)
+    for suffix, name in (('+mr', 'multirate_tolerance'), ('+tol', 'integration_tolerance')):
+        if suffix in case:       # ``uniform100+mr1e-3``, ``uniform100+tol1e-3``
+            case, tol = case.split(suffix)
+            return _config(case).replace(**{name: float(tol)})
     if case == 'freight':
         return load_param_file(os.path.join(ROOT, 'config', 'freight_750m.yaml'))
     if case.startswith('uniform'):

@@ -291,3 +291,99 @@ def test_simulator_dp_traction_and_ep_command_through_the_run_loop(tmp_path):
     assert sim.pneu.cylinder_pressure == pytest.approx(np.full(4, 0.5 * P_MAX), abs=0.05 * BAR)
     with pytest.raises(ConfigError, match='brake_model pneumatic'):
         SimConfig.from_dict({'brake_system': 'ecp'})
+
+
+def test_shipped_passenger_scenario_carries_the_emergency_at_250_m_s():
+    """
+    config/passenger_pneumatic_40.yaml (1022 m): the 1 bar drop travels at >= 250 m/s.
+
+    The speed along the train (least squares of the drop instants against the distributors'
+    positions, :func:`propagation_speed`). The locomotive at the head has no accelerator: the
+    first coach drops 1 bar 0.3-0.4 s after it (only the brake valve's vent empties the head),
+    which the end-to-end ratio (first to last vehicle) charges to the whole train.
+    """
+    import os
+
+    from train_dynamics.physics.brake_valve import BrakeValveModel
+    from train_dynamics.physics.config import load_param_file
+    from train_dynamics.physics.train import TrainSimulator
+
+    root = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    cfg = load_param_file(os.path.join(root, 'config', 'passenger_pneumatic_40.yaml'))
+    sim = TrainSimulator(cfg)
+    valve = BrakeValveModel(schedule=['0.0:release', '1.0:emergency'])
+    lengths = np.array(cfg.consist['length'])
+    every = 0.004
+    t, pipe = [], []
+    for k in range(int(round(7.0 / every))):
+        sim.set_head_pipe_pressure(valve.advance_to(k * every))
+        sim.advance_to((k + 1) * every)
+        t.append(sim.t)
+        pipe.append(sim.pipe_pressure)
+    t, pipe = np.array(t), np.array(pipe)
+    drop = first(t, pipe < pipe[0] - 1.0 * BAR)
+    assert np.all(np.isfinite(drop)) and np.all(np.diff(drop[1:]) > 0.0)
+    speed = pn.propagation_speed(lengths, drop)
+    assert speed >= 250.0
+    # the coaches alone, every one with its accelerator, as the 40-coach case
+    assert pn.propagation_speed(lengths[1:], drop[1:]) >= 250.0
+    # the head: the locomotive's distributor drops first, the first coach later
+    assert 0.2 < drop[1] - drop[0] < 0.5
+
+
+def test_propagation_speed_of_a_front_at_a_known_speed():
+    """Instants x / c (plus a constant lag) give c back, whatever the vehicles' lengths."""
+    lengths = np.array([19.1] + [26.4] * 10 + [14.0])
+    middle = np.cumsum(lengths) - 0.5 * lengths
+    assert pn.propagation_speed(lengths, 0.7 + middle / 273.0) == pytest.approx(273.0)
+
+
+def test_ep_schedule_offline_commands_recorded_and_states_recorded(tmp_path):
+    """ep_schedule_*: the train line's commands offline, recorded with brake_ep/state."""
+    from train_dynamics import topics
+    from train_dynamics.cli import offline as cli
+    from train_dynamics.physics.config import ConfigError, SimConfig
+    from train_dynamics.recording.bags import bag_info, read_topics
+
+    p = tmp_path / 'ep.yaml'
+    p.write_text("""train_dynamics:
+  ros__parameters:
+    num_coaches: 4
+    initial_speed: 20.0
+    brake_model: pneumatic
+    brake_system: ecp
+    ep_schedule_times: [1.0, 5.0]
+    ep_schedule_commands: [0.5, 0.25]
+brake_valve:
+  ros__parameters:
+    schedule: ["0.0:release"]
+""")
+    out = tmp_path / 'out'
+    assert cli.main(['simulate', '--params', str(p), '--duration', '9', '--output', str(out),
+                     '-q']) == 0
+    info = bag_info(str(out))
+    assert info.topics[topics.EP_COMMAND_TOPIC][0] == topics.FLOAT64
+    assert info.topics[topics.BRAKE_EP_STATE_TOPIC][0] == topics.JOINT_STATE
+    commands = [(t, m.data) for _, t, m in read_topics(str(out), [topics.EP_COMMAND_TOPIC])]
+    assert [c for _, c in commands] == [0.5, 0.25]
+    states = [m for _, _, m in read_topics(str(out), [topics.BRAKE_EP_STATE_TOPIC])]
+    cyl = [m for _, _, m in read_topics(str(out), [topics.BRAKE_CYLINDERS_TOPIC])]
+    assert len(states) == len(cyl)            # at every output, as the other outputs
+
+    def at(msgs, t):
+        return next(m for m in msgs if m.header.stamp.sec + 1e-9 * m.header.stamp.nanosec
+                    >= t - 1e-9)
+    # received 0.2 s (the valve delay) after each command; the car control devices follow
+    assert np.all(np.asarray(at(states, 1.1).position) == 0.0)
+    assert np.all(np.asarray(at(states, 1.3).position) == 0.5)
+    assert np.all(np.asarray(at(states, 1.3).velocity) == 1.0)      # filling
+    assert np.all(np.asarray(at(states, 4.9).position) == 0.5)
+    assert np.allclose(at(cyl, 4.9).position, 0.5 * P_MAX, atol=0.1 * BAR)
+    assert np.all(np.asarray(at(states, 5.3).velocity) == -1.0)     # graduated release
+    assert np.allclose(at(cyl, 9.0).position, 0.25 * P_MAX, atol=0.1 * BAR)
+    assert np.all(np.asarray(at(states, 9.0).effort) == 1.0)         # the line stayed healthy
+    with pytest.raises(ConfigError, match='brake_system'):
+        SimConfig.from_dict({'ep_schedule_times': [1.0], 'ep_schedule_commands': [0.5]})
+    with pytest.raises(ConfigError, match='same length'):
+        SimConfig.from_dict({'brake_model': 'pneumatic', 'brake_system': 'ep',
+                             'ep_schedule_times': [1.0], 'ep_schedule_commands': []})

@@ -199,6 +199,8 @@ def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
     extra = f', {power}: 1.0e6' if power else ''
     if field == 'friction_material':      # a material other than paper needs a force level
         extra += ', braked_mass_p: 40000.0'
+    if field == 'piston_stroke':          # a stroke needs the pistons' area
+        extra += ', brake_cylinder_area: 0.0507'
     path = write(tmp_path, f'vehicle_types: {{w: {{{field}: {value!r}{extra}}}}}\n'
                            'vehicles: [{type: w, count: 3}]\n')
     cfg = SimConfig.from_dict({'consist_file': path, **_CONTEXT.get(field, {})})

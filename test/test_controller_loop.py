@@ -50,6 +50,42 @@ def test_lockstep_closed_loop_is_byte_identical_and_loses_no_command(tmp_path):
     assert all(t == stamp for t, stamp in commands)
 
 
+def test_lockstep_waits_for_traction_commands_and_is_byte_identical(tmp_path):
+    """
+    A controller answering each output with the brake pipe and, 5 ms later, a traction command.
+
+    ``lockstep_inputs: [brake, traction]``: every period waits for both, so each traction
+    command acts at the output it answers (recorded at that output's time, its value the
+    controller's law of that output's speed), and two runs give byte-identical bags.
+    """
+    from lockstep_traction_controller import command
+
+    scenario = tmp_path / 'traction.yaml'
+    scenario.write_text(
+        f'parameters_file: {ROOT / "config" / "passenger_loco_12.yaml"}\n'
+        'parameters: {initial_speed: 10.0, lockstep_inputs: [brake, traction]}\n'
+        'duration: 2.0\n')
+    ctl = [sys.executable, str(ROOT / 'test' / 'lockstep_traction_controller.py')]
+    runs = [run_scenario(scenario, ctl, tmp_path / f'run{k}') for k in (1, 2)]
+    for run in runs:
+        assert run.returncode == 0 and not run.error, run.report()
+    first, second = (_files(run.bag) for run in runs)
+    assert first.keys() == second.keys()
+    for name in first:
+        assert first[name] == second[name], f'{name} differs between the two runs'
+
+    speeds, commands = {}, []
+    for topic, t_ns, msg in read_topics(runs[0].bag, ['coaches', 'coach_1/traction/command']):
+        if topic == 'coaches':
+            speeds[t_ns] = msg.velocity[0]
+        else:
+            commands.append((t_ns, msg.data))
+    assert len(speeds) == 201
+    assert [t for t, _ in commands] == sorted(speeds)      # one per output, at its time
+    assert all(c == command(speeds[t], 15.0, 0.5) for t, c in commands)
+    assert commands[0][1] == 1.0 and speeds[max(speeds)] > 10.5     # full traction: faster
+
+
 def test_harness_passes_the_pi_controller_and_fails_its_harsh_twin(train_loop):
     good = train_loop(SCENARIO, PI)
     assert good.passed, good.report()

@@ -37,3 +37,33 @@ def test_ep_command_applied_validated_and_train_line_supervised(harness):
     assert harness.wait(lambda: node.simulator.pneu.pipe_pressure[0] < 4.4e5, 5.0)
     pub.publish(Float64(data=0.0))
     assert harness.wait(lambda: node.simulator.pneu.train_line, 5.0)
+
+
+def test_lockstep_waits_for_each_ep_command_and_applies_it_at_its_output(harness, tmp_path):
+    """
+    ``lockstep_inputs: [ep]``: one ``brake_ep/command`` per output releases each period.
+
+    The probe answers every ``coaches`` output with a command; the bag holds one command per
+    output, recorded at that output's time (it acted there), and the run reaches its end.
+    """
+    from rclpy.qos import QoSProfile, ReliabilityPolicy
+    from sensor_msgs.msg import JointState
+    from std_msgs.msg import Float64
+    from train_dynamics.recording.bags import read_topics
+
+    qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
+    pub = harness.probe.create_publisher(Float64, 'brake_ep/command', qos)
+    harness.probe.create_subscription(
+        JointState, 'coaches', lambda msg: pub.publish(Float64(data=0.5)), qos)
+    bag = tmp_path / 'bag'
+    node = harness.start(num_coaches=4, brake_model='pneumatic', brake_system='ep',
+                         initial_speed=20.0, sync_mode='lockstep', lockstep_inputs=['ep'],
+                         real_time_factor=0.0, duration=0.3, record_bag=str(bag))
+    assert harness.wait(lambda: node.finished, 30.0)
+    assert node.simulator.pneu.ep_command_received == 0.5
+    harness.stop(node)
+    outputs, commands = [], []
+    for topic, t_ns, _ in read_topics(bag, ['coaches', 'brake_ep/command']):
+        (outputs if topic == 'coaches' else commands).append(t_ns)
+    assert outputs == [k * 10_000_000 for k in range(31)]
+    assert commands == outputs

@@ -3,6 +3,7 @@
 
 The offline command and ``sim_node`` write the same bytes (one encoder); the acceleration is
 the speed change over the last output period, the position the front's place on the track.
+Every JointState output carries the frame_id ``track``.
 """
 from __future__ import annotations
 
@@ -34,10 +35,24 @@ def test_offline_motion_is_track_position_speed_and_acceleration(tmp_path):
     assert acc[-1, 0] < -0.2                # braking: the emergency applied at t = 1 s
 
 
+def test_every_joint_state_output_is_in_the_track_frame(tmp_path):
+    out = tmp_path / 'run'
+    assert cli.main(['simulate', '--params', 'config/passenger_pneumatic_40.yaml',
+                     '--duration', '0.05', '--output', str(out), '-q']) == 0
+    frames = {}
+    for topic, _, msg in read_topics(out):
+        if hasattr(msg, 'name'):
+            frames.setdefault(topic, set()).add(msg.header.frame_id)
+    assert frames == dict.fromkeys(('couplers', 'coaches', 'brake_cylinders', 'brake_reservoirs',
+                                    'vehicle_forces', 'vehicle_motion'), {'track'})
+
+
 def test_the_node_publishes_vehicle_motion(harness):
-    motion = harness.collect(JointState, 'vehicle_motion')
+    outputs = {topic: harness.collect(JointState, topic)
+               for topic in ('couplers', 'coaches', 'brake_cylinders', 'vehicle_motion')}
+    motion = outputs['vehicle_motion']
     node = harness.start(real_time_factor=2.0)
-    assert harness.wait(lambda: len(motion) >= 20, 10.0)
-    assert motion[0].header.frame_id == 'track'
+    assert harness.wait(lambda: all(len(m) >= 20 for m in outputs.values()), 10.0)
+    assert all(m[0].header.frame_id == 'track' for m in outputs.values())
     assert list(motion[0].name) == ['coach_1', 'coach_2', 'coach_3']
     assert node.sim_time > 0

@@ -162,3 +162,20 @@ def test_sliding_metrics_and_stopping_distance():
     assert flat['max_sliding_distance'] == pytest.approx(flat['stopping_distance'], rel=0.01)
     rows = metrics.result()['vehicles']
     assert rows[0]['sliding_time'] == pytest.approx(sim.sliding_time[0])
+
+
+def test_multirate_with_wheelsets_balances():
+    """
+    Wheelsets with ``multirate_tolerance``: the creep force is a constant force over sub-steps.
+
+    Low adhesion, builtin WSP (the valves cycle, the couplers' forces jump): the refined
+    groups (counted) keep the momentum balance to round-off and the energy balance of
+    vehicles and wheelsets; the stop differs from the fixed step's by less than 1 %.
+    """
+    fixed = _stop(_low(wsp='builtin', num_coaches=6))
+    sim = _low(wsp='builtin', num_coaches=6, multirate_tolerance=1e-4)
+    r = _stop(sim)
+    assert sim.integration_stats['mr_groups'] > 0
+    assert abs(r['energy_lost'] - r['work']) <= 0.005 * r['initial_energy']
+    assert r['momentum_change'] == pytest.approx(r['impulse'], abs=1e-9 * r['momentum'])
+    assert r['distance'] == pytest.approx(fixed['distance'], rel=0.01)

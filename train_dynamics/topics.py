@@ -72,11 +72,15 @@ OUTPUT_TOPICS = (COUPLERS_TOPIC, COACHES_TOPIC, BRAKE_CYLINDERS_TOPIC)
 #: position = traction / dynamic-brake force, velocity = running + curve resistance,
 #: effort = gradient force; all [N] on the vehicle, forward > 0
 VEHICLE_FORCES_TOPIC = 'vehicle_forces'
-#: per-vehicle motion, JointState ``coach_1..N``, ``frame_id`` :data:`TRACK_FRAME`: position =
-#: track position of the vehicle's front [m] (``initial_position`` minus the lengths ahead at
-#: t = 0, plus x_i), velocity = v_i [m/s], effort = acceleration [m/s^2, forward > 0], the
-#: mean over the last output period (0 at t = 0)
+#: per-vehicle motion, JointState ``coach_1..N``: position = track position of the vehicle's
+#: front [m] (``initial_position`` minus the lengths ahead at t = 0, plus x_i), velocity = v_i
+#: [m/s], effort = acceleration [m/s^2, forward > 0], the mean over the last output period
+#: (0 at t = 0)
 VEHICLE_MOTION_TOPIC = 'vehicle_motion'
+#: ``header.frame_id`` of every JointState output (couplers, coaches, brake_cylinders,
+#: brake_reservoirs, vehicle_forces, vehicle_motion, wheelsets, ...): the track, one axis along it, forward
+#: (towards ``coach_1``'s end) positive; displacements, speeds, accelerations and forces are
+#: along it, pressures are scalars of the vehicles on it
 TRACK_FRAME = 'track'
 #: rotating wheelsets only (``wheelsets``, ``wsp``, low ``track_adhesion``): JointState
 #: ``coach_1..N``: position = available adhesion at the vehicle's speed [-] (the track's, with
@@ -84,6 +88,15 @@ TRACK_FRAME = 'track'
 #: motion's sense], effort = creep force [N, on the vehicle, positive retarding]; the
 #: adhesion used is effort / (m g)
 WHEELSETS_TOPIC = 'wheelsets'
+#: brake_system ep / ecp: JointState ``coach_1..N``: position = the command the vehicle's EP
+#: valves / car control device follow [fraction of full service; 0 with the train line lost],
+#: velocity = its cylinder valve in the last step [+1 filling, 0 lapped, -1 venting],
+#: effort = the train line [1 healthy, 0 lost]
+BRAKE_EP_STATE_TOPIC = 'brake_ep/state'
+#: a train with remote locomotives: JointState ``coach_<i>`` of each remote: position = radio
+#: link [1 up, 0 lost], velocity = age of the last radio message received [s], effort =
+#: pressure the remote's brake valve regulates the pipe to [Pa gauge]
+RADIO_STATE_TOPIC = 'distributed_power/state'
 CLOCK_TOPIC = '/clock'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 
@@ -108,6 +121,11 @@ def wsp_valve_topic(vehicle: int) -> str:
 def coupler_names(n_coaches: int) -> list[str]:
     """Return the joint names of ``couplers``: ``coupler_1`` .. ``coupler_{N-1}``."""
     return [f'coupler_{i}' for i in range(1, n_coaches)]
+
+
+def vehicle_names(indices) -> list[str]:
+    """Return the joint names ``coach_<i>`` of some vehicles given by 0-based ``indices``."""
+    return [f'coach_{int(i) + 1}' for i in indices]
 
 
 def coach_names(n_coaches: int) -> list[str]:

@@ -23,7 +23,7 @@ from train_dynamics.physics.brake_valve import BrakeValveModel, VALVE_PARAMETERS
 from train_dynamics.physics.config import (ConfigError, load_param_file, node_sections,
                                            read_param_sections, SimConfig)
 from train_dynamics.recording.inputs import InputBagError, read_input_bag, read_traction_bag
-from train_dynamics.simulation.runner import InputSchedule, traction_schedule
+from train_dynamics.simulation.runner import command_schedule, InputSchedule
 
 #: the brake valve without a ``schedule`` or ``position`` in the parameter file
 DEFAULT_VALVE_SCHEDULE = ['0.0:release', '1.0:emergency']
@@ -51,7 +51,8 @@ def brake_inputs(args: argparse.Namespace, cfg: SimConfig) -> InputSchedule:
     Return the inputs of the run: the ``--input`` bag or the brake-valve schedule.
 
     Traction commands: the bag's ``coach_<i>/traction/command`` when it has any, else the
-    parameter file's ``traction_schedule_*``.
+    parameter file's ``traction_schedule_*``; the EP / ECP command: the bag's
+    ``brake_ep/command``, else ``ep_schedule_*``.
     """
     inputs = _brake_only(args, cfg)
     traction = []
@@ -60,7 +61,7 @@ def brake_inputs(args: argparse.Namespace, cfg: SimConfig) -> InputSchedule:
             traction = read_traction_bag(args.input, cfg, namespace=args.namespace, warn=warn)
         except InputBagError as exc:
             raise CliError(str(exc)) from None
-    inputs.traction = traction or traction_schedule(cfg)
+    inputs.traction = command_schedule(cfg, traction)
     return inputs
 
 

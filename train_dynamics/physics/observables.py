@@ -187,6 +187,37 @@ class TrainOutputs:
         """Control-reservoir gauge pressures [Pa] (pneumatic brake), else None."""
         return None if self.pneu is None else self.pneu.control_pressure
 
+    @property
+    def ep_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """
+        Return the EP / ECP state per vehicle (pneumatic brake), else None.
+
+        (command the vehicle's valves follow [fraction of full service, 0 with the train
+        line lost], valve state [+1 filling, 0 lapped, -1 venting], train line [1 healthy,
+        0 lost]).
+        """
+        pneu = self.pneu
+        if pneu is None:
+            return None
+        n = pneu.n
+        return (np.full(n, pneu.ep_command_at_vehicles), pneu.valve_state,
+                np.full(n, 1.0 if pneu.train_line else 0.0))
+
+    @property
+    def radio_state(self) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+        """
+        Return the distributed-power radio state per remote locomotive, else None.
+
+        (link [1 up, 0 lost], age of the last radio message received [s], pressure the
+        remote's brake valve regulates to [Pa gauge]); remotes in train order.
+        """
+        pneu = self.pneu
+        if pneu is None or not self.remotes:
+            return None
+        k = len(self.remotes)
+        return (np.full(k, 1.0 if pneu.radio_ok else 0.0), np.full(k, pneu.radio_age),
+                pneu.remote_command[self.remotes])
+
 
 class TrainBalances:
     """Work, energy and momentum since t = 0 (eq. 8 and the energy balance)."""

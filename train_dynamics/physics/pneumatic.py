@@ -49,6 +49,14 @@ p_max: filling from AR through the application choke (P or G), venting through t
 choke (graduated release as the pipe rises); back in release once the gap is below
 ``release_threshold``. AR charges from the pipe through a check valve and choke.
 
+**Brake cylinder** (``cylinder_pressure``): dead volume V0 [m^3] (pistons released), stroke
+volume Vs (pistons' area x stroke) and return-spring pressure p_s (spring force / piston
+area) per vehicle; isothermal (Boyle): p = m R T / V0 while the pistons rest, p = patm + p_s
+while they travel out, p = m R T / (V0 + Vs) at full stroke. Vs = 0 (the default): one fixed
+volume. **First stage (inshot)**: below the vehicle's inshot pressure an applied
+distributor also fills through ``inshot_area`` (UIC 540 / EN 15355 first stage; 0 = none).
+The cylinder's valve (``V_VALVE``) is +1 filling, 0 lapped, -1 venting after each step.
+
 The compiled part (the functions named above, the rows of the packed arrays) is
 :mod:`train_dynamics.physics.kernel.pneumatic`; here the specification, the packing and the
 brake object the simulator drives.
@@ -95,7 +103,7 @@ class PneumaticSpec:
     emergency_threshold: float = 100000.0   # command below it: emergency vent
     cr_volume: float = 0.009             # [m^3]
     aux_volume: float = 0.100
-    cylinder_volume: float = 0.008
+    cylinder_volume: float = 0.008      # dead volume (piston released), per vehicle
     qs_volume: float = 0.0004            # quick-service bulb
     cr_time_constant: float = 10.0       # [s] CR charging nozzle (released position)
     apply_threshold: float = 10000.0     # [Pa] p_CR - p_pipe that applies
@@ -114,9 +122,10 @@ class PneumaticSpec:
     accelerator_filter: float = 0.05     # [s] time constant of the rate filter
     accelerator_area: float = 8.0e-4     # vent to atmosphere (the 32 mm bore)
     accelerator_close: float = 30000.0   # [Pa] local pipe below it: closes and re-arms
-    # distributor first stage (inshot): fast filling up to inshot_pressure; 0 = none
+    # distributor first stage (inshot): fast filling up to inshot_pressure (the default of
+    # the vehicle field of the same name); 0 = none
     inshot_pressure: float = 0.0
-    inshot_area: float = 2.0e-5
+    inshot_area: float = 2.0e-5          # a guess: three times the P application choke
     # EP valves and ECP car control devices
     ep_valve_delay: float = 0.2          # [s] train-line command to valve action
     ep_application_area: float = 3.0e-5
@@ -147,13 +156,19 @@ class PneumaticBrake:
 
     def __init__(self, lengths, p_max, regimes, h: float, spec: PneumaticSpec | None = None,
                  external_pipe: bool = False, accelerators=False, remotes=False,
-                 brake_system: str = 'pneumatic'):
+                 brake_system: str = 'pneumatic', inshot=None, dead_volume=None,
+                 stroke_volume=0.0, spring_pressure=0.0):
         """
         Build the grid (cells per vehicle from ``spec.cell_length``) and charge it.
 
         ``accelerators`` (N,) or scalar: vehicles with an emergency accelerator; ``remotes``
         (N,) or scalar: distributed-power locomotives with their own brake valve on the pipe
         (radio link, :meth:`advance`); ``brake_system``: one of :data:`BRAKE_SYSTEMS`.
+        Cylinders, (N,) or scalar: ``inshot`` first-stage pressure [Pa gauge] (default
+        ``spec.inshot_pressure``), ``dead_volume`` [m^3] (default ``spec.cylinder_volume``),
+        ``stroke_volume`` [m^3] (pistons' area x stroke, 0: a fixed volume),
+        ``spring_pressure`` [Pa gauge] (return spring / piston area: the piston travels out
+        at it, :func:`~train_dynamics.physics.kernel.pneumatic.cylinder_pressure`).
         """
         self.spec = spec = spec or PneumaticSpec()
         lengths = np.asarray(lengths, dtype=float)
@@ -184,7 +199,13 @@ class PneumaticBrake:
         veh = self.veh = np.zeros((pk.N_VEH_ROWS, n))
         veh[pk.V_VCR] = spec.cr_volume
         veh[pk.V_VAUX] = spec.aux_volume
-        veh[pk.V_VCYL] = spec.cylinder_volume
+        veh[pk.V_VCYL] = spec.cylinder_volume if dead_volume is None else dead_volume
+        veh[pk.V_VSTROKE] = stroke_volume
+        veh[pk.V_PSPRING] = spring_pressure
+        if np.any(veh[pk.V_VCYL] <= 0.0) or np.any(veh[pk.V_VSTROKE] < 0.0) \
+                or np.any(veh[pk.V_PSPRING] < 0.0):
+            raise ValueError('cylinder dead volume must be > 0, stroke volume and spring '
+                             'pressure >= 0')
         veh[pk.V_VQS] = spec.qs_volume
         veh[pk.V_PMAX] = np.broadcast_to(np.asarray(p_max, dtype=float), (n,))
         regimes = [str(r).upper() for r in np.broadcast_to(np.asarray(regimes), (n,))]
@@ -196,7 +217,7 @@ class PneumaticBrake:
         veh[pk.V_CELL] = self.start[:-1] + per // 2
         veh[pk.V_ACC] = np.broadcast_to(np.asarray(accelerators, dtype=bool), (n,))
         veh[pk.V_REMOTE] = np.broadcast_to(np.asarray(remotes, dtype=bool), (n,))
-        veh[pk.V_INSHOT] = spec.inshot_pressure
+        veh[pk.V_INSHOT] = spec.inshot_pressure if inshot is None else inshot
         if brake_system not in BRAKE_SYSTEMS:
             raise ValueError(f'brake_system must be one of {BRAKE_SYSTEMS}, got {brake_system!r}')
         self.brake_system = brake_system
@@ -239,6 +260,7 @@ class PneumaticBrake:
         veh[pk.V_PPREV] = p0
         veh[pk.V_RCMD] = spec.nominal_pressure
         veh[pk.V_RLAP] = 0.0
+        veh[pk.V_VALVE] = pk.VALVE_LAP
         self.sc[pk.S_CMD] = spec.nominal_pressure
         self.sc[pk.S_EPCMD] = 0.0
         self.iv[pk.I_LAP] = 0
@@ -438,8 +460,38 @@ class PneumaticBrake:
 
     @property
     def cylinder_pressure(self) -> np.ndarray:
-        """Brake-cylinder pressures, gauge [Pa]."""
-        return self._gauge(pk.V_MCYL, pk.V_VCYL)
+        """Brake-cylinder pressures, gauge [Pa] (the kernel's ``cylinder_pressure``)."""
+        veh = self.veh
+        m, v0, vs = veh[pk.V_MCYL], veh[pk.V_VCYL], veh[pk.V_VSTROKE]
+        ps = self.spec.atmospheric_pressure + veh[pk.V_PSPRING]
+        p = np.where(m <= ps * v0 / self.rt, m * self.rt / v0,
+                     np.where(m < ps * (v0 + vs) / self.rt, ps, m * self.rt / (v0 + vs)))
+        return p - self.spec.atmospheric_pressure
+
+    @property
+    def valve_state(self) -> np.ndarray:
+        """
+        Each cylinder's valve in the last step: +1 filling, 0 lapped (holding), -1 venting.
+
+        The distributor's relay part, the EP valves or the ECP car control device.
+        """
+        return self.veh[pk.V_VALVE].copy()
+
+    @property
+    def ep_command_at_vehicles(self) -> float:
+        """
+        EP / ECP command the vehicles' valves follow now, fraction of full service.
+
+        0 with the train line lost (nothing is received); 0 for ``brake_system`` pneumatic.
+        """
+        if self.brake_system == 'pneumatic' or not self.iv[pk.I_LINE]:
+            return 0.0
+        return float(self.sc[pk.S_EPCMD])
+
+    @property
+    def radio_age(self) -> float:
+        """Time [s] since the remotes last received a radio message (0 before the first)."""
+        return max(0.0, self.t - self.radio_last)
 
     @property
     def ep_command_received(self) -> float:
@@ -479,14 +531,30 @@ class PneumaticBrake:
                                                  + veh[pk.V_MQS]))
 
 
+def propagation_speed(lengths, instants) -> float:
+    """
+    Return the speed [m/s] at which an event (e.g. a 1 bar pipe drop) travels along a train.
+
+    1 / slope of the least-squares line of the event's instants [s] at the vehicles against
+    the positions of their distributors (each vehicle's middle [m], ``lengths`` front to
+    rear): the wave's speed along the whole train, not set by one vehicle's lag at either end.
+    """
+    lengths = np.asarray(lengths, dtype=float)
+    middle = np.cumsum(lengths) - 0.5 * lengths
+    slope = np.polyfit(middle, np.asarray(instants, dtype=float), 1)[0]
+    return float(1.0 / slope)
+
+
 def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=None,
-                regimes=None, accelerators=None, remotes=None) -> PneumaticBrake:
+                regimes=None, accelerators=None, remotes=None, **cylinders) -> PneumaticBrake:
     """
     Return the pneumatic brake of a simulator configuration (``parameters.SimConfig``).
 
     ``lengths``, ``p_max``, ``regimes``, ``accelerators``, ``remotes``: per-vehicle data of
     a consist; by default the uniform train's ``coach_length``, ``max_cylinder_pressure`` and
-    ``brake_regime``, no accelerators, no remote locomotives.
+    ``brake_regime``, no accelerators, no remote locomotives. ``cylinders``: the per-vehicle
+    cylinder keywords of :class:`PneumaticBrake` (``inshot``, ``dead_volume``,
+    ``stroke_volume``, ``spring_pressure``).
     """
     n = cfg.n_coaches
     spec = PneumaticSpec(
@@ -504,4 +572,5 @@ def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=
         float(cfg.max_cylinder_pressure) if p_max is None else p_max,
         str(cfg.brake_regime) if regimes is None else regimes, h, spec, external_pipe,
         accelerators=False if accelerators is None else accelerators,
-        remotes=False if remotes is None else remotes, brake_system=str(cfg.brake_system))
+        remotes=False if remotes is None else remotes, brake_system=str(cfg.brake_system),
+        **cylinders)

@@ -162,6 +162,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         if cfg.brake_model == 'pneumatic' and self.mode != brakes.CYLINDER_PER_COACH:
             per_vehicle = {'accelerators': consist['emergency_accelerator'] > 0.5,
                            'remotes': consist['remote'] > 0.5}
+            per_vehicle.update(_cylinder_fields(consist))
             if cfg.consist_file:     # the consist's lengths, cylinder pressures and regimes
                 per_vehicle.update({'lengths': np.array(consist['length']),
                                     'p_max': np.array(consist['max_cylinder_pressure']),
@@ -199,6 +200,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             cfg.max_coupler_displacement, self.tolerance,
             1e-3 * float(np.max(self.masses)) * float(cfg.gravity)]
         sc[PARAM.FRICTION] = float(np.any(c[VEHICLE.MATERIAL] != friction.PAPER))
+        sc[PARAM.MRTOL] = float(cfg.multirate_tolerance)
         # the pneumatic brake hands the chain its cylinder pressures (cylinder_per_coach)
         iv[OPTION.MODE] = brakes.CYLINDER_PER_COACH if self.pneu is not None else self.mode
         iv[OPTION.EXT] = int(cfg.external_forces)
@@ -246,7 +248,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         sc[CONTROL.HMIN] = np.inf
         sc[CONTROL.INT_HMIN] = np.inf
         self.iv[len(OPTION):] = 0       # clocks, counters; CACHE.WS_VALID = 0
-        self.ws[[WORK.FHI, WORK.FLO]] = 0.0             # the force envelope starts again
+        self.ws[[WORK.FHI, WORK.FLO, WORK.NSUB]] = 0.0  # the force envelope starts again
         if self.pneu is not None:
             self.pneu.reset()
             c[INPUT.CYL] = self.pneu.cylinder_pressure
@@ -476,6 +478,18 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             return
         heapq.heappush(self._pending, (t, next(self._order), apply))
 
+    def missed(self, t: float) -> bool:
+        """
+        Return True if an input due at ``t`` [s] handed to :meth:`schedule` now acts late.
+
+        With :attr:`exact_inputs`: t lies in the past (by more than 1e-6 h); else its step,
+        the first k with k h >= t, is already done (an input handed over in time would have
+        acted there).
+        """
+        if self.exact_inputs:
+            return float(t) < self.t - _INSTANT * self.h
+        return self._due_tick(float(t)) < self.steps
+
     def _due_tick(self, t: float) -> int:
         """Return the first step k with k h >= t [s] (within 1e-6 h)."""
         return max(0, int(np.ceil(t / self.h - _INSTANT)))
@@ -654,6 +668,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         stepping modes): hold_solves, the chain solves beyond the first of each step (the
         holding LCP's new sets, coaches stopping); hold_capped, steps that reached the
         iteration cap with the set still inconsistent (the step finishes all the same).
+        Multirate (``multirate_tolerance`` > 0): mr_groups, the vehicle groups re-integrated
+        in sub-steps, mr_substeps their sub-steps, mr_declined the groups left at the long
+        step (a vehicle held or stopping); per coupler: :attr:`substeps_per_coupler`.
         """
         sc, iv = self.sc, self.iv
         return {'adaptive': self.adaptive, 'steps': int(iv[COUNT.NSTEPS]),
@@ -663,7 +680,15 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                 'steps_max_period': int(iv[COUNT.INT_STEPS_MAX]),
                 'fallback_periods': int(iv[COUNT.NFALLBACK]),
                 'hold_solves': int(iv[COUNT.HOLD_SOLVES]),
-                'hold_capped': int(iv[COUNT.HOLD_CAPPED])}
+                'hold_capped': int(iv[COUNT.HOLD_CAPPED]),
+                'mr_groups': int(iv[COUNT.MR_CLUSTERS]),
+                'mr_substeps': int(iv[COUNT.MR_SUBSTEPS]),
+                'mr_declined': int(iv[COUNT.MR_DECLINED])}
+
+    @property
+    def substeps_per_coupler(self) -> np.ndarray:
+        """Return the multirate sub-steps each coupler took since reset (int, N-1; 0: none)."""
+        return self.ws[WORK.NSUB, :self.n - 1].astype(int)
 
     def advance_to(self, t: float) -> int:
         """Integrate whole steps until ``self.t >= t - h/2``; return the steps done."""
@@ -679,6 +704,25 @@ def _landing_ticks(rate: float, h: float) -> int:
     """Return the output period in ticks of h [s] when whole (the chain lands there), else 1."""
     k = int(np.floor(1.0 / (rate * h) + 0.5))
     return k if k >= 1 and abs(k * h * rate - 1.0) < 1e-9 else 1
+
+
+def _cylinder_fields(consist: Consist) -> dict[str, np.ndarray]:
+    """
+    Return the pneumatic cylinder keywords of a consist's vehicles (``PneumaticBrake``).
+
+    First stage (``inshot_pressure``), dead volume; the stroke volume brake_cylinders x
+    brake_cylinder_area x piston_stroke [m^3] and the return spring's pressure
+    brake_spring_force / brake_cylinder_area [Pa] at which the pistons travel out (0 where
+    the vehicle has no stroke).
+    """
+    area = np.asarray(consist['brake_cylinder_area'], dtype=float)
+    stroke = np.asarray(consist['piston_stroke'], dtype=float)
+    moving = (stroke > 0.0) & (area > 0.0)     # SimConfig refuses a stroke without an area
+    safe = np.where(moving, area, 1.0)
+    return {'inshot': np.array(consist['inshot_pressure'], dtype=float),
+            'dead_volume': np.array(consist['cylinder_dead_volume'], dtype=float),
+            'stroke_volume': np.where(moving, consist['brake_cylinders'] * area * stroke, 0.0),
+            'spring_pressure': np.where(moving, consist['brake_spring_force'] / safe, 0.0)}
 
 
 def _cylinder_tables(cfg: SimConfig, consist: Consist) -> tuple[np.ndarray, np.ndarray]:

@@ -39,13 +39,28 @@ def _cdr_header(out: bytearray, t_ns: int, frame_id: str) -> None:
     _cdr_string(out, frame_id)
 
 
-def _cdr_doubles(out: bytearray, values) -> None:
+def _cdr_doubles(out: bytearray, values) -> int:
+    """Append a float64 sequence; return the offset of its first value (of its count if empty)."""
     arr = np.ascontiguousarray(values if values is not None else (), dtype='<f8').reshape(-1)
     _cdr_align(out, 4)
     out += struct.pack('<I', arr.shape[0])
     if arr.shape[0]:
         _cdr_align(out, 8)
-        out += arr.tobytes()
+    at = len(out)
+    out += arr.tobytes()
+    return at
+
+
+def _joint_state(t_ns: int, names: Sequence[str], arrays, frame_id: str
+                 ) -> tuple[bytearray, list[int]]:
+    """Return the CDR bytes of a JointState and the offsets of its three float64 arrays."""
+    out = bytearray(_ENCAPSULATION)
+    _cdr_header(out, t_ns, frame_id)
+    _cdr_align(out, 4)
+    out += struct.pack('<I', len(names))
+    for name in names:
+        _cdr_string(out, name)
+    return out, [_cdr_doubles(out, values) for values in arrays]
 
 
 def encode_joint_state(t_ns: int, names: Sequence[str], position=None, velocity=None,
@@ -55,15 +70,40 @@ def encode_joint_state(t_ns: int, names: Sequence[str], position=None, velocity=
 
     ``position``, ``velocity``, ``effort``: float64 arrays, ``None`` = empty.
     """
-    out = bytearray(_ENCAPSULATION)
-    _cdr_header(out, t_ns, frame_id)
-    _cdr_align(out, 4)
-    out += struct.pack('<I', len(names))
-    for name in names:
-        _cdr_string(out, name)
-    for values in (position, velocity, effort):
-        _cdr_doubles(out, values)
-    return bytes(out)
+    return bytes(_joint_state(t_ns, names, (position, velocity, effort), frame_id)[0])
+
+
+#: byte offset of the header stamp (int32 sec, uint32 nanosec) in every stamped message
+STAMP_OFFSET = 4
+
+
+class Layout:
+    """
+    The fixed byte layout of a message whose sequences have fixed lengths.
+
+    ``template``: the CDR bytes stamped 0 with every value 0; ``fields``: the byte offset of
+    each float64 field (of the first value of an array), in the message's order; ``lengths``:
+    the number of values of each (1 for a scalar). Writing a stamp at :data:`STAMP_OFFSET`
+    and the values at their offsets gives the bytes of the encoders above, byte for byte.
+    """
+
+    __slots__ = ('template', 'fields', 'lengths')
+
+    def __init__(self, template: bytes, fields: Sequence[int], lengths: Sequence[int]) -> None:
+        self.template, self.fields, self.lengths = bytes(template), tuple(fields), tuple(lengths)
+
+
+def joint_state_layout(names: Sequence[str], lengths: Sequence[int],
+                       frame_id: str = '') -> Layout:
+    """Return the :class:`Layout` of a JointState of ``names`` with arrays of ``lengths``."""
+    out, fields = _joint_state(0, names, [np.zeros(n) for n in lengths], frame_id)
+    return Layout(out, fields, lengths)
+
+
+def fluid_pressure_layout(frame_id: str = '') -> Layout:
+    """Return the :class:`Layout` of a FluidPressure: fields fluid_pressure, variance."""
+    data = encode_fluid_pressure(0, 0.0, 0.0, frame_id)
+    return Layout(data, (len(data) - 16, len(data) - 8), (1, 1))
 
 
 class JointStateEncoder:

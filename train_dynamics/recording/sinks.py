@@ -15,10 +15,10 @@ import numpy as np
 from train_dynamics import topics
 from train_dynamics.physics.kernel import couplers
 from train_dynamics.recording.bags import BagRecorder
-from train_dynamics.recording.cdr import encode_float64, encode_fluid_pressure
+from train_dynamics.recording.cdr import encode_float64
 from train_dynamics.recording.history import History, JointSeries
 from train_dynamics.recording.messages import stamp
-from train_dynamics.recording.outputs import has_reservoirs, OutputEncoder, time_ns
+from train_dynamics.recording.outputs import OutputEncoder, OutputRows, time_ns
 from train_dynamics.simulation.runner import InputEvent, Sample, TractionEvent
 
 
@@ -27,14 +27,15 @@ class BagSink:
     Write the output topics of each sample (and the inputs used) to a BagRecorder.
 
     The outputs are the bytes of :class:`train_dynamics.recording.outputs.OutputEncoder` (the
-    node's), the head-pipe pressure of a brake-valve run ABSOLUTE [Pa]; input messages of an
-    input bag are re-stamped with their simulation time.
+    node's), the head-pipe pressure of a brake-valve run ABSOLUTE [Pa], written in blocks of
+    samples (:class:`train_dynamics.recording.outputs.OutputRows`); input messages of an input
+    bag are re-stamped with their simulation time.
     """
 
     def __init__(self, rec: BagRecorder, cfg: Any) -> None:
         self.rec = rec
         self.atm = float(cfg.atmospheric_pressure)
-        self.encoder = OutputEncoder(cfg.n_coaches, has_reservoirs(cfg))
+        self.encoder = OutputEncoder.for_config(cfg)
         for topic in self.encoder.topics + (topics.VEHICLE_MOTION_TOPIC,):
             rec.add_topic(topic, topics.JOINT_STATE)
         self.forces = bool(cfg.external_forces)
@@ -43,21 +44,16 @@ class BagSink:
         self.wheelsets = bool(cfg.has_wheelsets)
         if self.wheelsets:
             rec.add_topic(topics.WHEELSETS_TOPIC, topics.JOINT_STATE)
+        self._rows: OutputRows | None = None
 
     def sample(self, s: Sample) -> None:
         """Write the outputs at an output step (and the head-pipe pressure of a valve run)."""
-        write = self.rec.write
-        t_ns = time_ns(s.t)
-        for topic, data in zip(self.encoder.topics, self.encoder.encode(t_ns, s.sim)):
-            write(topic, t_ns, data)
-        write(topics.VEHICLE_MOTION_TOPIC, t_ns, self.encoder.encode_motion(t_ns, s.sim))
-        if self.forces:
-            write(topics.VEHICLE_FORCES_TOPIC, t_ns, self.encoder.encode_forces(t_ns, s.sim))
-        if self.wheelsets:
-            write(topics.WHEELSETS_TOPIC, t_ns, self.encoder.encode_wheelsets(t_ns, s.sim))
-        if s.head_gauge is not None:
-            write(topics.HEAD_PIPE_TOPIC, t_ns,
-                  encode_fluid_pressure(t_ns, s.head_gauge + self.atm))
+        head = None if s.head_gauge is None else s.head_gauge + self.atm
+        rows = self._rows
+        if rows is None or rows.head_pipe != (head is not None):
+            rows = self._rows = OutputRows(self.encoder, self.forces, head is not None,
+                                           wheelsets=self.wheelsets)
+        rows.write(self.rec, time_ns(s.t), s.sim, head)
 
     def input(self, e: InputEvent | TractionEvent) -> None:  # noqa: A003 - runner's hook
         """Write an input message as applied, stamped with its time from the run's start."""

@@ -10,10 +10,17 @@ both connect:
   (``cylinder_per_coach``), i = 1..N.
 
 A message takes effect at the next integration step (zero-order hold); with ``input_timing``
-``stamp`` it is held until the simulation reaches its header stamp and takes effect at the
-first integration step at or after it (one a whole step or more in the past: at once, counted
-in :attr:`BrakeInputs.late`). The header stamps of the values the simulator holds tell the
-lock-step whether every input has answered an output (:meth:`BrakeInputs.answered`). Active
+``stamp`` it is held until the simulation is about to integrate across its header stamp, then
+handed to :meth:`TrainSimulator.schedule <train_dynamics.physics.train.TrainSimulator.schedule>`
+(:meth:`BrakeInputs.schedule_due`): it takes effect at its stamp exactly, the step that spans
+the stamp split there, as the offline command replays an input at its bag time
+(``cylinder_per_coach``, ``pipe_per_coach``; ``pipe_head`` and the pneumatic brake take inputs
+at the first integration step at or after the stamp). One that can no longer act there (its
+stamp in the past; without exact inputs, its step done) takes effect at once and is counted in
+:attr:`BrakeInputs.late`; it is recorded at the instant it acted. The header stamps of the
+values the simulator holds tell the lock-step whether every input has answered an output
+(:meth:`BrakeInputs.answered`; with the traction and EP commands when ``lockstep_inputs``
+declares them: :meth:`BrakeInputs.unanswered`). Active
 input topics with more than one publisher are found by the graph scan and warned about
 (:attr:`BrakeInputs.multiple_publishers`). Rejected and counted per
 reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning naming the topic):
@@ -44,6 +51,7 @@ them to 0); ``/diagnostics`` reports both together (:attr:`BrakeInputs.stale`,
 from __future__ import annotations
 
 import functools
+import math
 import threading
 import time
 from typing import Any, Callable
@@ -56,7 +64,7 @@ from sensor_msgs.msg import FluidPressure
 from std_msgs.msg import Float64
 
 from train_dynamics import topics
-from train_dynamics.physics.config import input_rejection, SimConfig
+from train_dynamics.physics.config import input_rejection, SIM_NODE_PARAMETERS, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
 from train_dynamics.ros.ep_inputs import EpInputs
@@ -68,6 +76,9 @@ HEAD = topics.PIPE_HEAD
 CYL = topics.CYLINDER_PER_COACH
 PER_COACH = (topics.PIPE_PER_COACH, topics.CYLINDER_PER_COACH)
 MAX_ABSOLUTE_PRESSURE = topics.MAX_ABSOLUTE_PRESSURE
+#: ``lockstep_inputs``: the controller inputs a lock-step period can wait for
+LOCKSTEP_INPUTS = SIM_NODE_PARAMETERS['lockstep_inputs'].choices
+BRAKE, TRACTION, EP = LOCKSTEP_INPUTS
 #: Reasons an input message is rejected (keys of the counts in /diagnostics).
 REJECT_REASONS = ('non_finite', 'negative', 'too_high', 'wrong_mode', 'unknown_coach',
                   'malformed', 'out_of_range', 'not_locomotive')
@@ -149,8 +160,8 @@ class InputBuffer:
         self.dirty = False                  # a value arrived since the simulator took them
         self.records: list[tuple[str, bytes]] = []      # accepted since, to record
         self.stamp = np.full(slots, -1, dtype=np.int64)  # [ns] header stamp of ``value``
-        #: ``input_timing`` stamp: accepted messages waiting for their stamp, in arrival
-        #: order: (stamp [ns], slot, value [Pa gauge], raw CDR, topic)
+        #: ``input_timing`` stamp: accepted messages not yet handed to the simulator, in
+        #: arrival order: (stamp [ns], slot, value [Pa gauge], raw CDR, topic)
         self.pending: list[tuple[int, int, float, bytes, str]] = []
 
 
@@ -207,11 +218,16 @@ class BrakeInputs:
         # simulation lock: the header stamps of the values the simulator holds
         self._applied_stamp = np.zeros(0, dtype=np.int64)
         #: the locomotives' traction commands (same validation counts, timeout and policy)
-        self.traction = TractionInputs(node, INPUT_QOS, self._reject_traction)
+        self.traction = TractionInputs(node, INPUT_QOS, self._reject_traction, self._notify)
         #: the EP / ECP train-line command (same validation counts and timeout)
-        self.ep = EpInputs(node, INPUT_QOS, self._reject_traction)
+        self.ep = EpInputs(node, INPUT_QOS, self._reject_traction, self._notify)
         #: the slide-protection valves (wsp external; same validation counts and timeout)
-        self.wsp = WspInputs(node, INPUT_QOS, self._reject_traction)
+        self.wsp = WspInputs(node, INPUT_QOS, self._reject_traction, self._notify)
+
+    def _notify(self) -> None:
+        """Tell the simulation thread that an input was accepted (executor thread)."""
+        if self.on_input is not None:
+            self.on_input()
 
     def _reject_traction(self, resolved: str, reason: str, detail: str) -> None:
         self._reject(resolved, Rejected(reason, detail))
@@ -409,8 +425,7 @@ class BrakeInputs:
                 if buffer.recording:
                     buffer.records.append((rel, raw))
         self._accepted += 1
-        if self.on_input is not None:
-            self.on_input()
+        self._notify()
 
     def _reject(self, resolved: str, exc: Rejected) -> None:
         self.rejected[exc.reason] += 1
@@ -438,8 +453,8 @@ class BrakeInputs:
         self.traction.apply(now, sim, record, self.timeout, self.on_timeout == 'emergency')
         self.ep.apply(now, sim, record, self.timeout)
         self.wsp.apply(now, sim, record, self.timeout, False)
-        if self.by_stamp:
-            self._release_due(sim)
+        if self._buffer.pending:        # input_timing stamp (or just switched off): those due
+            self.schedule_due(sim, sim.t if self.by_stamp else math.inf, record)
         news = self._take(now)
         if news is None:
             return
@@ -489,48 +504,99 @@ class BrakeInputs:
             return (dirty, stale, buffer.value.copy(), list(buffer.raw), records,
                     buffer.stamp.copy())
 
-    def _release_due(self, sim: TrainSimulator) -> None:
+    def schedule_due(self, sim: TrainSimulator, until: float, record: Record) -> None:
         """
-        ``input_timing`` stamp: make the held messages stamped up to ``sim.t`` the latest.
+        ``input_timing`` stamp: hand ``sim`` the held messages stamped up to ``until`` [s].
 
-        In stamp order (arrival order among equal stamps); one whose stamp lies a whole
-        integration step or more in the past is counted late (it is applied now).
+        The simulation thread calls it before it integrates up to ``until``. Each message
+        acts at its stamp (:meth:`TrainSimulator.schedule`; stamp order, arrival order among
+        equal stamps); one the simulation has passed (:meth:`TrainSimulator.missed`) acts at
+        once and is counted late.
         """
-        t_ns = time_ns(sim.t)
-        late_ns = t_ns - time_ns(sim.h)
+        limit_ns = time_ns(until) if until != math.inf else None
         with self._in_lock:
             buffer = self._buffer
-            if not buffer.pending:
-                return
-            due = [e for e in buffer.pending if e[0] <= t_ns]
-            if not due:
-                return
-            buffer.pending = [e for e in buffer.pending if e[0] > t_ns]
-            due.sort(key=lambda e: e[0])
-            for stamp_ns, slot, gauge, raw, rel in due:
-                buffer.stamp[slot] = stamp_ns
-                buffer.value[slot] = gauge
-                buffer.raw[slot] = raw
-                if buffer.recording:
-                    buffer.records.append((rel, raw))
-                if stamp_ns <= late_ns:
-                    self.late += 1
-            buffer.dirty = True
+            if limit_ns is None:
+                due, buffer.pending = buffer.pending, []
+            else:
+                due = [e for e in buffer.pending if e[0] <= limit_ns]
+                if not due:
+                    return
+                buffer.pending = [e for e in buffer.pending if e[0] > limit_ns]
+        due.sort(key=lambda e: e[0])
+        for entry in due:
+            t = entry[0] * 1e-9
+            late = sim.missed(t)
+            if late:
+                self.late += 1
+            exact = sim.exact_inputs and not late
+            sim.schedule(t, functools.partial(self._act, sim, buffer, entry, exact, record))
 
-    def next_stamp_ns(self) -> int | None:
-        """``input_timing`` stamp: return the earliest stamp [ns] of a held message, or None."""
+    def _act(self, sim: TrainSimulator, buffer: InputBuffer,
+             entry: tuple[int, int, float, bytes, str], exact: bool, record: Record) -> None:
+        """``input_timing`` stamp: one held message takes effect now (inside ``sim.advance``)."""
+        stamp_ns, slot, gauge, raw, rel = entry
         with self._in_lock:
-            pending = self._buffer.pending
-            return min(e[0] for e in pending) if pending else None
+            buffer.stamp[slot] = stamp_ns
+            buffer.value[slot] = gauge
+            buffer.raw[slot] = raw
+        if self._emergency:
+            return      # the fail-safe holds; the latest values act when all are fresh again
+        mode = buffer.mode
+        if mode == HEAD:
+            sim.set_head_pipe_pressure(gauge)
+        elif mode == CYL:
+            sim.set_cylinder_pressure(gauge, slot)
+        else:
+            sim.set_pipe_pressure(gauge, slot)
+        self._applied_stamp[slot] = stamp_ns
+        if buffer.recording:    # at the instant it acted: the offline replay acts there too
+            record(rel, topics.FLUID_PRESSURE, stamp_ns if exact else time_ns(sim.t), raw)
 
-    def answered(self, t_ns: int) -> bool:
-        """Lock-step: return True if every input the simulator holds is stamped ``t_ns``."""
-        stamps = self._applied_stamp
-        return bool(stamps.size) and bool(np.all(stamps == t_ns))
+    # -- lock-step (simulation lock held) ---------------------------------------------------
+    def output_published(self, t_ns: int) -> None:
+        """Take note of an output stamped ``t_ns`` about to go out: Float64 commands answer it."""
+        self.traction.output_published(t_ns)
+        self.ep.output_published(t_ns)
+        self.wsp.output_published(t_ns)
 
-    def connected(self) -> bool:
-        """Return True if every active brake-input topic has a publisher."""
-        return all(s.get_publisher_count() > 0 for s in self._active)
+    def unanswered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> list[str]:
+        """
+        Return the input topics of ``families`` whose applied input does not answer ``t_ns``.
+
+        ``brake`` (:data:`LOCKSTEP_INPUTS`): every active brake input holds a value stamped
+        ``t_ns``; ``traction``, ``ep``: the applied command arrived after the output stamped
+        ``t_ns`` was published. Empty: every declared input has answered.
+        """
+        out: list[str] = []
+        if BRAKE in families:
+            stamps = self._applied_stamp
+            missing = np.nonzero(stamps != t_ns)[0]
+            out += [self._buffer.topics[k] for k in missing[:10]]
+        if TRACTION in families:
+            out += self.traction.unanswered(t_ns)
+        if EP in families:
+            out += self.ep.unanswered(t_ns)
+        return out
+
+    def answered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> bool:
+        """Lock-step: return True if every input of ``families`` answers the output ``t_ns``."""
+        if families == (BRAKE,):        # the common case, without building lists
+            stamps = self._applied_stamp
+            return bool(np.all(stamps == t_ns))
+        return not self.unanswered(t_ns, families)
+
+    def connected(self, families: tuple[str, ...] = (BRAKE,)) -> bool:
+        """Return True if every active input topic of ``families`` has a publisher."""
+        return ((BRAKE not in families
+                 or all(s.get_publisher_count() > 0 for s in self._active))
+                and (TRACTION not in families or self.traction.connected())
+                and (EP not in families or self.ep.connected()))
+
+    def missing_inputs(self, families: tuple[str, ...]) -> list[str]:
+        """Return the families of ``families`` this run has no input topic of."""
+        return [f for f in families if (f == TRACTION and not self.traction.active)
+                or (f == EP and not self.ep.active)]
 
     def _report_stale(self, stale: bool) -> None:
         self._stale = stale

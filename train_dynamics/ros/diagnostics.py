@@ -13,6 +13,12 @@
   topic (``wrong_type``: their number; ``wrong_type_topics``: which, with their types; WARN),
   active input topics with more than one publisher (``multiple_publishers``; WARN: their values
   mix), inputs applied after their stamp (``late_inputs``, ``input_timing`` stamp).
+- ``train_dynamics: brake system`` (``brake_system`` ep or ecp, or remote locomotives):
+  the EP / ECP train line (WARN when lost: EP brakes through the pipe, ECP makes a penalty
+  application), the command at the head and at the vehicles, the vehicles' cylinder valves
+  filling / lapped / venting; the distributed-power radio link (WARN when lost: the remotes
+  idle and lap their brake valves), the age of its last message, messages sent, lost and
+  received.
 
 The status names start with the node's full name without the leading slash
 (:func:`status_name`): ``train_dynamics: simulation`` for the node in the root namespace,
@@ -112,6 +118,48 @@ class InputReport:
     wrong_type: dict[str, list[str]] = field(default_factory=dict)   # topic -> publisher types
     multiple_publishers: dict[str, int] = field(default_factory=dict)  # topic -> publishers
     late: int = 0               # input_timing stamp: applied a step or more after their stamp
+
+
+@dataclass
+class BrakeSystemReport:
+    """The state of the EP / ECP train line and the distributed-power radio link."""
+
+    system: str                 # brake_system: pneumatic, ep or ecp
+    train_line: bool            # EP / ECP train line healthy
+    head_command: float         # EP / ECP command at the head [fraction of full service]
+    vehicle_command: float      # command the vehicles' valves follow now (0: line lost)
+    filling: int                # vehicles whose cylinder valve fills
+    lapped: int
+    venting: int
+    remotes: str = ''           # remote locomotives (coach_<i>, ...), '' when none
+    radio_ok: bool = True
+    radio_age: float = 0.0      # [s] since the remotes' last message
+    radio_sent: int = 0
+    radio_lost: int = 0
+    radio_received: int = 0
+
+
+def brake_system_status(r: BrakeSystemReport, hardware_id: str) -> DiagnosticStatus:
+    """Build the ``train_dynamics: brake system`` status."""
+    problems = []
+    if r.system != 'pneumatic' and not r.train_line:
+        problems.append('EP train line lost: braking through the pipe' if r.system == 'ep'
+                        else 'ECP train line lost: penalty (full) application')
+    if r.remotes and not r.radio_ok:
+        problems.append(f'distributed-power radio lost ({r.radio_age:.1f} s without a '
+                        'message): remotes idle, brake valves lapped')
+    level = DiagnosticStatus.WARN if problems else DiagnosticStatus.OK
+    kv = {'brake_system': r.system, 'train_line': 'ok' if r.train_line else 'lost',
+          'command_head': f'{r.head_command:g}', 'command_vehicles': f'{r.vehicle_command:g}',
+          'valves_filling': str(r.filling), 'valves_lapped': str(r.lapped),
+          'valves_venting': str(r.venting), 'remotes': r.remotes}
+    if r.remotes:
+        kv.update({'radio_link': 'up' if r.radio_ok else 'lost',
+                   'radio_age_s': f'{r.radio_age:.3f}', 'radio_sent': str(r.radio_sent),
+                   'radio_lost': str(r.radio_lost), 'radio_received': str(r.radio_received)})
+    return DiagnosticStatus(level=level, name=status_name(hardware_id, 'brake system'),
+                            message='; '.join(problems) or 'ok', hardware_id=hardware_id,
+                            values=[KeyValue(key=k, value=v) for k, v in kv.items()])
 
 
 def status_name(hardware_id: str, what: str) -> str:
@@ -231,11 +279,14 @@ def metrics_status(metrics: tuple[str, str, list[tuple[str, str]]],
 
 
 def diagnostic_array(sim: SimulationReport, inputs: InputReport, hardware_id: str,
-                     stamp: Time, metrics: tuple | None = None) -> DiagnosticArray:
-    """Build the DiagnosticArray: simulation, brake input and (when given) run metrics."""
+                     stamp: Time, metrics: tuple | None = None,
+                     brake_system: BrakeSystemReport | None = None) -> DiagnosticArray:
+    """Build the DiagnosticArray: simulation, brake input, run metrics, brake system."""
     statuses = [simulation_status(sim, hardware_id), input_status(inputs, hardware_id)]
     if metrics is not None:
         statuses.append(metrics_status(metrics, hardware_id))
+    if brake_system is not None:
+        statuses.append(brake_system_status(brake_system, hardware_id))
     msg = DiagnosticArray(status=statuses)
     msg.header.stamp = stamp
     return msg

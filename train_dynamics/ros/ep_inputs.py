@@ -8,6 +8,10 @@ EP valve delay (:meth:`train_dynamics.physics.pneumatic.PneumaticBrake.set_ep_co
 recorded as received. Rejected and counted with the brake inputs' reasons: ``non_finite``,
 ``out_of_range``, ``malformed``.
 
+Lock-step (``ep`` in ``lockstep_inputs``): as the traction commands
+(:mod:`train_dynamics.ros.traction_inputs`), a command answers the latest output published
+before it arrived; each period waits until the applied command answers its output.
+
 Train line: healthy while commands arrive. With ``input_timeout`` > 0, no command for that many
 wall seconds after a first one is a lost train line (EP: the pipe brakes, ECP: penalty
 application); the next command restores it.
@@ -16,7 +20,7 @@ from __future__ import annotations
 
 import threading
 import time
-from typing import Any
+from typing import Any, Callable
 
 from rclpy.node import Node
 from std_msgs.msg import Float64
@@ -36,14 +40,19 @@ def ep_command(data: bytes) -> float:
 class EpInputs:
     """Subscribe to, check and hold the EP / ECP train-line command of one node."""
 
-    def __init__(self, node: Node, qos: Any, reject: Reject) -> None:
+    def __init__(self, node: Node, qos: Any, reject: Reject,
+                 notify: Callable[[], None] = lambda: None) -> None:
         self._node = node
         self._qos = qos
         self._reject = reject
+        self._notify = notify           # called after each accepted command (wakes lock-step)
         self._sub = None
         self._lock = threading.Lock()
-        self._pending: tuple[float, bytes] | None = None
+        #: the latest command not yet applied: (value, raw CDR, the output it answers [ns])
+        self._pending: tuple[float, bytes, int] | None = None
         self._arrival: float | None = None
+        self._period_ns = -1            # stamp of the latest output published
+        self._applied_tag = -1          # simulation lock: the output the applied one answers
         self._line = True
         self.accepted = 0
 
@@ -52,6 +61,8 @@ class EpInputs:
         with self._lock:
             self._pending = None
             self._arrival = None
+            self._period_ns = -1
+        self._applied_tag = -1
         self._line = True
         if active and self._sub is None:
             name = self._node.resolve_topic_name(topics.EP_COMMAND_TOPIC)
@@ -60,6 +71,11 @@ class EpInputs:
         elif not active and self._sub is not None:
             self._node.destroy_subscription(self._sub)
             self._sub = None
+
+    @property
+    def active(self) -> bool:
+        """Return True if the run takes EP / ECP commands."""
+        return self._sub is not None
 
     def subscribed(self, resolved: str) -> bool:
         """Return True if ``resolved`` is the command topic we take."""
@@ -72,9 +88,25 @@ class EpInputs:
             self._reject(resolved, *exc.args)
             return
         with self._lock:
-            self._pending = (value, bytes(data))
+            self._pending = (value, bytes(data), self._period_ns)
             self._arrival = time.monotonic()
         self.accepted += 1
+        self._notify()
+
+    def output_published(self, t_ns: int) -> None:
+        """Tag the commands arriving from now on as answers to the output stamped ``t_ns``."""
+        with self._lock:
+            self._period_ns = t_ns
+
+    def unanswered(self, t_ns: int) -> list[str]:
+        """Lock-step: ``[brake_ep/command]`` unless the applied command answers ``t_ns``."""
+        if self._sub is None or self._applied_tag == t_ns:
+            return []
+        return [topics.EP_COMMAND_TOPIC]
+
+    def connected(self) -> bool:
+        """Return True if the command topic has a publisher (or is not taken)."""
+        return self._sub is None or self._sub.get_publisher_count() > 0
 
     def apply(self, now: float, sim: TrainSimulator, record: Record, timeout: float) -> None:
         """Put the command received since the last call into ``sim``; supervise the line."""
@@ -85,7 +117,7 @@ class EpInputs:
             arrival = self._arrival
         line = not (timeout > 0.0 and arrival is not None and now - arrival > timeout)
         if pending is not None:
-            value, raw = pending
+            value, raw, self._applied_tag = pending
             sim.set_ep_command(value)
             record(topics.EP_COMMAND_TOPIC, topics.FLOAT64, time_ns(sim.t), raw)
         if line != self._line:

@@ -42,11 +42,6 @@ YIELD = 0.0002           # [s wall] pause that lets a waiting thread take the lo
 GIL_SWITCH_INTERVAL = 0.0005
 
 
-def step_at(t_ns: int, h: float) -> int:
-    """Return the first integration step (of ``h`` [s]) at or after ``t_ns`` [ns]."""
-    return int(math.ceil(t_ns * 1e-9 / h - 1e-9))
-
-
 class SimulationLock:
     """
     The simulation lock: guards the simulator and the run state of every part of the node.
@@ -130,6 +125,7 @@ class Pacer:
         #: how far the run may go (pause, step, lock-step): set by the node before the thread
         #: starts (:class:`train_dynamics.ros.run_control.RunControl`)
         self.control: Any = None
+        self._held_records: list[tuple[str, str, int, bytes]] = []   # :meth:`_record_input`
         self._held = False              # the control held the run at the last iteration
 
     def wake(self) -> None:
@@ -141,6 +137,7 @@ class Pacer:
         """Pace a new run of ``sim`` from its t = 0."""
         self.sim = sim
         self._h = sim.h
+        self._held_records = []         # (a reset: the last run's bag is closed)
         self.real_time_factor = float(real_time_factor)
         self.finished = False
         self.exit_code = 0
@@ -240,7 +237,7 @@ class Pacer:
         if self.control.stop_requested:
             self._finish('lockstep timeout', code=EXIT_LOCKSTEP_TIMEOUT)
             return now + IDLE
-        self._inputs.apply(now, sim, self._outputs.record)
+        self._inputs.apply(now, sim, self._record_input)
         if not self._outputs.published and self.control.hold_start(now):
             return now + WAIT_POLL / 2         # lock-step: t = 0 waits for the controller
         self._outputs.publish_due(sim)         # t = 0 (and right after a reset)
@@ -309,9 +306,6 @@ class Pacer:
                 stop = min(stop, target)
             if self.end_step is not None:
                 stop = min(stop, self.end_step)
-            due = self._inputs.next_stamp_ns() if self._inputs.by_stamp else None
-            if due is not None:     # input_timing stamp: stop at the step of the next stamp
-                stop = min(stop, max(sim.steps + 1, step_at(due, self._h)))
             limit = self.control.limit(time.monotonic())
             if limit is not None and sim.steps >= limit:
                 self._held = True
@@ -324,6 +318,10 @@ class Pacer:
                 return target is None or sim.steps >= target
             n = stop - sim.steps
             n = max(1, min(n, int(CHUNK_BUDGET / max(self._step_cost, 1e-9))))
+            if self._inputs.by_stamp:   # the inputs stamped inside the coming steps, at their
+                self._inputs.schedule_due(sim, (sim.steps + n) * self._h,   # stamps
+                                          self._record_input)
+            self._flush_inputs()
             t0 = time.monotonic()
             sim.advance(n)
             t1 = time.monotonic()
@@ -335,7 +333,7 @@ class Pacer:
             self._outputs.publish_due(sim)
             if t1 >= deadline:
                 return False
-            self._inputs.apply(t1, sim, self._outputs.record)
+            self._inputs.apply(t1, sim, self._record_input)
 
     def _report_fallback(self, sim: TrainSimulator) -> None:
         """
@@ -374,7 +372,28 @@ class Pacer:
         if self.end_step is not None:
             self._finish('numerical fault', code=3)
 
+    def _record_input(self, topic: str, msgtype: str, t_ns: int, data: bytes) -> None:
+        """
+        Record an input as it acts; in lock-step, held until the simulation moves on.
+
+        The inputs of one instant then go to the bag in one order (time, topic; arrival order
+        on one topic) whatever order their answers came in: the bag of a lock-step run is the
+        same on every run.
+        """
+        if self.control is not None and self.control.lockstep:
+            self._held_records.append((topic, msgtype, t_ns, data))
+        else:
+            self._outputs.record(topic, msgtype, t_ns, data)
+
+    def _flush_inputs(self) -> None:
+        """Record the held inputs (lock-step), ordered by time and topic."""
+        if self._held_records:
+            held, self._held_records = self._held_records, []
+            for rec in sorted(held, key=lambda r: (r[2], r[0])):
+                self._outputs.record(*rec)
+
     def _finish(self, why: str, code: int = 0) -> None:
+        self._flush_inputs()
         if self.finished:
             return
         self.finished = True

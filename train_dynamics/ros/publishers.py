@@ -9,6 +9,9 @@ simulation time, at the integration steps nearest to k / publish_rate
 - ``coaches``: JointState ``coach_1..N``: position x [m], velocity v [m/s], effort Fb [N];
 - ``brake_cylinders``: JointState ``coach_1..N``: position = brake-cylinder gauge pressure [Pa],
   effort = local brake-pipe gauge pressure [Pa] (as the offline command writes);
+- ``brake_ep/state`` (``brake_system`` ep or ecp), ``distributed_power/state`` (remote
+  locomotives): the EP / ECP command and valve state per vehicle, the radio link per remote
+  (:mod:`train_dynamics.recording.outputs`);
 - ``vehicle_motion``: JointState ``coach_1..N`` (``frame_id`` ``track``): position = track
   position [m], velocity v [m/s], effort = acceleration [m/s^2] over the last output period;
 - ``vehicle_forces`` (a train with resistance, track or traction): JointState ``coach_1..N``:
@@ -26,6 +29,7 @@ thread holds the GIL meanwhile: output jitter).
 from __future__ import annotations
 
 import time
+from typing import Callable
 
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
@@ -67,8 +71,8 @@ class Outputs:
     """
 
     def __init__(self, node: Node) -> None:
-        self._pubs = [node.create_publisher(JointState, topic, OUTPUT_QOS)
-                      for topic in topics.OUTPUT_TOPICS + (topics.BRAKE_RESERVOIRS_TOPIC,)]
+        self._pubs = {topic: node.create_publisher(JointState, topic, OUTPUT_QOS)
+                      for topic in topics.OUTPUT_TOPICS + (topics.BRAKE_RESERVOIRS_TOPIC,)}
         self._pub_clock = node.create_publisher(Clock, topics.CLOCK_TOPIC, OUTPUT_QOS)
         self._pub_motion = node.create_publisher(JointState, topics.VEHICLE_MOTION_TOPIC,
                                                  OUTPUT_QOS)
@@ -89,22 +93,27 @@ class Outputs:
         self.last_t_ns = -1             # [ns] its stamp
         self.last_wall = 0.0            # [s wall, monotonic] when it was published
         self.metrics = LiveMetrics()    # the run's metrics, fed every output
+        #: called with the stamp [ns] of each output just before it is published
+        self.on_output: Callable[[int], None] | None = None
 
-    def start(self, n: int, rate: float, h: float, publish_clock: bool,
-              writer: BagWriter | None, reservoirs: bool = False,
-              forces: bool = False, metrics: RunMetrics | None = None,
-              wheelsets: bool = False) -> None:
+    def start(self, encoder: OutputEncoder, rate: float, h: float, publish_clock: bool,
+              writer: BagWriter | None, forces: bool = False,
+              metrics: RunMetrics | None = None, wheelsets: bool = False) -> None:
         """
-        Begin a run of ``n`` coaches at t = 0: outputs at ``rate`` [Hz] on steps ``h``.
+        Begin a run at t = 0: outputs at ``rate`` [Hz] on steps ``h``.
 
-        ``reservoirs``: also publish ``brake_reservoirs`` (pneumatic brake); ``forces``:
-        also publish ``vehicle_forces`` (a train with resistance, track or traction);
-        ``wheelsets``: also publish ``wheelsets`` (a train with rotating wheelsets);
-        ``metrics``: the run metrics, fed with every published sample (as the offline
-        command does).
+        ``encoder``: the run's output encoder (``OutputEncoder.for_config``): the JointState
+        topics published (and recorded) at every output, as the offline command writes
+        them; ``forces``: also publish ``vehicle_forces`` (a train with resistance, track or
+        traction); ``wheelsets``: also publish ``wheelsets`` (a train with rotating
+        wheelsets); ``metrics``: the run metrics, fed with every published sample (as the
+        offline command does).
         """
         self.metrics.start(metrics)
-        self._encoder = OutputEncoder(n, reservoirs)
+        self._encoder = encoder
+        for topic in encoder.topics:     # the brake-system states, created when first used
+            if topic not in self._pubs:
+                self._pubs[topic] = self._node.create_publisher(JointState, topic, OUTPUT_QOS)
         self._forces = bool(forces)
         if self._forces and self._pub_forces is None:
             self._pub_forces = self._node.create_publisher(
@@ -125,7 +134,7 @@ class Outputs:
 
     def subscribed(self) -> bool:
         """Return True if a subscriber is matched on one of the JointState outputs."""
-        return any(pub.get_subscription_count() > 0 for pub in self._pubs)
+        return any(pub.get_subscription_count() > 0 for pub in self._pubs.values())
 
     def take_writer(self) -> BagWriter | None:
         """Return the run's writer and stop recording (to close it, or at a reset)."""
@@ -150,9 +159,11 @@ class Outputs:
     def _publish(self, sim: TrainSimulator) -> None:
         """Publish (and record) the outputs of the present state."""
         t_ns = time_ns(sim.t)
+        if self.on_output is not None:
+            self.on_output(t_ns)
         encoded = self._encoder.encode(t_ns, sim)
-        for pub, data in zip(self._pubs, encoded):
-            pub.publish(data)
+        for topic, data in zip(self._encoder.topics, encoded):
+            self._pubs[topic].publish(data)
         motion = self._encoder.encode_motion(t_ns, sim)
         self._pub_motion.publish(motion)
         forces = self._encoder.encode_forces(t_ns, sim) if self._forces else None

@@ -7,12 +7,14 @@ received, bag time = simulation time of the step at which the message took
 effect, so ``train-dynamics simulate --input BAG`` replays the run) and outputs (bag time =
 header stamp) go to a rosbag2 (MCAP) written by :class:`BagWriter` on its own thread: bag I/O
 never delays the simulation. The MCAP file is finished every ``record_flush_period`` s (wall):
-a SIGKILL loses at most that much; SIGINT and SIGTERM close the bag completely. When writing
-fails (a full disk), nothing more is recorded; the bag keeps its finished files, the node
-reports how many messages it holds (:meth:`BagWriter.closed_message`, never more than what
-is on disk) and exits with status 1. A ``reset``
-continues in a new bag ``<record_bag>_reset<k>`` (:func:`reset_bag_path`; each bag is one run
-from t = 0).
+a SIGKILL loses at most that much; in ``sync_mode`` lockstep every ``record_flush_period`` s of
+simulation time instead (at the first message at or after each multiple), so that the files of a
+lock-step run are the same on every run, whatever the machine's speed. SIGINT and SIGTERM
+close the bag completely. When writing fails (a full disk), nothing more is recorded; the bag
+keeps its finished files, the node reports how many messages it holds
+(:meth:`BagWriter.closed_message`, never more than what is on disk) and exits with status 1.
+A ``reset`` continues in a new bag ``<record_bag>_reset<k>`` (:func:`reset_bag_path`; each bag
+is one run from t = 0).
 """
 from __future__ import annotations
 
@@ -53,10 +55,13 @@ def reset_bag_path(base: str, k: int) -> Path:
 
 def open_bag(path: Path, cfg: SimConfig, node_name: str, logger: Any,
              flush_period: float, resolve: Callable[[str], str] = str,
-             offered: Mapping[str, Any] | None = None) -> BagWriter:
+             offered: Mapping[str, Any] | None = None,
+             sim_time_split: bool = False) -> BagWriter:
     """
     Create the bag of a run of ``cfg`` (metadata, output topics) and its writer thread.
 
+    ``sim_time_split`` (lockstep): files finished at multiples of ``flush_period`` in
+    simulation time, not wall time.
     ``resolve``: a topic's name as recorded (the node's resolved name: namespace and
     remapping applied); ``offered``: topic (as the node writes it) -> the QoS its publisher
     offers, for the topics the node publishes.
@@ -72,7 +77,8 @@ def open_bag(path: Path, cfg: SimConfig, node_name: str, logger: Any,
     except Exception:
         rec.abort()
         raise
-    return BagWriter(rec, logger, flush_period, resolve, offered)
+    return BagWriter(rec, logger, flush_period, resolve, offered,
+                     sim_time_split=sim_time_split)
 
 
 class BagWriter:
@@ -93,8 +99,12 @@ class BagWriter:
 
     def __init__(self, recorder: BagRecorder, logger: Any, flush_period: float,
                  resolve: Callable[[str], str] = str,
-                 offered: Mapping[str, Any] | None = None) -> None:
+                 offered: Mapping[str, Any] | None = None,
+                 sim_time_split: bool = False) -> None:
         self.recorder = recorder
+        # lockstep: files split at multiples of the period in bag (simulation) time
+        self._split_ns = int(round(float(flush_period) * 1e9)) if sim_time_split else 0
+        self._next_split_ns = self._split_ns
         self._resolve = resolve
         self._offered = dict(offered or {})
         self._names: dict[str, str] = {}      # topic as written -> as recorded
@@ -203,12 +213,18 @@ class BagWriter:
                     break
                 if item is not None and self.error is None:
                     try:
+                        if self._split_ns and item[2] >= self._next_split_ns:
+                            if unflushed:
+                                self.recorder.flush()
+                                unflushed = False
+                            self._next_split_ns = (item[2] // self._split_ns + 1) * self._split_ns
                         self._store(item)
                         unflushed = True
                     except Exception as exc:  # noqa: BLE001 - disk full, closed bag, ...
                         self._fail(exc, '; no further messages are recorded')
                 now = time.monotonic()
-                if unflushed and self.error is None and now - last_flush >= self._flush_period:
+                if (unflushed and self.error is None and not self._split_ns
+                        and now - last_flush >= self._flush_period):
                     try:
                         self.recorder.flush()
                     except Exception as exc:  # noqa: BLE001

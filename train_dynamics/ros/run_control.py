@@ -10,17 +10,28 @@ Services (``std_srvs/srv/Trigger``, beside ``~/reset``):
   simulation time it starts from and the output number it stops at.
 
 ``sync_mode`` ``lockstep``: the node holds t = 0 until the controller is connected both ways
-(a publisher on every active brake-input topic, and a subscriber on one of the JointState
-outputs, then :data:`CONNECT_SETTLE` s for the other direction's discovery), publishes the
-outputs of t = 0, and advances to the next output only once every active brake-input topic has
-delivered a message whose ``header.stamp`` equals the stamp of the last output (the answer; a
-controller with nothing new to say answers with its last command re-stamped: that is "ready").
-Answers take effect at that output's instant, so the closed loop does not depend on the wall
-clock: its outputs, inputs and bag are the same on every run, at any ``real_time_factor``
+(a publisher on every input topic ``lockstep_inputs`` declares, and a subscriber on one of the
+JointState outputs, then :data:`CONNECT_SETTLE` s for the other direction's discovery),
+publishes the outputs of t = 0, and advances to the next output only once every declared input
+has answered the last output (:meth:`BrakeInputs.unanswered
+<train_dynamics.ros.brake_inputs.BrakeInputs.unanswered>`):
+
+- ``brake`` (default): every active brake-input topic has delivered a message whose
+  ``header.stamp`` equals the stamp of the last output (a controller with nothing new to say
+  answers with its last command re-stamped: that is "ready");
+- ``traction``: every locomotive that takes a command (``coach_<i>/traction/command``), and
+  ``ep``: ``brake_ep/command`` (``brake_system`` ep or ecp), has delivered one command after
+  that output was published (``std_msgs/Float64`` has no stamp; the controller sends one per
+  output, its last one again for "ready").
+
+A declared input the train does not have (no locomotive, no EP brake) is skipped with a log
+line. Answers take effect at that output's instant, so the closed loop does not depend on the
+wall clock: its outputs, inputs and bag are the same on every run, at any ``real_time_factor``
 (0: as fast as both sides can go; > 0: at most that fast). Without an answer for
-``lockstep_timeout`` wall seconds the node says so (a warning, ``/diagnostics`` WARN and the
-count ``lockstep_timeouts``), then keeps waiting (``lockstep_on_timeout`` ``wait``) or ends
-the run (``stop``: ``sim_node`` exits with status :data:`EXIT_LOCKSTEP_TIMEOUT`).
+``lockstep_timeout`` wall seconds the node says so (a warning naming the inputs that did not
+answer, ``/diagnostics`` WARN and the count ``lockstep_timeouts``), then keeps waiting
+(``lockstep_on_timeout`` ``wait``) or ends the run (``stop``: ``sim_node`` exits with status
+:data:`EXIT_LOCKSTEP_TIMEOUT`).
 
 Threads: the services run on the executor thread and take the simulation lock; :meth:`limit`
 and :meth:`hold_start` run on the simulation thread under it. Every attribute is guarded by
@@ -52,6 +63,7 @@ class RunControl:
         self._wake = wake
         self._log = node.get_logger()
         self.sync_mode = 'free'
+        self.waits_for: tuple[str, ...] = ('brake',)    # lockstep_inputs
         self.timeout = 5.0              # [s wall] lockstep_timeout, 0 = never
         self.on_timeout = 'wait'
         self.step_periods = 1
@@ -77,9 +89,12 @@ class RunControl:
         return self.sync_mode == 'lockstep'
 
     def configure(self, sync_mode: str, timeout: float, on_timeout: str,
-                  step_periods: int) -> None:
+                  step_periods: int, waits_for: tuple[str, ...] = ('brake',)) -> None:
         """Take the parameters (lock held)."""
         self.sync_mode = sync_mode
+        self.waits_for = tuple(waits_for)
+        if self.sim is not None:
+            self._report_missing()
         self.timeout = float(timeout)
         self.on_timeout = on_timeout
         self.step_periods = int(step_periods)
@@ -98,17 +113,27 @@ class RunControl:
         self.periods = 0
         self.round_trip_sum = 0.0
         self.round_trip_max = 0.0
+        self._report_missing()
+
+    def _report_missing(self) -> None:
+        """Log the declared lock-step inputs this run does not have (they are skipped)."""
+        missing = self._inputs.missing_inputs(self.waits_for) if self.lockstep else []
+        if missing:
+            self._log.warning(f'lockstep_inputs {", ".join(missing)}: the train takes no such '
+                              'input (no locomotive taking commands / no EP or ECP brake); '
+                              'the lock-step does not wait for it')
 
     # -- the simulation thread (lock held) --------------------------------------------------
     def hold_start(self, now: float) -> bool:
         """Lock-step: return True while t = 0 waits for the controller (both directions)."""
         if not self.lockstep:
             return False
-        if not (self._inputs.connected() and self._outputs.subscribed()):
+        if not (self._inputs.connected(self.waits_for) and self._outputs.subscribed()):
             if self._connected_since is None and self._waiting_since is None:
                 self._waiting_since = now
-                self._log.info('lockstep: waiting for the controller (a publisher on the brake '
-                               'input, a subscriber on the outputs) before t = 0')
+                self._log.info(f'lockstep: waiting for the controller (a publisher on every '
+                               f'{"/".join(self.waits_for)} input, a subscriber on the '
+                               'outputs) before t = 0')
             self._connected_since = None
             return True
         if self._connected_since is None:
@@ -124,7 +149,7 @@ class RunControl:
         sim, out = self.sim, self._outputs
         lim = None
         if self.lockstep and out.published and sim.steps == out.last_step:
-            if not self._inputs.answered(out.last_t_ns):
+            if not self._inputs.answered(out.last_t_ns, self.waits_for):
                 self._wait(now)
                 return sim.steps
             if self._counted != out.published:
@@ -147,9 +172,12 @@ class RunControl:
             self._timed_out = True
             self.timeouts += 1
             stop = self.on_timeout == 'stop'
+            missing = self._inputs.unanswered(self._outputs.last_t_ns, self.waits_for)
             self._log.warning(
-                f'lockstep: no answer stamped t = {self.sim.t:.6f} s on every brake input for '
-                f'{self.timeout:g} s; ' + ('stopping the run' if stop else 'still waiting'))
+                f'lockstep: no answer to the output of t = {self.sim.t:.6f} s for '
+                f'{self.timeout:g} s on {", ".join(missing[:5])}'
+                f'{f" (and {len(missing) - 5} more)" if len(missing) > 5 else ""}; '
+                + ('stopping the run' if stop else 'still waiting'))
             if stop:
                 self.stop_requested = True
 
@@ -165,8 +193,12 @@ class RunControl:
         """Return why the simulation waits for the controller ('' when it does not)."""
         if not self.lockstep or self._waiting_since is None:
             return ''
-        what = ('the controller to connect' if not self._outputs.published
-                else f'the answer stamped t = {self.sim.t:.6f} s')
+        if not self._outputs.published:
+            what = 'the controller to connect'
+        else:
+            missing = self._inputs.unanswered(self._outputs.last_t_ns, self.waits_for)
+            what = (f'the answer to the output of t = {self.sim.t:.6f} s'
+                    + (f' on {", ".join(missing[:5])}' if missing else ''))
         return f'lockstep: waiting {now - self._waiting_since:.1f} s for {what}'
 
     def summary(self) -> str:
@@ -180,7 +212,8 @@ class RunControl:
     def report(self) -> dict[str, str]:
         """Return the ``/diagnostics`` values of the run control."""
         mean = self.round_trip_sum / self.periods if self.periods else 0.0
-        return {'sync_mode': self.sync_mode, 'paused': str(self.paused).lower(),
+        return {'sync_mode': self.sync_mode, 'lockstep_inputs': ','.join(self.waits_for),
+                'paused': str(self.paused).lower(),
                 'lockstep_periods': str(self.periods),
                 'lockstep_timeouts': str(self.timeouts),
                 'lockstep_round_trip_mean_ms': f'{mean * 1e3:.3f}',

@@ -16,8 +16,8 @@ behaviour and owns its state:
 - :mod:`train_dynamics.ros.diagnostics`: ``/diagnostics`` (~1 Hz wall);
 - :mod:`train_dynamics.ros.parameters`: descriptors and the set callbacks;
 - :mod:`train_dynamics.ros.run_control`: the ``~/pause``, ``~/resume`` and ``~/step``
-  services and the lock-step with a controller (``sync_mode``, ``lockstep_timeout``);
-  ``input_timing`` is the brake inputs'.
+  services and the lock-step with a controller (``sync_mode``, ``lockstep_inputs``,
+  ``lockstep_timeout``); ``input_timing`` is the brake inputs'.
 
 Threads and locks: the executor thread runs the subscription callbacks, the timers, the
 parameter callbacks and the ``reset`` service; the simulation thread (:class:`Pacer`) runs the
@@ -51,6 +51,7 @@ import time
 from typing import Any
 
 from diagnostic_msgs.msg import DiagnosticArray
+import numpy as np
 from rclpy.clock import Clock, ClockType
 from rclpy.exceptions import ParameterException
 import rclpy.logging
@@ -65,11 +66,12 @@ from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.quoting import quote
 from train_dynamics.recording.bags import BagError, offered_qos
-from train_dynamics.recording.outputs import has_reservoirs, time_ns
+from train_dynamics.recording.outputs import OutputEncoder, time_ns
 from train_dynamics.ros import parameters as ros_parameters
 from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INPUT_QOS,
                                              MAX_ABSOLUTE_PRESSURE, REJECT_REASONS)
-from train_dynamics.ros.diagnostics import diagnostic_array, InputReport, SimulationReport
+from train_dynamics.ros.diagnostics import (BrakeSystemReport, diagnostic_array, InputReport,
+                                            SimulationReport)
 from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
 from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
 from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
@@ -88,7 +90,7 @@ EXIT_RECORD_FAILED = 1
 SPECS = {**PARAMETERS, **SIM_NODE_PARAMETERS}
 #: the node parameters of the run control (pause/step, lock-step, input timing)
 CONTROL_PARAMETERS = frozenset({'sync_mode', 'input_timing', 'lockstep_timeout',
-                                'lockstep_on_timeout', 'step_periods'})
+                                'lockstep_on_timeout', 'step_periods', 'lockstep_inputs'})
 
 
 #: the most values of an array a log line, the reset reply or /diagnostics shows
@@ -131,6 +133,7 @@ class SimNode(Node):
         self._lock = SimulationLock()
         self._inputs = BrakeInputs(self)
         self._outputs = Outputs(self)
+        self._outputs.on_output = self._inputs.output_published    # lock-step: Float64 answers
         self._pacer = Pacer(self._lock, self.get_logger(), self.context, self._inputs,
                             self._outputs)
         self._pacer.duration = float(self.get_parameter('duration').value)
@@ -167,7 +170,8 @@ class SimNode(Node):
         value = self.get_parameter
         sync_mode = value('sync_mode').value
         self._control.configure(sync_mode, value('lockstep_timeout').value,
-                                value('lockstep_on_timeout').value, value('step_periods').value)
+                                value('lockstep_on_timeout').value, value('step_periods').value,
+                                tuple(value('lockstep_inputs').value))
         self._inputs.by_stamp = value('input_timing').value == 'stamp'
         # wake the simulation thread on each input only where it waits for them
         self._inputs.on_input = (self._pacer.wake if sync_mode == 'lockstep'
@@ -248,8 +252,8 @@ class SimNode(Node):
         TrainSimulator(cfg).advance(1)
         sim = TrainSimulator(cfg)
         self._cfg = cfg
-        self._outputs.start(sim.n, cfg.publish_rate, sim.h, cfg.publish_clock, writer,
-                            has_reservoirs(cfg), forces=cfg.external_forces,
+        self._outputs.start(OutputEncoder.for_config(cfg), cfg.publish_rate, sim.h,
+                            cfg.publish_clock, writer, forces=cfg.external_forces,
                             metrics=RunMetrics.for_run(cfg, sim), wheelsets=sim.wheelsets)
         self._inputs.start(cfg, sim.n, recording=writer is not None)
         self._control.start(sim)
@@ -274,14 +278,16 @@ class SimNode(Node):
             return None
         path = cfg.record_bag if first else reset_bag_path(cfg.record_bag, self._resets)
         return open_bag(path, cfg, self.get_fully_qualified_name(), self.get_logger(),
-                        self._flush_period, self.resolve_topic_name, self._offered())
+                        self._flush_period, self.resolve_topic_name, self._offered(),
+                        sim_time_split=self.get_parameter('sync_mode').value == 'lockstep')
 
     @staticmethod
     def _offered() -> dict[str, Any]:
         """Return topic -> the QoS the node offers on it (what a bag records)."""
         qos = offered_qos(OUTPUT_QOS.reliability == ReliabilityPolicy.RELIABLE, OUTPUT_QOS.depth)
         return dict.fromkeys(topics.OUTPUT_TOPICS + (
-            topics.BRAKE_RESERVOIRS_TOPIC, topics.VEHICLE_FORCES_TOPIC,
+            topics.BRAKE_RESERVOIRS_TOPIC, topics.BRAKE_EP_STATE_TOPIC,
+            topics.RADIO_STATE_TOPIC, topics.VEHICLE_FORCES_TOPIC,
             topics.VEHICLE_MOTION_TOPIC, topics.CLOCK_TOPIC,
             topics.DIAGNOSTICS_TOPIC), qos)
 
@@ -320,9 +326,10 @@ class SimNode(Node):
             now = time.monotonic()
             sim_report = self._simulation_report(now, pending)
             in_report = self._input_report(now)
+            brake_report = self._brake_system_report()
         run_metrics = self._outputs.metrics.diagnostic()     # its own lock: not the sim's
         msg = diagnostic_array(sim_report, in_report, self.get_fully_qualified_name(),
-                               self.get_clock().now().to_msg(), run_metrics)
+                               self.get_clock().now().to_msg(), run_metrics, brake_report)
         try:
             self._pub_diag.publish(msg)
         except Exception:  # noqa: BLE001 - shutting down
@@ -352,6 +359,22 @@ class SimNode(Node):
             report.backlog, report.record_error = writer.backlog, writer.error
             report.backlog_bytes = writer.backlog_bytes
         return report
+
+    def _brake_system_report(self) -> BrakeSystemReport | None:
+        """Return the EP / ECP and radio state (simulation lock held); None: neither."""
+        sim = self._pacer.sim
+        pneu = sim.pneu
+        if pneu is None or (pneu.brake_system == 'pneumatic' and not sim.remotes):
+            return None
+        valves = pneu.valve_state
+        return BrakeSystemReport(
+            system=pneu.brake_system, train_line=pneu.train_line,
+            head_command=pneu.ep_command, vehicle_command=pneu.ep_command_at_vehicles,
+            filling=int(np.sum(valves > 0.5)), lapped=int(np.sum(np.abs(valves) < 0.5)),
+            venting=int(np.sum(valves < -0.5)),
+            remotes=', '.join(topics.vehicle_names(sim.remotes)), radio_ok=pneu.radio_ok,
+            radio_age=pneu.radio_age, radio_sent=pneu.radio_sent, radio_lost=pneu.radio_lost,
+            radio_received=pneu.radio_received)
 
     def _input_report(self, now: float) -> InputReport:
         """Return the brake inputs' state (simulation lock held)."""

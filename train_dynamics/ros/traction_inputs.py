@@ -10,6 +10,13 @@ received. Rejected and counted (in the brake inputs' counts of ``/diagnostics``)
 a locomotive (``not_locomotive``) or not in the train (``unknown_coach``) are found and
 counted by the brake inputs' graph scan.
 
+Lock-step (``sync_mode`` lockstep with ``traction`` in ``lockstep_inputs``): a Float64 has no
+header stamp, so a command answers the latest output published before it arrived (the node
+tags it with that output's stamp, :meth:`TractionInputs.output_published`); each period waits
+until every locomotive's applied command answers the period's output
+(:meth:`TractionInputs.unanswered`). A controller sends one command per locomotive and output
+(its last one again when nothing changes: that is its "ready").
+
 Staleness: with ``input_timeout`` > 0 a locomotive that has received a command and then
 nothing for ``input_timeout`` wall seconds is stale; with ``on_input_timeout`` ``emergency``
 its command falls to 0 (the fail-safe: no traction, no dynamic brake; recorded with the value
@@ -83,10 +90,12 @@ class TractionInputs:
         """Hand ``value`` of vehicle ``index`` (0-based) to the simulator."""
         sim.set_traction_command(value, index)
 
-    def __init__(self, node: Node, qos: Any, reject: Reject) -> None:
+    def __init__(self, node: Node, qos: Any, reject: Reject,
+                 notify: Callable[[], None] = lambda: None) -> None:
         self._node = node
         self._qos = qos
         self._reject = reject           # (resolved topic, reason, detail): count and warn
+        self._notify = notify           # called after each accepted command (wakes lock-step)
         self._log = node.get_logger()
         self._subs: dict[str, Any] = {}
         self._lock = threading.Lock()
@@ -95,6 +104,9 @@ class TractionInputs:
         self._arrival: dict[int, float] = {}       # [s wall] of each loco's last command
         self._dirty: dict[int, bytes | None] = {}  # accepted since the last apply
         self._raw: dict[int, bytes] = {}           # each loco's last accepted command (CDR)
+        self._period_ns = -1                       # stamp of the latest output published
+        self._tag: dict[int, int] = {}             # the output each loco's last command answers
+        self._applied_tag: dict[int, int] = {}     # simulation lock: of the command applied
         self._stale: set[int] = set()              # simulation lock: stale locomotives
         self._zeroed: set[int] = set()             # stale ones the fail-safe holds at 0
         self.accepted = 0
@@ -107,6 +119,9 @@ class TractionInputs:
             self._arrival = {}
             self._dirty = {}
             self._raw = {}
+            self._period_ns = -1
+            self._tag = {}
+        self._applied_tag = {}
         self._stale = set()
         self._zeroed = set()
         wanted = {self._node.resolve_topic_name(self.topic(i + 1)): i
@@ -119,6 +134,11 @@ class TractionInputs:
                 cb = functools.partial(self._on_command, name, i)
                 self._subs[name] = self._node.create_subscription(self.MSG, name, cb, self._qos,
                                                                   raw=True)
+
+    @property
+    def active(self) -> bool:
+        """Return True if the run has a locomotive that takes commands."""
+        return bool(self._locos)
 
     def subscribed(self, resolved: str) -> bool:
         """Return True if ``resolved`` is the command topic of one of our locomotives."""
@@ -137,7 +157,23 @@ class TractionInputs:
             self._value[index] = value
             self._arrival[index] = time.monotonic()
             self._dirty[index] = self._raw[index] = bytes(data)
+            self._tag[index] = self._period_ns
         self.accepted += 1
+        self._notify()
+
+    def output_published(self, t_ns: int) -> None:
+        """Tag the commands arriving from now on as answers to the output stamped ``t_ns``."""
+        with self._lock:
+            self._period_ns = t_ns
+
+    def unanswered(self, t_ns: int) -> list[str]:
+        """Lock-step: the command topics whose applied command does not answer ``t_ns``."""
+        tags = self._applied_tag
+        return [self.topic(i + 1) for i in self._locos if tags.get(i) != t_ns]
+
+    def connected(self) -> bool:
+        """Return True if every locomotive's command topic has a publisher."""
+        return all(sub.get_publisher_count() > 0 for sub in self._subs.values())
 
     @property
     def stale_names(self) -> list[str]:
@@ -164,6 +200,8 @@ class TractionInputs:
                      if timeout > 0.0 and now - t > timeout} - set(dirty)
             values = dict(self._value)
             raws = dict(self._raw)
+            for i in dirty:
+                self._applied_tag[i] = self._tag[i]
         t_ns = time_ns(sim.t)
         for i, raw in dirty.items():
             self._stale.discard(i)

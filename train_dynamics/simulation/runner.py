@@ -105,6 +105,39 @@ def traction_schedule(cfg: Any) -> list[TractionEvent]:
     return events
 
 
+def ep_schedule(cfg: Any) -> list[TractionEvent]:
+    """
+    Return the EP / ECP train-line commands of ``ep_schedule_times`` / ``_commands``.
+
+    Events of index :data:`EP_INDEX` on ``brake_ep/command``; empty without a schedule.
+    """
+    h = float(cfg.integration_step)
+    events = []
+    for t, c in zip(cfg.ep_schedule_times, cfg.ep_schedule_commands):
+        t_ns = int(round(t * 1e9))
+        events.append(TractionEvent(step_of(t_ns, h), t_ns, EP_INDEX, float(c),
+                                    topics.EP_COMMAND_TOPIC))
+    return events
+
+
+def command_schedule(cfg: Any, from_bag: list[TractionEvent]) -> list[TractionEvent]:
+    """
+    Return the Float64 commands of a run: an input bag's, completed by the schedules.
+
+    The traction commands of the bag, else ``traction_schedule_*``; the EP / ECP command of
+    the bag, else ``ep_schedule_*``; in time order.
+    """
+    has_ep = any(e.index == EP_INDEX for e in from_bag)
+    has_traction = any(e.index != EP_INDEX for e in from_bag)
+    events = list(from_bag) if from_bag else []
+    if not has_traction:
+        events += traction_schedule(cfg)
+    ep = [] if has_ep else ep_schedule(cfg)
+    if ep:
+        events = sorted(events + ep, key=lambda e: e.t_ns)
+    return events
+
+
 def step_of(t_ns: int, h: float) -> int:
     """First integration step k with k*h >= t (t in ns): where an input at t takes effect."""
     h_ns = h * 1e9

@@ -122,16 +122,40 @@ def has_reservoirs(cfg: Any) -> bool:
             and cfg.brake_input != topics.CYLINDER_PER_COACH)
 
 
+def has_ep_state(cfg: Any) -> bool:
+    """Return whether a run of ``cfg`` publishes ``brake_ep/state`` (brake_system ep, ecp)."""
+    return has_reservoirs(cfg) and getattr(cfg, 'brake_system', 'pneumatic') != 'pneumatic'
+
+
+def radio_remotes(cfg: Any) -> tuple[int, ...]:
+    """Return the remotes (0-based) whose ``distributed_power/state`` a run of ``cfg`` has."""
+    if not (has_reservoirs(cfg) and getattr(cfg, 'consist_file', '')):
+        return ()
+    return tuple(cfg.consist.remotes)
+
+
+def state_topics(cfg: Any) -> tuple[str, ...]:
+    """
+    Return the JointState outputs of a run of ``cfg``: those :class:`OutputEncoder` encodes.
+
+    couplers, coaches, brake_cylinders; ``brake_reservoirs`` with the pneumatic brake;
+    ``brake_ep/state`` with brake_system ep or ecp; ``distributed_power/state`` with remote
+    locomotives.
+    """
+    return (topics.OUTPUT_TOPICS
+            + ((topics.BRAKE_RESERVOIRS_TOPIC,) if has_reservoirs(cfg) else ())
+            + ((topics.BRAKE_EP_STATE_TOPIC,) if has_ep_state(cfg) else ())
+            + ((topics.RADIO_STATE_TOPIC,) if radio_remotes(cfg) else ()))
+
+
 def sample_topics(cfg: Any) -> tuple[str, ...]:
     """
     Return the JointState topics a run of ``cfg`` records at every output instant.
 
-    The outputs (couplers, coaches, brake_cylinders), ``brake_reservoirs`` with the pneumatic
-    brake, ``vehicle_motion``, ``vehicle_forces`` for a train with external forces,
-    ``wheelsets`` for a train with rotating wheelsets.
+    The outputs of :func:`state_topics`, ``vehicle_motion``, ``vehicle_forces`` for a train
+    with external forces, ``wheelsets`` for a train with rotating wheelsets.
     """
-    out = topics.OUTPUT_TOPICS + ((topics.BRAKE_RESERVOIRS_TOPIC,) if has_reservoirs(cfg)
-                                  else ()) + (topics.VEHICLE_MOTION_TOPIC,)
+    out = state_topics(cfg) + (topics.VEHICLE_MOTION_TOPIC,)
     if cfg.external_forces:
         out += (topics.VEHICLE_FORCES_TOPIC,)
     if getattr(cfg, 'has_wheelsets', False):
@@ -144,10 +168,11 @@ def output_bytes_per_sample(n_coaches: int, joint_topics: tuple[str, ...] = topi
     """
     Return the bag bytes of one output instant: a JointState per topic of ``joint_topics``.
 
-    ``vehicle_motion`` carries the frame_id ``track`` (8 bytes more).
+    Each carries the frame_id ``track`` (:data:`~train_dynamics.topics.TRACK_FRAME`, up to 8
+    bytes more with its alignment).
     """
     digits = len(str(n_coaches))
-    total = 8 if topics.VEHICLE_MOTION_TOPIC in joint_topics else 0
+    total = 8 * len(joint_topics)
     for topic in joint_topics:
         if topic == topics.COUPLERS_TOPIC:
             total += _joint_state_bytes(n_coaches - 1, 8 + digits)

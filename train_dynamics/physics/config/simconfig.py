@@ -18,6 +18,8 @@ from dataclasses import dataclass, field
 import math
 from typing import Any, Callable, Mapping
 
+import numpy as np
+
 from train_dynamics.physics import track
 from train_dynamics.physics.config.budgets import (config_memory, fmt_bytes, MAX_PERIOD_SECONDS,
                                                    max_period_steps, MAX_SIMULATOR_MEMORY)
@@ -28,7 +30,8 @@ from train_dynamics.physics.config.files import simulator_params
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERVICE_PRESSURE,
                                                  G_FILL_TIME, G_RELEASE_TIME,
-                                                 INTEGRATION_TOLERANCE, P_FILL_FRACTION,
+                                                 INTEGRATION_TOLERANCE, MULTIRATE_TOLERANCE,
+                                                 P_FILL_FRACTION,
                                                  P_FILL_TIME, P_RELEASE_FRACTION, P_RELEASE_TIME,
                                                  PARAMETERS, PIPE_NOMINAL_PRESSURE, validate_value)
 from train_dynamics.quoting import quote
@@ -93,6 +96,9 @@ class SimConfig:
     main_reservoir_pressure: float = 900000.0         # gauge [Pa]
     brake_system: str = 'pneumatic'                   # 'pneumatic', 'ep' or 'ecp'
     emergency_accelerator: bool = False               # vehicle field: accelerator fitted
+    inshot_pressure: float = 0.0                      # vehicle field: first stage [Pa]
+    cylinder_dead_volume: float = 0.008               # vehicle field: pistons in [m^3]
+    piston_stroke: float = 0.0                        # vehicle field: [m]; 0 = fixed volume
     remote: bool = False                              # vehicle field: DP remote locomotive
     radio_delay: float = 0.5                          # distributed power: lead -> remote [s]
     radio_loss: float = 0.0                           # probability a radio message is lost
@@ -149,9 +155,12 @@ class SimConfig:
     wheel_radius: float = 0.46                        # vehicle field: r [m]
     traction_schedule_times: list[float] = field(default_factory=list)    # [s], increasing
     traction_schedule_commands: list[float] = field(default_factory=list)  # [-1, 1]
+    ep_schedule_times: list[float] = field(default_factory=list)          # [s], increasing
+    ep_schedule_commands: list[float] = field(default_factory=list)       # [0, 1]
     # error-controlled stepping
     integration_tolerance: float = INTEGRATION_TOLERANCE  # [-]; 0 = fixed step
     integration_max_steps: int = 100                  # steps per output period
+    multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = off (fixed step only)
 
     #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
     _consist = None
@@ -341,17 +350,29 @@ class SimConfig:
             self.track
         except ValueError as exc:
             raise ConfigError(str(exc)) from None
-        times, cmds = self.traction_schedule_times, self.traction_schedule_commands
-        if len(times) != len(cmds):
-            raise ConfigError('traction_schedule_times and traction_schedule_commands must have '
-                              f'the same length ({len(times)} != {len(cmds)})')
-        if any(b <= a for a, b in zip(times, times[1:])):
-            raise ConfigError('traction_schedule_times: must strictly increase')
+        for kind in ('traction', 'ep'):
+            t_name, c_name = f'{kind}_schedule_times', f'{kind}_schedule_commands'
+            times, cmds = getattr(self, t_name), getattr(self, c_name)
+            if len(times) != len(cmds):
+                raise ConfigError(f'{t_name} and {c_name} must have the same length '
+                                  f'({len(times)} != {len(cmds)})')
+            if any(b <= a for a, b in zip(times, times[1:])):
+                raise ConfigError(f'{t_name}: must strictly increase')
+        if self.ep_schedule_times and not self.ep_commanded:
+            raise ConfigError('ep_schedule_times: needs brake_model pneumatic and brake_system '
+                              'ep or ecp')
+        times = self.traction_schedule_times
         if self.consist_file:
             remotes = self.consist.remotes
             if remotes and self.brake_model != 'pneumatic':
                 raise ConfigError(f'{self.consist_file}: remote locomotives (vehicles '
                                   f'{[i + 1 for i in remotes]}) need brake_model pneumatic')
+        consist = self.consist
+        bad = np.flatnonzero((consist['piston_stroke'] > 0.0)
+                             & (consist['brake_cylinder_area'] <= 0.0))
+        if bad.size:
+            raise ConfigError(f'piston_stroke needs brake_cylinder_area > 0 (vehicles '
+                              f'{[int(i) + 1 for i in bad[:10]]})')
         if times and not self.consist.locomotives:
             raise ConfigError('traction_schedule_times: the train has no locomotive (no vehicle '
                               'with max_tractive_force or max_dynamic_brake_force > 0), so the '
@@ -360,6 +381,10 @@ class SimConfig:
 
     def _check_work(self) -> None:
         """Refuse an error-control work budget that could keep one output period busy."""
+        if self.integration_tolerance > 0.0 and self.multirate_tolerance > 0.0:
+            raise ConfigError('multirate_tolerance refines the fixed step; with '
+                              'integration_tolerance > 0 the whole chain is error-controlled '
+                              'already: set one of them to 0')
         limit = max_period_steps(self.n_coaches)
         if self.integration_tolerance > 0.0 and self.integration_max_steps > limit:
             raise ConfigError(

@@ -69,6 +69,7 @@ class ParamSpec:
     connection: str = ''
     row: str = ''
     max_items: int = MAX_ITEMS
+    min_items: int = 0
 
     def bounds(self) -> list[str]:
         """Return the numeric range in words, e.g. ``['> 0', '<= 1e+07']`` (docs, descriptors)."""
@@ -116,8 +117,18 @@ def check_value(spec: ParamSpec, value: Any) -> Any:
         if count > spec.max_items:
             raise ConfigError(f'{name}: {count} values, more than the limit of '
                               f'{spec.max_items}')
+        if count < spec.min_items:
+            raise ConfigError(f'{name}: {count} values, at least {spec.min_items} needed')
         if kind == STRING_ARRAY:
-            return [_check_string(item, f'{name}[{k}]') for k, item in enumerate(value)]
+            items = [_check_string(item, f'{name}[{k}]') for k, item in enumerate(value)]
+            if spec.choices:        # a set of choices: each one at most once
+                for k, item in enumerate(items):
+                    if item not in spec.choices:
+                        raise ConfigError(f'{name}[{k}]: {quote(item)} is not one of '
+                                          f'{", ".join(spec.choices)}')
+                    if item in items[:k]:
+                        raise ConfigError(f'{name}[{k}]: {quote(item)} given twice')
+            return items
         return [_check_number(spec, item, f'{name}[{k}]') for k, item in enumerate(value)]
     raise AssertionError(kind)
 

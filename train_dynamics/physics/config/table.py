@@ -14,7 +14,8 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
-                                                DOUBLE_ARRAY, INTEGER, ParamSpec, SERIES, STRING)
+                                                DOUBLE_ARRAY, INTEGER, ParamSpec, SERIES, STRING,
+                                                STRING_ARRAY)
 # the friction materials in the order of their codes in the kernel (the models and their
 # sources: physics/friction.py)
 from train_dynamics.physics.kernel.friction import MATERIALS as FRICTION_MATERIALS
@@ -43,6 +44,8 @@ G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
 
 #: default integration_tolerance: 0 = fixed step
 INTEGRATION_TOLERANCE = 0.0
+#: default multirate_tolerance: 0 = every coupler at the fixed step
+MULTIRATE_TOLERANCE = 0.0
 
 #: the most vehicles of a train, however given (num_coaches, masses, a consist file's counts)
 MAX_VEHICLES = 100_000
@@ -189,6 +192,25 @@ _PARAMS = [
               '1 bar below its control reservoir at over 1 bar/s opens a 32 mm local vent: '
               'the emergency carries along the train at >= 250 m/s).',
               vehicle='emergency_accelerator'),
+    # Cylinders and distributor first stage of the pneumatic brake (physics/pneumatic.py).
+    ParamSpec('inshot_pressure', 0.0, DOUBLE,
+              'Pneumatic: distributor first stage (inshot; UIC 540 / EN 15355 "first stage" of '
+              'the cylinder pressure): an applied distributor fills its cylinder through an '
+              'extra port up to this gauge pressure [Pa] (rigging slack taken up quickly, '
+              'typically 0.4-0.7 bar); 0 = none (the calibrated UIC fill times).',
+              low=0.0, high=2.0e5, vehicle='inshot_pressure'),
+    ParamSpec('cylinder_dead_volume', 0.008, DOUBLE,
+              'Pneumatic: volume of the brake cylinders of the vehicle with the pistons '
+              'released [m^3] (clearance and pipes; with piston_stroke 0 the whole, fixed, '
+              'cylinder volume the UIC fill times were calibrated with).',
+              low=1.0e-4, high=0.2, vehicle='cylinder_dead_volume'),
+    ParamSpec('piston_stroke', 0.0, DOUBLE,
+              'Pneumatic: piston stroke [m]: the pistons (brake_cylinders x '
+              'brake_cylinder_area) travel out at the return-spring pressure '
+              'brake_spring_force / brake_cylinder_area, adding brake_cylinders x '
+              'brake_cylinder_area x piston_stroke to the dead volume; needs '
+              'brake_cylinder_area > 0. 0 = a fixed volume.',
+              low=0.0, high=0.5, vehicle='piston_stroke'),
     ParamSpec('remote', False, BOOL,
               'Pneumatic, consist field: a distributed-power locomotive, its brake valve on the '
               'pipe at its position and its traction following the lead over the radio; the '
@@ -385,6 +407,13 @@ _PARAMS = [
     ParamSpec('traction_schedule_commands', [], DOUBLE_ARRAY,
               'Traction command in [-1, 1] (> 0 traction, < 0 dynamic brake) from each '
               'traction_schedule_times entry on.', low=-1.0, high=1.0),
+    ParamSpec('ep_schedule_times', [], DOUBLE_ARRAY,
+              'Offline runs without brake_ep/command in an input bag: times [s] (increasing) '
+              'from which the EP / ECP train line carries the matching ep_schedule_commands '
+              'entry; needs brake_system ep or ecp.', low=0.0, high=1.0e7),
+    ParamSpec('ep_schedule_commands', [], DOUBLE_ARRAY,
+              'EP / ECP command in [0, 1] (fraction of full service, 0 = release) from each '
+              'ep_schedule_times entry on.', low=0.0, high=1.0),
     # Error-controlled stepping (physics/adaptive.py).
     ParamSpec('integration_tolerance', INTEGRATION_TOLERANCE, DOUBLE,
               'Error-controlled integration: the local error of every coupler force per step, '
@@ -398,6 +427,13 @@ _PARAMS = [
               'error control (counted in /diagnostics fallback_periods). At most ~0.25 s of '
               'work per period: 25000 / (1 + N / 20) steps for N vehicles.', low=1,
               high=1000000),
+    ParamSpec('multirate_tolerance', MULTIRATE_TOLERANCE, DOUBLE,
+              'Multirate fixed step: after each integration_step, a coupler whose local force '
+              'error (ROS2 embedded estimate) exceeds this fraction of the largest coupler force '
+              "in the train (at least 1e-3 of a vehicle's weight) [-] is re-integrated with its "
+              'two neighbouring vehicles on either side in error-controlled sub-steps, the rest '
+              'of the train keeping the step (momentum exact). 0 = off; not with '
+              'integration_tolerance > 0.', low=0.0, high=0.1),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
@@ -415,14 +451,24 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               low=0.0, high=3600.0, dynamic=True),
     ParamSpec('sync_mode', 'free', STRING,
               'free: the simulation runs at real_time_factor whatever the controller does; '
-              'lockstep: after each output the node waits until every active brake input has '
-              "answered with a message stamped with that output's stamp, then advances one "
-              'output period (and starts only when the controller is connected both ways).',
+              'lockstep: after each output the node waits until every input that '
+              'lockstep_inputs declares has answered it, then advances one output period '
+              '(and starts only when the controller is connected both ways).',
               choices=('free', 'lockstep'), dynamic=True),
+    ParamSpec('lockstep_inputs', ['brake'], STRING_ARRAY,
+              'lockstep: the controller inputs each output period waits for. brake: every '
+              'active brake-input topic of brake_input, answered by a message stamped with '
+              "the output's stamp; traction: the command topic of every locomotive that "
+              'takes one, ep: brake_ep/command (brake_system ep or ecp), each answered by one '
+              'command received after the output was published (std_msgs/Float64 has no '
+              'stamp). A listed input the train does not have is skipped (logged).',
+              choices=('brake', 'traction', 'ep'), dynamic=True, min_items=1),
     ParamSpec('input_timing', 'arrival', STRING,
               'arrival: a brake input takes effect at the next integration step after it '
-              'arrives; stamp: at the first integration step at or after its header stamp '
-              '(simulation time); a stamp already past is applied at once and counted late.',
+              'arrives; stamp: at its header stamp (simulation time), exactly with '
+              'cylinder_per_coach and pipe_per_coach (the step spanning it is split there), '
+              'else at the first integration step at or after it; one the simulation has '
+              'passed takes effect at once and is counted late.',
               choices=('arrival', 'stamp'), dynamic=True),
     ParamSpec('lockstep_timeout', 5.0, DOUBLE,
               'lockstep: wall seconds without the answer to an output after which the node '

@@ -23,6 +23,7 @@ from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_couplers_work,
                                                         invalidate_caches)
 from train_dynamics.physics.kernel.layout import CACHE, OPTION, PARAM, STATE, TOTAL, VEHICLE, WORK
+from train_dynamics.physics.kernel.multirate import refine
 from train_dynamics.physics.kernel.ros2 import GAMMA
 from train_dynamics.physics.kernel.step import (accept_external, accept_step, brake_system_step,
                                                 braking_force_trapezoid, external_step,
@@ -106,7 +107,12 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
     standstill with unchanged inputs the active-set step repeats the last one exactly and is
     skipped (:func:`_repeats_standstill`). With wheelsets (OPTION.WHEELS) the slide
     protection acts on the cylinders after the brake system and the wheelsets' creep force
-    replaces the braking force (:mod:`.wheelset`).
+    replaces the braking force (:mod:`.wheelset`). With PARAM.MRTOL > 0
+    (``multirate_tolerance``) the groups of vehicles around couplers over that tolerance are
+    re-integrated in sub-steps before the fault check (:func:`.multirate.refine`); with
+    wheelsets too, the creep force of the long step acts on them as a constant force over
+    the sub-steps, as the braking force does (the wheel speeds are integrated over the long
+    step).
     """
     gh = GAMMA * sc[PARAM.H]
     held = np.empty(coach.shape[1], dtype=np.bool_)
@@ -136,11 +142,14 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
         if iv[OPTION.EXT]:
             external_step(coach, sc, iv, gprof, cprof, ws)
         started_held = _all_held(coach)
+        work_fix = 0.0
         if started_held and _repeats_standstill(coach, iv, ws):
             held[:] = True
             extra_work = 0.0
         else:
             extra_work = active_set_step(sc[PARAM.H], coach, cpl, sc, iv, held, ws, gprof)
+            if sc[PARAM.MRTOL] > 0.0:      # multirate: events re-integrated in sub-steps
+                work_fix = refine(sc[PARAM.H], coach, cpl, sc, iv, held, ws, gprof)
         status = fault_check(ws, sc[PARAM.YLIM])
         if status != OK:
             return step, status
@@ -150,6 +159,7 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
         if wheels:
             wheelset.book_wheelsets(coach, sc, ws)
         # the couplers at the new state: their work over the step, and the next step's start
-        sc[TOTAL.WC] += eval_couplers_work(coach, cpl, iv[OPTION.MODEL], sc[PARAM.U], gh, ws)
+        sc[TOTAL.WC] += eval_couplers_work(coach, cpl, iv[OPTION.MODEL], sc[PARAM.U], gh,
+                                           ws) + work_fix
         _note_standstill(started_held, coach, iv, ws)
     return n_steps, OK

@@ -155,6 +155,7 @@ PARAM = _group('ParamSlots', [
     'TOL',          # integration_tolerance: local coupler-force error / force level [-]
     'FFLOOR',       # force level below which the tolerance is absolute [N]
     'FRICTION',     # 1.0: some vehicle brakes with a friction material (not paper)
+    'MRTOL',        # multirate_tolerance: local coupler-force error / force level [-]; 0 off
 ])
 TOTAL = _group('TotalSlots', [
     'WB',           # work of the brakes since t = 0 [J]
@@ -208,6 +209,9 @@ COUNT = _group('CountSlots', [
     'INT_STEPS_MAX',    # largest INT_STEPS since reset
     'HOLD_SOLVES',  # chain solves beyond the first of each step (active set changes)
     'HOLD_CAPPED',  # steps that ended at the iteration cap with the set still inconsistent
+    'MR_CLUSTERS',  # multirate: vehicle groups re-integrated in sub-steps since reset
+    'MR_SUBSTEPS',  # multirate: their accepted sub-steps since reset
+    'MR_DECLINED',  # multirate: groups kept at the long step (a vehicle held or stopping)
 ], after=(OPTION, CLOCK, CACHE))
 #: all slots of ``iv``; OPTION first, so ``iv[len(OPTION):]`` is what reset() rewrites
 INTEGER = range(len(OPTION) + len(CLOCK) + len(CACHE) + len(COUNT))
@@ -269,4 +273,7 @@ WORK = _group('WorkRows', [
     'PCYL0',        # cylinder pressures at the step's start [Pa]
     'UMEAN',        # mean wheel speed over the step [m/s]
     'VABS',         # |speed| of the vehicle at the step's start [m/s]
+    # multirate (multirate.py)
+    'ERR',          # local error of coupler j's force over the step [N] (scratch)
+    'NSUB',         # sub-steps coupler j took since reset (0: only long steps)
 ])

@@ -40,10 +40,15 @@ N_FACE_ROWS = 4
 
 (V_MCR, V_MAUX, V_MCYL, V_MQS, V_APPLIED, V_VCR, V_VAUX, V_VCYL, V_VQS, V_PMAX, V_AAPP,
  V_AREL, V_CELL, V_PEXT, V_ACC, V_ACCOPEN, V_RATE, V_PPREV, V_INSHOT, V_REMOTE, V_RCMD,
- V_RLAP) = range(22)
+ V_RLAP, V_VALVE, V_VSTROKE, V_PSPRING) = range(25)
 
 
-N_VEH_ROWS = 22
+N_VEH_ROWS = 25
+
+
+#: V_VALVE: what the cylinder's valve did in the last step (distributor relay part, EP valves
+#: or car control device): filling it, lapped (holding), venting it
+VALVE_FILL, VALVE_LAP, VALVE_VENT = 1.0, 0.0, -1.0
 
 
 (S_H, S_RT, S_AREA, S_DIAM, S_MU, S_PATM, S_CMD, S_PMR, S_ACHG, S_AVENT, S_AEM, S_BAND,
@@ -87,6 +92,48 @@ def _exchange(p1, v1, p2, v2, area, h, rt):
     dm = orifice_flow(p2, p1, area, rt) * h
     eq = (p2 - p1) / (rt * (1.0 / v1 + 1.0 / v2))
     return -min(dm, eq)
+
+
+@jit
+def cylinder_pressure(m, v0, vs, ps, patm, rt):
+    """
+    Absolute pressure [Pa] of a brake cylinder holding air mass ``m`` [kg].
+
+    Dead volume ``v0`` [m^3] (piston released), stroke volume ``vs`` [m^3] (pistons' area x
+    stroke), return spring holding the piston in up to ``ps`` [Pa gauge] (spring force /
+    piston area). Isothermal p V = m R T over three ranges of m: below the spring pressure the
+    piston rests (V = v0); at it the piston travels out at constant pressure patm + ps (the
+    volume grows with m: V = m R T / (patm + ps)); at full stroke V = v0 + vs. With vs = 0 it
+    is m R T / v0 throughout.
+    """
+    m1 = (patm + ps) * v0 / rt
+    if m <= m1:
+        return m * rt / v0
+    if m < (patm + ps) * (v0 + vs) / rt:
+        return patm + ps
+    return m * rt / (v0 + vs)
+
+
+@jit
+def _cylinder_volume(p, v0, vs, ps, patm):
+    """Volume [m^3] of the cylinder at absolute pressure p: v0 below the spring, then full."""
+    if p < patm + ps:
+        return v0
+    return v0 + vs
+
+
+@jit
+def _cylinder_mass_to(target, p, m, v0, vs, ps, patm, rt):
+    """
+    Mass [kg] to add (negative: remove) for the cylinder at p (mass m) to reach ``target``.
+
+    The inverse of :func:`cylinder_pressure`; a fixed volume (vs = 0): (target - p) v0 / (R T).
+    """
+    if vs == 0.0:
+        return (target - p) * v0 / rt
+    if target < patm + ps:
+        return target * v0 / rt - m
+    return target * (v0 + vs) / rt - m
 
 
 @jit
@@ -205,10 +252,15 @@ def _distributors(cells, veh, sc, iv, external, h):
             p_l = cells[C_M, c] * rt / v_l
         v_cr = veh[V_VCR, i]
         v_aux = veh[V_VAUX, i]
-        v_cyl = veh[V_VCYL, i]
+        v0 = veh[V_VCYL, i]
+        vs = veh[V_VSTROKE, i]
+        ps = veh[V_PSPRING, i]
+        m_cyl = veh[V_MCYL, i]
         p_cr = veh[V_MCR, i] * rt / v_cr
         p_aux = veh[V_MAUX, i] * rt / v_aux
-        p_cyl = veh[V_MCYL, i] * rt / v_cyl
+        p_cyl = cylinder_pressure(m_cyl, v0, vs, ps, patm, rt)
+        v_cyl = _cylinder_volume(p_cyl, v0, vs, ps, patm)
+        veh[V_VALVE, i] = VALVE_LAP
         dm_pipe = 0.0
         if not external:
             dm_pipe -= _accelerator(veh, sc, i, p_l, v_l, p_cr, h)
@@ -232,14 +284,16 @@ def _distributors(cells, veh, sc, iv, external, h):
                 if p_aux > p_cyl:
                     s = min(err / sc[S_DBAND], 1.0)
                     dm = _exchange(p_aux, v_aux, p_cyl, v_cyl, s * sc[S_EPAPP], h, rt)
-                    dm = min(dm, (target - p_cyl) * v_cyl / rt)
+                    dm = min(dm, _cylinder_mass_to(target, p_cyl, m_cyl, v0, vs, ps, patm, rt))
                     veh[V_MAUX, i] -= dm
                     veh[V_MCYL, i] += dm
+                    veh[V_VALVE, i] = VALVE_FILL
             elif err < -sc[S_LAP]:
                 s = min(-err / sc[S_DBAND], 1.0)
                 dm = orifice_flow(p_cyl, patm, s * sc[S_EPREL], rt) * h
-                dm = min(dm, (p_cyl - target) * v_cyl / rt)
+                dm = min(dm, -_cylinder_mass_to(target, p_cyl, m_cyl, v0, vs, ps, patm, rt))
                 veh[V_MCYL, i] -= dm
+                veh[V_VALVE, i] = VALVE_VENT
             if not external:
                 cells[C_M, c] += dm_pipe
             continue
@@ -296,16 +350,19 @@ def _distributors(cells, veh, sc, iv, external, h):
                 if applied and p_cyl - patm < veh[V_INSHOT, i]:
                     area += sc[S_AINSHOT]
                 dm = _exchange(p_aux, v_aux, p_cyl, v_cyl, area, h, rt)
-                dm = min(dm, (target - p_cyl) * v_cyl / rt)
+                dm = min(dm, _cylinder_mass_to(target, p_cyl, m_cyl, v0, vs, ps, patm, rt))
                 veh[V_MAUX, i] -= dm
                 veh[V_MCYL, i] += dm
+                veh[V_VALVE, i] = VALVE_FILL
         elif err < -sc[S_LAP] or (not applied and not by_ep and p_cyl > patm):
             s = min(-err / sc[S_DBAND], 1.0)
             if not applied and not by_ep:
                 s = 1.0
             dm = orifice_flow(p_cyl, patm, s * a_rel, rt) * h
-            dm = min(dm, (p_cyl - target) * v_cyl / rt)
+            dm = min(dm, -_cylinder_mass_to(target, p_cyl, m_cyl, v0, vs, ps, patm, rt))
             veh[V_MCYL, i] -= dm
+            if dm > 0.0:
+                veh[V_VALVE, i] = VALVE_VENT
         if not external:
             cells[C_M, c] += dm_pipe
 
@@ -345,4 +402,6 @@ def advance(n_steps, cells, faces, veh, sc, iv, trace):
         _distributors(cells, veh, sc, iv, external, h)
         if record:
             for i in range(veh.shape[1]):
-                trace[k, i] = veh[V_MCYL, i] * rt / veh[V_VCYL, i] - patm
+                trace[k, i] = cylinder_pressure(veh[V_MCYL, i], veh[V_VCYL, i],
+                                                veh[V_VSTROKE, i], veh[V_PSPRING, i], patm,
+                                                rt) - patm
