@@ -78,9 +78,9 @@ VEHICLE_FORCES_TOPIC = 'vehicle_forces'
 #: (0 at t = 0)
 VEHICLE_MOTION_TOPIC = 'vehicle_motion'
 #: ``header.frame_id`` of every JointState output (couplers, coaches, brake_cylinders,
-#: brake_reservoirs, vehicle_forces, vehicle_motion, wheelsets, ...): the track, one axis along it, forward
-#: (towards ``coach_1``'s end) positive; displacements, speeds, accelerations and forces are
-#: along it, pressures are scalars of the vehicles on it
+#: brake_reservoirs, vehicle_forces, vehicle_motion, wheelsets, ...): the track, one axis
+#: along it, forward (towards ``coach_1``'s end) positive; displacements, speeds,
+#: accelerations and forces are along it, pressures are scalars of the vehicles on it
 TRACK_FRAME = 'track'
 #: rotating wheelsets only (``wheelsets``, ``wsp``, low ``track_adhesion``): JointState
 #: ``coach_1..N``: position = available adhesion at the vehicle's speed [-] (the track's, with
