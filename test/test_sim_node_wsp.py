@@ -52,6 +52,7 @@ def test_external_wsp_node_keeps_the_wheels_turning(harness):
     assert harness.wait(lambda: np.all(node.simulator.v == 0.0), 60.0)
     t, adhesion, u, creep = joint_arrays(wheels)
     assert list(wheels[-1].name) == ['coach_1', 'coach_2', 'coach_3']
+    assert wheels[-1].header.frame_id == 'track'
     sim = node.simulator
     assert np.all(sim.sliding_time < 25.0)       # unprotected: all of the ~95 s stop
     assert np.max(creep) > 0.8 * 0.05 * 0.5 * 45000 * 9.81     # the rail was used

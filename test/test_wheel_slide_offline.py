@@ -47,6 +47,8 @@ def test_valves_from_an_input_bag_and_wheelsets_recorded(tmp_path):
     assert cyl.position[1] == pytest.approx(1.0e5)
     wheels = [m for _, _, m in read_topics(str(out), [topics.WHEELSETS_TOPIC])][-1]
     assert list(wheels.name) == ['coach_1', 'coach_2', 'coach_3']
+    assert wheels.header.frame_id == topics.TRACK_FRAME
+    assert info.topics[topics.WHEELSETS_TOPIC][1] == info.topics[topics.COACHES_TOPIC][1]
     # a braked wheel turns a little slower than its vehicle; the vented one's creep force is
     # the least (the brake of coach 1 is off)
     assert wheels.effort[0] < 0.05 * wheels.effort[1]
