@@ -13,6 +13,8 @@ into the moving part and the part with every vehicle at rest at an output period
   flat, default step (the strokes as the defaults set them: long trains block);
 - ``paperN``: the same with the strokes out of reach (the paper's idealisation, as a
   kernel without strokes computed it);
+- ``<case>+w``: the case with rotating wheelsets (``wheelsets: true``: the creep-law sub-step
+  per vehicle and step, dry rail), against the case without.
 - ``CASE+mrTOL``, ``CASE+tolTOL``: any of these with ``multirate_tolerance`` or
   ``integration_tolerance`` TOL (e.g. ``uniform100+mr1e-3``).
 
@@ -55,6 +57,8 @@ def drive(sim, events, t: float) -> None:
 def _config(case: str):
     """Return the SimConfig of a case (see the module docstring)."""
     from train_dynamics.physics.config import load_param_file, SimConfig
+    if case.endswith('+w'):
+        return _config(case[:-2]).replace(wheelsets=True)
     for suffix, name in (('+mr', 'multirate_tolerance'), ('+tol', 'integration_tolerance')):
         if suffix in case:       # ``uniform100+mr1e-3``, ``uniform100+tol1e-3``
             case, tol = case.split(suffix)

@@ -29,7 +29,8 @@ class _State:
         rng = np.random.default_rng(k)
         for name in ('x', 'v', 'brake_force', 'cylinder_pressure', 'pipe_pressure',
                      'auxiliary_pressure', 'control_pressure', 'traction_force',
-                     'resistance_force', 'gradient_force', 'track_position'):
+                     'resistance_force', 'gradient_force', 'track_position',
+                     'adhesion_available', 'wheel_speed', 'creep_force'):
             setattr(self, name, rng.normal(size=n) * 1e3)
         self.y = self.x[:-1] - self.x[1:]
         self.ydot = self.v[:-1] - self.v[1:]
@@ -68,7 +69,8 @@ def test_layouts_give_the_encoders_bytes(n):
     assert bytes(data) == cdr.encode_fluid_pressure(3_000_000_005, 601325.5)
 
 
-def _write_both(tmp_path, n, samples, split=None, reservoirs=True, forces=True, inputs=()):
+def _write_both(tmp_path, n, samples, split=None, reservoirs=True, forces=True, inputs=(),
+                wheelsets=False):
     """Write ``samples`` per message and in blocks (small blocks: several per file)."""
     bags = []
     for blocks in (False, True):
@@ -76,11 +78,13 @@ def _write_both(tmp_path, n, samples, split=None, reservoirs=True, forces=True, 
         rec = BagRecorder(bag, split_seconds=split, atomic=True, file_stem='bag')
         enc = OutputEncoder(n, reservoirs)
         for t in enc.topics + (topics.VEHICLE_MOTION_TOPIC,) + (
-                (topics.VEHICLE_FORCES_TOPIC,) if forces else ()):
+                (topics.VEHICLE_FORCES_TOPIC,) if forces else ()) + (
+                (topics.WHEELSETS_TOPIC,) if wheelsets else ()):
             rec.add_topic(t, JS)
         rec.add_topic(topics.HEAD_PIPE_TOPIC, FP)
         rec.add_topic('coach_1/brake_cylinder/pressure', FP)
-        rows = OutputRows(enc, forces, True, capacity=7)    # many blocks per file
+        rows = OutputRows(enc, forces, True, capacity=7,    # many blocks per file
+                          wheelsets=wheelsets)
         for k in range(samples):
             t_ns = k * 10_000_000
             sim = _State(n, k)
@@ -97,6 +101,8 @@ def _write_both(tmp_path, n, samples, split=None, reservoirs=True, forces=True, 
                 rec.write(topics.VEHICLE_MOTION_TOPIC, t_ns, enc.encode_motion(t_ns, sim))
                 if forces:
                     rec.write(topics.VEHICLE_FORCES_TOPIC, t_ns, enc.encode_forces(t_ns, sim))
+                if wheelsets:
+                    rec.write(topics.WHEELSETS_TOPIC, t_ns, enc.encode_wheelsets(t_ns, sim))
                 rec.write(topics.HEAD_PIPE_TOPIC, t_ns, cdr.encode_fluid_pressure(t_ns, head))
         rec.close()
         bags.append(bag)
@@ -115,6 +121,19 @@ def test_blocks_write_the_messages_of_the_per_message_path(tmp_path):
     got = [(topic, t) for topic, t, _ in read_topics(blocks)]
     at = got.index(('coach_1/brake_cylinder/pressure', 13 * 10_000_000 - 1000))
     assert got[at - 1][1] == 12 * 10_000_000 and got[at + 1][1] == 13 * 10_000_000
+
+
+def test_blocks_write_the_wheelsets_of_the_per_message_path(tmp_path):
+    """``wheelsets`` (after ``vehicle_forces``) in blocks: the node's bytes, frame ``track``."""
+    for forces in (True, False):
+        one, blocks = _write_both(tmp_path / str(forces), 4, 30, forces=forces, wheelsets=True)
+        a, b = _raw(one), _raw(blocks)
+        assert a == b and len(b[topics.WHEELSETS_TOPIC]) == 30
+    msgs = [m for _, _, m in read_topics(blocks, [topics.WHEELSETS_TOPIC])]
+    sim = _State(4, 29)
+    assert msgs[-1].header.frame_id == topics.TRACK_FRAME
+    assert list(msgs[-1].velocity) == list(sim.wheel_speed)
+    assert list(msgs[-1].effort) == list(sim.creep_force)
 
 
 def test_blocks_split_files_at_the_same_samples(tmp_path):

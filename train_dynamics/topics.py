@@ -53,6 +53,13 @@ TRACTION_TOPIC_DISPLAY = 'coach_<i>/traction/command'
 #: brake_system ep / ecp: the command every vehicle's EP valves / car control device follows
 EP_COMMAND_TOPIC = 'brake_ep/command'
 
+# -- slide protection (std_msgs/Int8: 0 normal, 1 hold, 2 vent) -----------------------------------
+#: ``wsp: external``: the hold and vent valves on vehicle i's brake cylinder
+WSP_VALVE_TOPIC = 'coach_{i}/wsp/valve'
+WSP_VALVE_TOPIC_PATTERN = re.compile(r'coach_(\d+)/wsp/valve')
+WSP_VALVE_TOPIC_DISPLAY = 'coach_<i>/wsp/valve'
+INT8 = 'std_msgs/msg/Int8'
+
 # -- outputs (sensor_msgs/JointState, header.stamp = simulation time) ----------------------------
 COUPLERS_TOPIC = 'couplers'
 COACHES_TOPIC = 'coaches'
@@ -71,10 +78,16 @@ VEHICLE_FORCES_TOPIC = 'vehicle_forces'
 #: (0 at t = 0)
 VEHICLE_MOTION_TOPIC = 'vehicle_motion'
 #: ``header.frame_id`` of every JointState output (couplers, coaches, brake_cylinders,
-#: brake_reservoirs, vehicle_forces, vehicle_motion): the track, one axis along it, forward
-#: (towards ``coach_1``'s end) positive; displacements, speeds, accelerations and forces are
-#: along it, pressures are scalars of the vehicles on it
+#: brake_reservoirs, vehicle_forces, vehicle_motion, wheelsets, ...): the track, one axis
+#: along it, forward (towards ``coach_1``'s end) positive; displacements, speeds,
+#: accelerations and forces are along it, pressures are scalars of the vehicles on it
 TRACK_FRAME = 'track'
+#: rotating wheelsets only (``wheelsets``, ``wsp``, low ``track_adhesion``): JointState
+#: ``coach_1..N``: position = available adhesion at the vehicle's speed [-] (the track's, with
+#: Curtius-Kniffler's fall with speed), velocity = wheel peripheral speed [m/s, >= 0 in the
+#: motion's sense], effort = creep force [N, on the vehicle, positive retarding]; the
+#: adhesion used is effort / (m g)
+WHEELSETS_TOPIC = 'wheelsets'
 #: brake_system ep / ecp: JointState ``coach_1..N``: position = the command the vehicle's EP
 #: valves / car control device follow [fraction of full service; 0 with the train line lost],
 #: velocity = its cylinder valve in the last step [+1 filling, 0 lapped, -1 venting],
@@ -98,6 +111,11 @@ def input_topic(mode: str, coach: int | None = None) -> str:
 def traction_topic(vehicle: int) -> str:
     """Return the traction-command topic of ``vehicle`` (1-based)."""
     return TRACTION_TOPIC.format(i=vehicle)
+
+
+def wsp_valve_topic(vehicle: int) -> str:
+    """Return the slide-protection valve topic of ``vehicle`` (1-based)."""
+    return WSP_VALVE_TOPIC.format(i=vehicle)
 
 
 def coupler_names(n_coaches: int) -> list[str]:

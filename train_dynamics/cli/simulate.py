@@ -92,8 +92,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             rec.add_topic(topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE)
         for topic in dict.fromkeys(e.topic for e in inputs.events):
             rec.add_topic(topic, topics.FLUID_PRESSURE)
-        for topic in dict.fromkeys(e.topic for e in inputs.traction):
-            rec.add_topic(topic, topics.FLOAT64)
+        for topic, kind in dict.fromkeys((e.topic, e.kind) for e in inputs.traction):
+            rec.add_topic(topic, topics.INT8 if kind == 'wsp' else topics.FLOAT64)
         with deferred_signals() as signals:
             def on_sample(s):
                 sink.sample(s)

@@ -34,6 +34,13 @@ acceleration as a 1 s moving average and the jerk as the difference of two such 
 application and release. Before the first sample the train is taken to run at constant
 speed (a = 0), so a brake applied at t = 0 still shows its jerk.
 
+Wheel slide (a simulator with rotating wheelsets as the source, :meth:`RunMetrics.set_sliding`):
+per vehicle the time its wheels slid and the distance it ran on sliding wheels (every
+integration step: a wheel is sliding while its slip exceeds the slide-protection's vent
+threshold, :func:`train_dynamics.physics.kernel.wheelset.sliding`; wheel-flat risk); the
+train's largest of each (``max_sliding_time``, ``max_sliding_distance`` and their vehicles,
+present in :meth:`RunMetrics.flat` only then).
+
 Train: stopping time and distance, the first sample at which every |v_i| <= ``stop_speed``
 (0.01 m/s), from the first sample (x of the leading vehicle) and from the brake onset (the
 first sample with any Fb > 0); resolution one sample period.
@@ -211,6 +218,7 @@ class RunMetrics:
         self._derive = np.zeros(block, dtype=bool)
         self.tension, self.compression = _Peak(m), _Peak(m)
         self.envelope: tuple[np.ndarray, np.ndarray] | None = None     # every step, if known
+        self.sliding: tuple[np.ndarray, np.ndarray] | None = None      # wheelsets, if any
         self.overrun, self.impact_speed = _Peak(m), _Peak(m)
         self.decel, self.peak_decel, self.jerk = _Peak(n), _Peak(n), _Peak(n)
         self.blockings = np.zeros(m, dtype=np.int64)
@@ -236,7 +244,13 @@ class RunMetrics:
         b['f'][k], b['fb'][k] = sim.coupler_force, sim.brake_force
         self._derive[k] = True                 # y, ydot from x, v at the flush (eq. 9)
         self.set_envelope(*sim.coupler_force_envelope)
+        if getattr(sim, 'wheelsets', False):
+            self.set_sliding(sim.sliding_time, sim.sliding_distance)
         self._next()
+
+    def set_sliding(self, time: Sequence[float], distance: Sequence[float]) -> None:
+        """Take each vehicle's sliding time [s] and distance [m] so far (every step)."""
+        self.sliding = (np.array(time, dtype=float), np.array(distance, dtype=float))
 
     def set_envelope(self, tension: Sequence[float], compression: Sequence[float]) -> None:
         """
@@ -418,6 +432,12 @@ class RunMetrics:
         if self.envelope is not None:
             out['max_tension_every_step'] = float(np.max(self.envelope[0]))
             out['max_compression_every_step'] = float(np.max(self.envelope[1]))
+        if self.sliding is not None:
+            it, ix = int(np.argmax(self.sliding[0])), int(np.argmax(self.sliding[1]))
+            out.update({'max_sliding_time': float(self.sliding[0][it]),
+                        'max_sliding_time_vehicle': it + 1,
+                        'max_sliding_distance': float(self.sliding[1][ix]),
+                        'max_sliding_distance_vehicle': ix + 1})
         if self.brake_onset is not None and self.stop_time is not None:
             out['stopping_time_from_brake'] = self.stop_time - self.brake_onset[0]
             out['stopping_distance_from_brake'] = self.stop_x - self.brake_onset[1]
@@ -441,12 +461,16 @@ class RunMetrics:
                 for j, name in enumerate(self.coupler_names)]
 
     def _vehicle_rows(self) -> list[dict]:
+        slide = self.sliding
+        extra = [{} if slide is None else {
+            'sliding_time': float(slide[0][i]), 'sliding_distance': float(slide[1][i])}
+            for i in range(self.n)]
         return [{'name': name, 'max_deceleration': float(self.decel.value[i]),
                  'max_deceleration_time': _num(self.decel.t[i]),
                  'peak_deceleration': float(self.peak_decel.value[i]),
                  'peak_deceleration_time': _num(self.peak_decel.t[i]),
                  'max_jerk': float(self.jerk.value[i]), 'max_jerk_time': _num(self.jerk.t[i]),
-                 'brake_energy': float(self.brake_energy[i])}
+                 'brake_energy': float(self.brake_energy[i]), **extra[i]}
                 for i, name in enumerate(self.vehicle_names)]
 
     def diagnostic(self) -> tuple[str, str, list[tuple[str, str]]]:

@@ -18,6 +18,7 @@ from train_dynamics.physics import couplers
 from train_dynamics.physics.kernel.couplers import coupler_force_travel
 from train_dynamics.physics.kernel.layout import (COUPLER, OUTPUT, STATE, TABLE_ROWS, TOTAL,
                                                   VEHICLE, WORK)
+from train_dynamics.physics.kernel.traction import adhesion
 
 
 class TrainOutputs:
@@ -135,6 +136,44 @@ class TrainOutputs:
         self._sync()
         return self.coach[OUTPUT.F_GRADE].copy()
 
+    # -- wheelsets (wheelset.py): zeros without them ----------------------------------------
+    @property
+    def wheel_speed(self) -> np.ndarray:
+        """Return each vehicle's wheel peripheral speed [m/s] (wheelsets; else its speed)."""
+        if not self.wheelsets:
+            return np.abs(self.v)
+        return self.coach[STATE.WHEEL].copy()
+
+    @property
+    def creep_force(self) -> np.ndarray:
+        """Return each vehicle's creep force of the last step [N, positive retarding]."""
+        return self.coach[OUTPUT.F_CREEP].copy()
+
+    @property
+    def adhesion_used(self) -> np.ndarray:
+        """Return each vehicle's creep force over its axle load [-] (last step)."""
+        return self.coach[OUTPUT.ADH_USED].copy()
+
+    @property
+    def adhesion_available(self) -> np.ndarray:
+        """Return each vehicle's available adhesion at its speed [-] (track, Curtius-Kniffler)."""
+        return np.array([adhesion(s, a) for s, a in zip(self.v, self.coach[OUTPUT.ADH_LOW])])
+
+    @property
+    def wsp_valve(self) -> np.ndarray:
+        """Return each vehicle's slide-protection valve state of the last step (0, 1, 2)."""
+        return self.coach[OUTPUT.VALVE].astype(np.int8)
+
+    @property
+    def sliding_time(self) -> np.ndarray:
+        """Return the time each vehicle's wheels slid since t = 0 [s] (wheel-flat risk)."""
+        return self.coach[OUTPUT.SLIDE_T].copy()
+
+    @property
+    def sliding_distance(self) -> np.ndarray:
+        """Return the distance each vehicle ran on sliding wheels since t = 0 [m]."""
+        return self.coach[OUTPUT.SLIDE_X].copy()
+
     @property
     def pipe_pressure(self) -> np.ndarray:
         return self.coach[STATE.PPIPE].copy()
@@ -220,6 +259,23 @@ class TrainBalances:
         """Work done by the brakes since t = 0 [J]."""
         self._sync()
         return float(self.sc[TOTAL.WB])
+
+    @property
+    def work_wheel_brake(self) -> float:
+        """Return the work of the brakes at the wheels since t = 0 [J] (wheelsets)."""
+        return float(self.sc[TOTAL.WWB])
+
+    @property
+    def work_creep(self) -> float:
+        """Return the work of the creep forces in the wheel-rail contacts since t = 0 [J]."""
+        return float(self.sc[TOTAL.WCREEP])
+
+    @property
+    def wheel_kinetic_energy(self) -> float:
+        """Return the kinetic energy of the wheelsets' rotation [J] (0 without wheelsets)."""
+        if not self.wheelsets:
+            return 0.0
+        return float(0.5 * np.sum(self.coach[VEHICLE.WHEEL_MASS] * self.coach[STATE.WHEEL] ** 2))
 
     @property
     def work_coupler(self) -> float:

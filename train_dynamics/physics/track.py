@@ -16,6 +16,15 @@ Positions s [m] are along the track in the direction of travel. Vehicle i occupi
   as given by Wende, Fahrdynamik des Schienenverkehrs, 2003). The curve resistance of vehicle
   i is m_i g r_i / 1000 against the motion, r_i the mean of r over the vehicle's length.
 
+- Adhesion mu_low(s) [-], the available wheel-rail adhesion at low speed (UIC 541-05's rail
+  conditions), piecewise constant from each of ``track_adhesion_positions`` on, dry
+  (Curtius-Kniffler's 0.331 at rest) before the first; a vehicle's available adhesion is the
+  mean of mu_low over its length, falling with speed as Curtius-Kniffler's law
+  (:func:`~train_dynamics.physics.kernel.traction.adhesion`). It limits the wheelsets' creep
+  force (:mod:`~train_dynamics.physics.wheelset`) and scales the traction adhesion of a
+  locomotive (``traction_adhesion`` x mu_low / 0.331). Stored as its deviation from dry, so
+  the empty profile is dry everywhere.
+
 A profile is stored as breakpoints ``xs``, the value on [xs[k], xs[k+1]) ``vals`` (the last
 one to infinity) and the integral from xs[0] to xs[k] ``cum``: the mean over any interval is
 two look-ups (``profile_mean`` of :mod:`train_dynamics.physics.kernel.track`, compiled with
@@ -28,6 +37,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from train_dynamics.physics.kernel.track import profile_integral, track_forces
+from train_dynamics.physics.kernel.traction import CK_AT_REST as DRY_ADHESION
 
 
 def roeckl(radius: float) -> float:
@@ -55,10 +65,14 @@ class Track:
     cx: np.ndarray = None
     cv: np.ndarray = None
     cc: np.ndarray = None
+    ax: np.ndarray = None
+    av: np.ndarray = None
+    ac: np.ndarray = None
 
     @classmethod
     def from_lists(cls, initial_position=0.0, gradient_positions=(), gradients=(),
-                   curve_starts=(), curve_ends=(), curve_radii=()) -> 'Track':
+                   curve_starts=(), curve_ends=(), curve_radii=(), adhesion_positions=(),
+                   adhesion=()) -> 'Track':
         """Build and check a track; raise ValueError naming the parameter at fault."""
         gp = np.asarray(gradient_positions, dtype=float).reshape(-1)
         gr = np.asarray(gradients, dtype=float).reshape(-1)
@@ -91,8 +105,22 @@ class Track:
             vals.append(0.0)
         cx = np.asarray(xs, dtype=float)
         cv = np.asarray(vals, dtype=float)
+        ax, av = adhesion_profile(adhesion_positions, adhesion)
         return cls(float(initial_position), gp, gr, _cumulative(gp, gr), cx, cv,
-                   _cumulative(cx, cv))
+                   _cumulative(cx, cv), ax, av, _cumulative(ax, av))
+
+    @property
+    def adhesion_profile(self) -> np.ndarray:
+        """Return the adhesion profile (3, K) for the kernel: positions, mu_low - dry, integral."""
+        return np.array([self.ax, self.av, self.ac], dtype=float).reshape(3, -1)
+
+    def adhesion_at(self, s) -> np.ndarray:
+        """Return the available adhesion at low speed [-] at track positions s [m]."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        if self.ax.size == 0:
+            return np.full_like(s, DRY_ADHESION)
+        k = np.searchsorted(self.ax, s, side='right') - 1
+        return DRY_ADHESION + np.where(k >= 0, self.av[np.maximum(k, 0)], 0.0)
 
     @property
     def flat_and_straight(self) -> bool:
@@ -140,3 +168,22 @@ class Track:
         track_forces(x, self.fronts(lengths), lengths, np.asarray(masses, float) * g,
                      self.gx, self.gv, self.gc, self.cx, self.cv, self.cc, grade, curve)
         return grade, curve
+
+
+def adhesion_profile(positions, values) -> tuple[np.ndarray, np.ndarray]:
+    """
+    Return (positions, mu_low - dry) of a track adhesion profile; raise ValueError at a fault.
+
+    ``track_adhesion_positions`` [m] strictly increasing, ``track_adhesion`` [-] in (0, 1],
+    one per position.
+    """
+    ap = np.asarray(positions, dtype=float).reshape(-1)
+    av = np.asarray(values, dtype=float).reshape(-1)
+    if ap.shape != av.shape:
+        raise ValueError(f'track_adhesion_positions and track_adhesion must have the same '
+                         f'length ({ap.size} != {av.size})')
+    if np.any(np.diff(ap) <= 0.0):
+        raise ValueError('track_adhesion_positions: must strictly increase')
+    if np.any(~np.isfinite(av)) or np.any(av <= 0.0) or np.any(av > 1.0):
+        raise ValueError('track_adhesion: each value must be in (0, 1]')
+    return ap, av - DRY_ADHESION

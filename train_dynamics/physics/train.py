@@ -24,19 +24,21 @@ import itertools
 import numpy as np
 
 from train_dynamics.physics import equilibrium, friction, pneumatic
+from train_dynamics.physics import track as track_module
 from train_dynamics.physics.config import (Consist, G_FILL_TIME, G_RELEASE_TIME,
                                            P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
                                            P_RELEASE_TIME, SimConfig)
 from train_dynamics.physics.config.consist import check_friction_below_stiffness
 from train_dynamics.physics.config.table import KERNEL_ROWS
-from train_dynamics.physics.kernel import adaptive, brakes, couplers, fixed_step
+from train_dynamics.physics.kernel import adaptive, brakes, couplers, fixed_step, wheelset
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, COUNT, COUPLER,
-                                                  INPUT, INTEGER, OPTION, PARAM, SCALAR,
+                                                  INPUT, INTEGER, OPTION, OUTPUT, PARAM, SCALAR,
                                                   SCALAR_INPUT, STATE, TABLE_ROWS, VEHICLE,
                                                   WORK)
 from train_dynamics.physics.kernel.resistance import running_resistance
 from train_dynamics.physics.kernel.step import (available_braking_force, make_workspace, OK,
                                                 STATUS_TEXT)
+from train_dynamics.physics.kernel.track import profile_integral
 from train_dynamics.physics.kernel.traction import traction_force
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.resistance import equivalent_mass
@@ -94,6 +96,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self.track = cfg.track
         self.gprof = np.array([self.track.gx, self.track.gv, self.track.gc], dtype=float)
         self.cprof = np.array([self.track.cx, self.track.cv, self.track.cc], dtype=float)
+        self.aprof = self.track.adhesion_profile
+        #: rotating wheelsets with the creep law (kernel/wheelset.py), and the WSP mode
+        self.wheelsets = cfg.has_wheelsets
+        self.wsp = wheelset.WSP_MODES.index(cfg.wsp)
         self.ws = make_workspace(n)
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
@@ -187,6 +193,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             c[row] = consist[name]
         c[VEHICLE.FRONT0] = self.track.fronts(consist['length'])
         c[VEHICLE.DELAY] = self.delays / self.h
+        c[VEHICLE.WHEEL_MASS] = consist['wheelset_inertia'] / consist['wheel_radius'] ** 2
         sc, iv = self.sc, self.iv
         sc[[PARAM.H, PARAM.PMAX, PARAM.MU, PARAM.G, PARAM.PNOM, PARAM.PFS, PARAM.SENS,
             PARAM.YLIM, PARAM.TOL, PARAM.FFLOOR]] = [
@@ -202,6 +209,9 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         iv[OPTION.TRACK] = int(not self.track.flat_and_straight)
         iv[OPTION.LAND] = self.land
         iv[OPTION.BUDGET] = int(cfg.integration_max_steps)
+        iv[OPTION.WHEELS] = int(self.wheelsets)
+        iv[OPTION.WSP] = self.wsp
+        iv[OPTION.ADHESION] = int(self.aprof.shape[1] > 0)
 
     def reset(self) -> None:
         """
@@ -226,6 +236,10 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         c[STATE.PPIPE] = p_nom
         c[INPUT.PIPE] = p_nom
         c[STATE.HELD] = (c[STATE.V] == 0.0)
+        c[STATE.WHEEL] = abs(float(cfg.initial_speed))      # rolling
+        c[OUTPUT.ADH_LOW] = wheelset.DRY_ADHESION
+        if self.iv[OPTION.ADHESION]:
+            c[OUTPUT.ADH_LOW] = self.track_adhesion_low()
         self.ring = np.full(int(np.floor(c[VEHICLE.DELAY, -1])) + 2, p_nom)
         sc = self.sc
         sc[len(PARAM):] = 0.0           # work integrals, inputs, controller
@@ -353,6 +367,44 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         available_braking_force(c, self.sc, c[STATE.FB_AVAIL])
         if self.adaptive and self.iv[CACHE.WS_VALID]:
             self.tick_fb[self.iv[CLOCK.TICK] % self.tick_fb.shape[0]] = c[STATE.FB_AVAIL]
+
+    def set_track_adhesion(self, positions, values) -> None:
+        """
+        Change the track's adhesion profile live (track_adhesion_positions, track_adhesion).
+
+        Acts from the next step (the vehicles' means are taken each step); raises ValueError
+        on a bad profile. A train built without wheelsets keeps none: the new rail limits
+        its traction and dynamic braking only.
+        """
+        ax, av = track_module.adhesion_profile(positions, values)
+        self._sync()
+        self.track.ax, self.track.av = ax, av
+        self.track.ac = track_module._cumulative(ax, av)
+        self.aprof = self.track.adhesion_profile
+        self.iv[OPTION.ADHESION] = int(ax.size > 0)
+        self.coach[OUTPUT.ADH_LOW] = self.track_adhesion_low()
+
+    def track_adhesion_low(self) -> np.ndarray:
+        """Return each vehicle's available adhesion at low speed [-], mean over its length."""
+        front = self.coach[VEHICLE.FRONT0] + self.coach[STATE.X]
+        length = self.coach[VEHICLE.LENGTH]
+        out = np.empty(self.n)
+        for i in range(self.n):
+            lo, hi = front[i] - length[i], front[i]
+            out[i] = wheelset.DRY_ADHESION + (
+                profile_integral(hi, *self.aprof) - profile_integral(lo, *self.aprof)) / (hi - lo)
+        return out
+
+    def set_wsp_valve(self, state: int, index: int) -> None:
+        """Set vehicle ``index``'s (0-based) slide-protection valve: 0, 1, 2 (wsp external)."""
+        if self.wsp != wheelset.WSP_EXTERNAL:
+            raise ValueError('coach_<i>/wsp/valve needs wsp external')
+        if state not in (wheelset.NORMAL, wheelset.HOLD, wheelset.VENT):
+            raise ValueError(f'wsp valve must be 0 (normal), 1 (hold) or 2 (vent), got '
+                             f'{quote(state)}')
+        if not 0 <= int(index) < self.n:
+            raise ValueError(f'vehicle {int(index) + 1}: the train has {self.n} vehicles')
+        self.coach[INPUT.VALVE, int(index)] = float(state)
 
     @property
     def locomotives(self) -> list[int]:
@@ -531,11 +583,11 @@ class TrainSimulator(TrainOutputs, TrainBalances):
                 iv[CLOCK.TICK] = iv[CLOCK.CHAIN_TICK] = tick0
                 _, status = adaptive.advance_adaptive(
                     1, True, self.coach, self.cpl, sc, iv, self.fill, self.rel, self.ring,
-                    self.ws, self.gprof, self.cprof, self.tick_fb, self.tick_te)
+                    self.ws, self.gprof, self.cprof, self.aprof, self.tick_fb, self.tick_te)
             else:
                 _, status = fixed_step.advance_chain(1, self.coach, self.cpl, sc, iv,
                                                      self.fill, self.rel, self.ring, self.ws,
-                                                     self.gprof, self.cprof)
+                                                     self.gprof, self.cprof, self.aprof)
         finally:
             sc[PARAM.H] = self.h
             iv[CACHE.WS_VALID] = 0
@@ -591,11 +643,11 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         if self.adaptive:
             return adaptive.advance_adaptive(n_steps, sync, self.coach, self.cpl, self.sc,
                                              self.iv, self.fill, self.rel, self.ring,
-                                             self.ws, self.gprof, self.cprof,
+                                             self.ws, self.gprof, self.cprof, self.aprof,
                                              self.tick_fb, self.tick_te)
         return fixed_step.advance_chain(n_steps, self.coach, self.cpl, self.sc, self.iv,
                                         self.fill, self.rel, self.ring, self.ws, self.gprof,
-                                        self.cprof)
+                                        self.cprof, self.aprof)
 
     def _sync(self) -> None:
         """Bring the error-controlled chain to the present tick (it lands on outputs)."""

@@ -52,38 +52,18 @@ import numpy as np
 
 from train_dynamics.physics import friction
 from train_dynamics.physics.kernel.traction import adhesion
+from train_dynamics.physics.kernel.wheelset import (  # noqa: F401 (the model's names)
+    ACCEL_HOLD, builtin_valve, creep_coefficient, DECEL_VENT, DRY_ADHESION, HOLD, NORMAL,
+    POLACH_A, POLACH_B, sliding, SLIP_HOLD_A, SLIP_HOLD_B, SLIP_VENT_A, SLIP_VENT_B, V0, VENT,
+    VENT_TAU, WSP_MODES, XI0)
 
-#: dry-rail available adhesion at low speed (Curtius-Kniffler at rest)
-DRY_ADHESION = 0.161 + 7.5 / 44.0
-#: Polach's falling friction: sliding fraction A [-] and decay B [s/m] (dry rail)
-POLACH_A = 0.4
-POLACH_B = 0.6
-#: creep scale of the rising branch [-] and the smallest reference speed of the creep [m/s]
-XI0 = 0.002
-V0 = 0.5
-#: valve states of the slide protection (input ``coach_<i>/wsp/valve``)
-NORMAL, HOLD, VENT = 0, 1, 2
-#: builtin WSP thresholds: slip speed w > min(a + b v_ref, c v_ref) ([m/s], [-]; c = 0.5 to
-#: vent, 0.25 to hold, so a wheel at rest under a moving vehicle is always vented), wheel
-#: deceleration and acceleration [m/s^2]; chosen on the single-vehicle test at 0.05 adhesion
-SLIP_VENT = (0.5, 0.03)
-SLIP_HOLD = (0.2, 0.01)
-DECEL_VENT = 2.0
-ACCEL_HOLD = 3.0
-#: bisection iterations of the implicit sub-step (a 2^-60 bracket: round-off)
+#: bisection iterations of the single-vehicle implicit sub-step (a 2^-60 bracket: round-off)
 ITERATIONS = 60
 
 
 def available_adhesion(v: float, mu_low: float) -> float:
     """Return the available adhesion [-] at speed v [m/s] for mu_low at low speed."""
     return adhesion(v, mu_low)
-
-
-def creep_coefficient(w: float, v: float, mu_avail: float) -> float:
-    """Return the creep-force coefficient f [-] at slip speed w = v - u [m/s] (see the module)."""
-    xi = w / max(abs(v), V0)
-    return mu_avail * ((1.0 - POLACH_A) * math.exp(-POLACH_B * abs(w)) + POLACH_A) \
-        * math.tanh(xi / XI0)
 
 
 def wheelset_step(u0: float, v0: float, h: float, reduced_mass: float, load: float,
@@ -113,13 +93,7 @@ def wheelset_step(u0: float, v0: float, h: float, reduced_mass: float, load: flo
 
 def builtin_wsp(v_ref: float, u: float, u_prev: float, h: float) -> int:
     """Return the valve state (NORMAL, HOLD, VENT) of the reference slide protection."""
-    slip = v_ref - u
-    decel = (u_prev - u) / h
-    if slip > min(SLIP_VENT[0] + SLIP_VENT[1] * v_ref, 0.5 * v_ref) or decel > DECEL_VENT:
-        return VENT
-    if slip > min(SLIP_HOLD[0] + SLIP_HOLD[1] * v_ref, 0.25 * v_ref) or -decel > ACCEL_HOLD:
-        return HOLD
-    return NORMAL
+    return builtin_valve(v_ref, u, (u_prev - u) / h)
 
 
 @dataclass
@@ -144,7 +118,7 @@ class BrakeTest:
     mu_low: float = DRY_ADHESION
     wsp: str = 'none'
     fill_tau: float = 1.0
-    vent_tau: float = 0.15
+    vent_tau: float = VENT_TAU
     h: float = 0.005
     g: float = 9.81
     trace: dict = field(default_factory=dict)
@@ -189,7 +163,7 @@ class BrakeTest:
             w_creep += h * fc * 0.5 * ((v + v1) - (u + u1))
             impulse += h * fc
             x += h * 0.5 * (v + v1)
-            if v - u1 > min(SLIP_VENT[0] + SLIP_VENT[1] * v, 0.5 * v):
+            if sliding(v, u1):
                 slide_time += h
                 slide_distance += h * 0.5 * (v + v1)
             zero_time = zero_time + h if u1 == 0.0 else 0.0

@@ -19,7 +19,7 @@ from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.physics.config import (ep_rejection, input_rejection, INPUT_VALUE_REASONS,
-                                           traction_rejection)
+                                           traction_rejection, wsp_rejection)
 from train_dynamics.recording.bags import bag_info, BagError, BagInfo, read_topics
 from train_dynamics.simulation.runner import (EP_INDEX, InputEvent, InputSchedule, step_of,
                                               TractionEvent)
@@ -88,7 +88,9 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
     (:func:`train_dynamics.physics.config.traction_rejection`; counted, reported through
     ``warn``). With an EP or ECP brake system, ``brake_ep/command`` too (index
     :data:`~train_dynamics.simulation.runner.EP_INDEX`, rule
-    :func:`~train_dynamics.physics.config.ep_rejection`). Empty when the bag has none.
+    :func:`~train_dynamics.physics.config.ep_rejection`); with ``wsp: external`` every
+    vehicle's ``coach_<i>/wsp/valve`` (Int8, kind ``wsp``, rule
+    :func:`~train_dynamics.physics.config.wsp_rejection`). Empty when the bag has none.
     """
     ns = namespace.strip('/')
     try:
@@ -97,6 +99,7 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
         raise InputBagError(f'input bag: {exc}') from None
     locos = set(cfg.consist.commanded) if cfg.external_forces else set()
     selected: dict[str, int] = {}
+    wsp: dict[str, int] = {}
     for topic, (msgtype, _) in info.topics.items():
         rel = topic[len(ns) + 1:] if ns and topic.startswith(ns + '/') else topic
         if rel == topics.EP_COMMAND_TOPIC and (rel != topic or not ns):
@@ -106,6 +109,17 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
                 warn(f'input bag: {topic}: needs brake_system ep or ecp; ignored')
             else:
                 selected[topic] = EP_INDEX
+            continue
+        w = topics.WSP_VALVE_TOPIC_PATTERN.fullmatch(rel)
+        if w is not None and not (ns and rel == topic):
+            i = int(w.group(1)) - 1
+            if msgtype != topics.INT8:
+                warn(f'input bag: {topic} has type {msgtype}, not {topics.INT8}; ignored')
+            elif cfg.wsp != 'external' or not 0 <= i < cfg.n_coaches:
+                warn(f'input bag: {topic}: needs wsp external and vehicle {i + 1} in the '
+                     'train; ignored')
+            else:
+                wsp[topic] = i
             continue
         m = topics.TRACTION_TOPIC_PATTERN.fullmatch(rel)
         if m is None or (ns and rel == topic):
@@ -121,7 +135,16 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
     events: list[TractionEvent] = []
     rejected = 0
     try:
-        for topic, t_ns, msg in read_topics(path, list(selected)):
+        for topic, t_ns, msg in read_topics(path, list(selected) + list(wsp)):
+            if topic in wsp:
+                if wsp_rejection(int(msg.data)) is not None:
+                    rejected += 1
+                    continue
+                rel_ns = t_ns - info.start_ns
+                i = wsp[topic]
+                events.append(TractionEvent(step_of(rel_ns, h), rel_ns, i, int(msg.data),
+                                            topics.wsp_valve_topic(i + 1), msg, kind='wsp'))
+                continue
             c = float(msg.data)
             i = selected[topic]
             if (ep_rejection(c) if i == EP_INDEX else traction_rejection(c)) is not None:

@@ -27,6 +27,9 @@ definition of what each output topic carries:
   front [m], velocity = v [m/s], effort = acceleration [m/s^2, forward > 0]:
   (v(t_k) - v(t_{k-1})) / (t_k - t_{k-1}) over the last output period (exact as a mean: the
   integrator's speed change), 0 at t = 0.
+- ``wheelsets`` (a train with rotating wheelsets only): JointState ``coach_1..N``: position =
+  available adhesion [-], velocity = wheel peripheral speed [m/s], effort = creep force [N]
+  (:data:`train_dynamics.topics.WHEELSETS_TOPIC`).
 """
 from __future__ import annotations
 
@@ -79,10 +82,11 @@ class OutputEncoder:
         self._encoders = (self._couplers,) + (self._coaches,) * (
             len(self.topics) - 1 - (self._radio is not None)) + (
             (self._radio,) if self._radio is not None else ())
-        #: (names, frame_id) of each of :attr:`topics`, then vehicle_motion, vehicle_forces
+        #: (names, frame_id) of each of :attr:`topics`, then vehicle_motion, vehicle_forces,
+        #: wheelsets
         self.joints = ((topics.coupler_names(n_coaches), frame),) + ((coaches, frame),) * (
             len(self.topics) - 1 - (radio is not None)) + (
-            ((radio, frame),) if radio is not None else ()) + ((coaches, frame),) * 2
+            ((radio, frame),) if radio is not None else ()) + ((coaches, frame),) * 3
 
     @classmethod
     def for_config(cls, cfg: Any) -> 'OutputEncoder':
@@ -129,6 +133,20 @@ class OutputEncoder:
         """Return ``vehicle_forces`` of ``sim``'s present state (:meth:`forces_fields`)."""
         return self._coaches(t_ns, *self.forces_fields(sim))
 
+    @staticmethod
+    def wheelsets_fields(sim: Any) -> tuple[Any, Any, Any]:
+        """
+        Return the fields of ``wheelsets``: JointState ``coach_1..N``.
+
+        position = available adhesion [-], velocity = wheel peripheral speed [m/s], effort =
+        creep force [N, positive retarding].
+        """
+        return sim.adhesion_available, sim.wheel_speed, sim.creep_force
+
+    def encode_wheelsets(self, t_ns: int, sim: Any) -> bytes:
+        """Return ``wheelsets`` of ``sim``'s present state (:meth:`wheelsets_fields`)."""
+        return self._coaches(t_ns, *self.wheelsets_fields(sim))
+
     def motion_fields(self, t_ns: int, sim: Any) -> tuple[Any, Any, Any]:
         """
         Return the fields of ``vehicle_motion`` at ``t_ns`` (call it at every output).
@@ -156,19 +174,22 @@ class OutputRows:
     The output topics of each sample as rows of a :class:`RecordBlock` (the offline bag).
 
     The messages of :class:`OutputEncoder` (its topics, ``vehicle_motion``, ``vehicle_forces``
-    when ``forces``, the head-pipe FluidPressure ABSOLUTE [Pa] when ``head_pipe``), byte for
-    byte, but encoded in place: the values of a sample are copied once into the block's rows
-    and a whole block goes to the bag at once (:meth:`BagRecorder.attach`).
+    when ``forces``, ``wheelsets`` when ``wheelsets``, the head-pipe FluidPressure ABSOLUTE
+    [Pa] when ``head_pipe``), byte for byte, but encoded in place: the values of a sample are
+    copied once into the block's rows and a whole block goes to the bag at once
+    (:meth:`BagRecorder.attach`).
     """
 
     def __init__(self, encoder: OutputEncoder, forces: bool, head_pipe: bool,
-                 capacity: int | None = None) -> None:
+                 capacity: int | None = None, wheelsets: bool = False) -> None:
         self.encoder = encoder
         self.capacity = capacity                     # rows per block (None: about 1 MiB)
         self.forces = bool(forces)
+        self.wheelsets = bool(wheelsets)
         self.head_pipe = bool(head_pipe)
         self.topics = encoder.topics + (topics.VEHICLE_MOTION_TOPIC,) + (
             (topics.VEHICLE_FORCES_TOPIC,) if forces else ()) + (
+            (topics.WHEELSETS_TOPIC,) if self.wheelsets else ()) + (
             (topics.HEAD_PIPE_TOPIC,) if head_pipe else ())
         self.block: Any = None                       # the RecordBlock, made at the first row
         self._views: list[list[Any]] = []
@@ -178,6 +199,8 @@ class OutputRows:
         out = enc.fields(sim) + (enc.motion_fields(t_ns, sim),)
         if self.forces:
             out += (enc.forces_fields(sim),)
+        if self.wheelsets:
+            out += (enc.wheelsets_fields(sim),)
         if self.head_pipe:
             out += ((head, 0.0),)
         return out
@@ -186,9 +209,10 @@ class OutputRows:
         """Make the block for samples shaped like ``fields`` (array lengths, empty arrays)."""
         from train_dynamics.recording.bags import RecordBlock     # here: the node needs no bags
         layouts = []
-        for (names, frame), f in zip(self.encoder.joints[:len(self.encoder.topics) + 1]
-                                     + ((self.encoder.joints[-1],) if self.forces else ()),
-                                     fields):
+        joints = self.encoder.joints
+        for (names, frame), f in zip(joints[:len(self.encoder.topics) + 1]
+                                     + ((joints[-2],) if self.forces else ())
+                                     + ((joints[-1],) if self.wheelsets else ()), fields):
             layouts.append(joint_state_layout(names, [0 if a is None else len(a) for a in f],
                                               frame))
         if self.head_pipe:

@@ -41,6 +41,9 @@ class BagSink:
         self.forces = bool(cfg.external_forces)
         if self.forces:
             rec.add_topic(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE)
+        self.wheelsets = bool(cfg.has_wheelsets)
+        if self.wheelsets:
+            rec.add_topic(topics.WHEELSETS_TOPIC, topics.JOINT_STATE)
         self._rows: OutputRows | None = None
 
     def sample(self, s: Sample) -> None:
@@ -48,11 +51,15 @@ class BagSink:
         head = None if s.head_gauge is None else s.head_gauge + self.atm
         rows = self._rows
         if rows is None or rows.head_pipe != (head is not None):
-            rows = self._rows = OutputRows(self.encoder, self.forces, head is not None)
+            rows = self._rows = OutputRows(self.encoder, self.forces, head is not None,
+                                           wheelsets=self.wheelsets)
         rows.write(self.rec, time_ns(s.t), s.sim, head)
 
     def input(self, e: InputEvent | TractionEvent) -> None:  # noqa: A003 - runner's hook
         """Write an input message as applied, stamped with its time from the run's start."""
+        if isinstance(e, TractionEvent) and e.kind == 'wsp':     # std_msgs/Int8 as read
+            self.rec.write_msg(e.topic, e.t_ns, e.msg)
+            return
         if isinstance(e, TractionEvent):      # std_msgs/Float64: no header
             self.rec.add_topic(e.topic, topics.FLOAT64)
             self.rec.write(e.topic, e.t_ns, encode_float64(e.command))

@@ -70,6 +70,7 @@ from train_dynamics.recording.outputs import time_ns
 from train_dynamics.ros.ep_inputs import EpInputs
 from train_dynamics.ros.publishers import stamp
 from train_dynamics.ros.traction_inputs import TractionInputs
+from train_dynamics.ros.wsp_inputs import WspInputs
 
 HEAD = topics.PIPE_HEAD
 CYL = topics.CYLINDER_PER_COACH
@@ -220,6 +221,8 @@ class BrakeInputs:
         self.traction = TractionInputs(node, INPUT_QOS, self._reject_traction, self._notify)
         #: the EP / ECP train-line command (same validation counts and timeout)
         self.ep = EpInputs(node, INPUT_QOS, self._reject_traction, self._notify)
+        #: the slide-protection valves (wsp external; same validation counts and timeout)
+        self.wsp = WspInputs(node, INPUT_QOS, self._reject_traction, self._notify)
 
     def _notify(self) -> None:
         """Tell the simulation thread that an input was accepted (executor thread)."""
@@ -233,22 +236,23 @@ class BrakeInputs:
     @property
     def stale(self) -> bool:
         """Return True while a brake input or a traction command is stale."""
-        return self._stale or bool(self.traction.stale_names)
+        return self._stale or bool(self.traction.stale_names or self.wsp.stale_names)
 
     @property
     def emergency(self) -> bool:
         """Return True while a fail-safe holds (emergency brake, or a traction command 0)."""
-        return self._emergency or self.traction.emergency
+        return self._emergency or self.traction.emergency or self.wsp.emergency
 
     @property
     def stale_names(self) -> list[str]:
         """Return the stale brake inputs, then the stale traction-command topics."""
-        return (self._stale_names if self._stale else []) + self.traction.stale_names
+        return ((self._stale_names if self._stale else []) + self.traction.stale_names
+                + self.wsp.stale_names)
 
     @property
     def accepted(self) -> int:
         """Return the accepted brake inputs and traction commands."""
-        return self._accepted + self.traction.accepted + self.ep.accepted
+        return self._accepted + self.traction.accepted + self.ep.accepted + self.wsp.accepted
 
     # -- a run (executor thread, simulation lock held) -------------------------------------
     def start(self, cfg: SimConfig, n: int, recording: bool) -> None:
@@ -270,6 +274,7 @@ class BrakeInputs:
         self._update_subscriptions(mode, n)
         self.traction.start(cfg.consist.commanded if cfg.external_forces else [])
         self.ep.start(cfg.ep_commanded)
+        self.wsp.start(list(range(n)) if cfg.wsp == 'external' else [])
 
     def set_policy(self, timeout: float, on_timeout: str) -> None:
         """Report inputs older than ``timeout`` [s wall]; ``on_timeout``: hold/emergency."""
@@ -435,7 +440,7 @@ class BrakeInputs:
         with self._in_lock:
             ages = now - self._buffer.arrival
             age = float(np.max(ages)) if ages.size else 0.0
-        return max(age, self.traction.max_age(now))
+        return max(age, self.traction.max_age(now), self.wsp.max_age(now))
 
     # -- the simulation thread (simulation lock held) --------------------------------------
     def discard_records(self) -> None:
@@ -447,6 +452,7 @@ class BrakeInputs:
         """Put the inputs received since the last call (or the fail-safe) into ``sim``."""
         self.traction.apply(now, sim, record, self.timeout, self.on_timeout == 'emergency')
         self.ep.apply(now, sim, record, self.timeout)
+        self.wsp.apply(now, sim, record, self.timeout, False)
         if self._buffer.pending:        # input_timing stamp (or just switched off): those due
             self.schedule_due(sim, sim.t if self.by_stamp else math.inf, record)
         news = self._take(now)
@@ -552,6 +558,7 @@ class BrakeInputs:
         """Take note of an output stamped ``t_ns`` about to go out: Float64 commands answer it."""
         self.traction.output_published(t_ns)
         self.ep.output_published(t_ns)
+        self.wsp.output_published(t_ns)
 
     def unanswered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> list[str]:
         """

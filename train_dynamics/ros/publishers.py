@@ -17,6 +17,8 @@ simulation time, at the integration steps nearest to k / publish_rate
 - ``vehicle_forces`` (a train with resistance, track or traction): JointState ``coach_1..N``:
   position = traction / dynamic-brake force, velocity = running + curve resistance, effort =
   gradient force [N, on the vehicle, forward > 0];
+- ``wheelsets`` (a train with rotating wheelsets): JointState ``coach_1..N``: position =
+  available adhesion [-], velocity = wheel peripheral speed [m/s], effort = creep force [N];
 - ``/clock`` (``rosgraph_msgs/Clock``) when ``publish_clock``.
 
 Output messages are CDR-encoded once per output (:class:`OutputEncoder`: names and header
@@ -77,6 +79,8 @@ class Outputs:
         self._node = node
         self._pub_forces = None         # vehicle_forces, created for a train that has them
         self._forces = False
+        self._pub_wheelsets = None      # wheelsets, created for a train that has them
+        self._wheelsets = False
         self.writer: BagWriter | None = None
         self.publish_clock = False
         self.rate = 0.0                 # [Hz] publish_rate of the run
@@ -94,14 +98,15 @@ class Outputs:
 
     def start(self, encoder: OutputEncoder, rate: float, h: float, publish_clock: bool,
               writer: BagWriter | None, forces: bool = False,
-              metrics: RunMetrics | None = None) -> None:
+              metrics: RunMetrics | None = None, wheelsets: bool = False) -> None:
         """
         Begin a run at t = 0: outputs at ``rate`` [Hz] on steps ``h``.
 
         ``encoder``: the run's output encoder (``OutputEncoder.for_config``): the JointState
         topics published (and recorded) at every output, as the offline command writes
         them; ``forces``: also publish ``vehicle_forces`` (a train with resistance, track or
-        traction); ``metrics``: the run metrics, fed with every published sample (as the
+        traction); ``wheelsets``: also publish ``wheelsets`` (a train with rotating
+        wheelsets); ``metrics``: the run metrics, fed with every published sample (as the
         offline command does).
         """
         self.metrics.start(metrics)
@@ -113,6 +118,10 @@ class Outputs:
         if self._forces and self._pub_forces is None:
             self._pub_forces = self._node.create_publisher(
                 JointState, topics.VEHICLE_FORCES_TOPIC, OUTPUT_QOS)
+        self._wheelsets = bool(wheelsets)
+        if self._wheelsets and self._pub_wheelsets is None:
+            self._pub_wheelsets = self._node.create_publisher(
+                JointState, topics.WHEELSETS_TOPIC, OUTPUT_QOS)
         self.rate = float(rate)
         self._h = h
         self.publish_clock = bool(publish_clock)
@@ -160,6 +169,9 @@ class Outputs:
         forces = self._encoder.encode_forces(t_ns, sim) if self._forces else None
         if forces is not None:
             self._pub_forces.publish(forces)
+        wheels = self._encoder.encode_wheelsets(t_ns, sim) if self._wheelsets else None
+        if wheels is not None:
+            self._pub_wheelsets.publish(wheels)
         self.metrics.put(sim)
         clock = None
         if self.publish_clock:
@@ -172,6 +184,8 @@ class Outputs:
             w.write(topics.VEHICLE_MOTION_TOPIC, topics.JOINT_STATE, t_ns, motion)
             if forces is not None:
                 w.write(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE, t_ns, forces)
+            if wheels is not None:
+                w.write(topics.WHEELSETS_TOPIC, topics.JOINT_STATE, t_ns, wheels)
             if clock is not None:
                 w.write(topics.CLOCK_TOPIC, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
         self.published += 1

@@ -210,6 +210,11 @@ class SimNode(Node):
                 'real_time_factor', 'publish_clock', 'input_timeout', 'on_input_timeout',
                 'coupler_force_limit', 'jerk_limit') if name in changes})
             self._outputs.metrics.set_limits(cfg.coupler_force_limit, cfg.jerk_limit)
+            rail = ('track_adhesion_positions', 'track_adhesion')
+            if any(name in changes for name in rail):
+                cfg.set_live(**{name: getattr(self._params_cfg, name) for name in rail})
+                self._pacer.sim.set_track_adhesion(cfg.track_adhesion_positions,
+                                                   cfg.track_adhesion)
             if 'real_time_factor' in changes:
                 self._pacer.set_real_time_factor(cfg.real_time_factor)
             self._outputs.publish_clock = cfg.publish_clock
@@ -249,7 +254,7 @@ class SimNode(Node):
         self._cfg = cfg
         self._outputs.start(OutputEncoder.for_config(cfg), cfg.publish_rate, sim.h,
                             cfg.publish_clock, writer, forces=cfg.external_forces,
-                            metrics=RunMetrics.for_run(cfg, sim))
+                            metrics=RunMetrics.for_run(cfg, sim), wheelsets=sim.wheelsets)
         self._inputs.start(cfg, sim.n, recording=writer is not None)
         self._control.start(sim)
         self._pacer.start(sim, cfg.real_time_factor)

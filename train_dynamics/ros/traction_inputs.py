@@ -68,7 +68,27 @@ def traction_command(data: bytes) -> float:
 
 
 class TractionInputs:
-    """Subscribe to, check and hold the locomotives' traction commands of one node."""
+    """
+    Subscribe to, check and hold the locomotives' traction commands of one node.
+
+    The per-vehicle command inputs differ in the class attributes below (message, topic,
+    check, setter, fail-safe value; :class:`train_dynamics.ros.wsp_inputs.WspInputs`).
+    """
+
+    #: message class, its type string, what the log calls it, the fail-safe value
+    MSG = Float64
+    MSG_TYPE = topics.FLOAT64
+    LABEL = 'traction command'
+    FAILSAFE = 0.0
+    #: True: a stale input takes the fail-safe whatever on_input_timeout says
+    ALWAYS_FAILSAFE = False
+    topic = staticmethod(topics.traction_topic)
+    decode = staticmethod(traction_command)
+
+    @staticmethod
+    def put(sim: TrainSimulator, value: Any, index: int) -> None:
+        """Hand ``value`` of vehicle ``index`` (0-based) to the simulator."""
+        sim.set_traction_command(value, index)
 
     def __init__(self, node: Node, qos: Any, reject: Reject,
                  notify: Callable[[], None] = lambda: None) -> None:
@@ -104,7 +124,7 @@ class TractionInputs:
         self._applied_tag = {}
         self._stale = set()
         self._zeroed = set()
-        wanted = {self._node.resolve_topic_name(topics.traction_topic(i + 1)): i
+        wanted = {self._node.resolve_topic_name(self.topic(i + 1)): i
                   for i in self._locos}
         for name in list(self._subs):
             if name not in wanted:
@@ -112,7 +132,7 @@ class TractionInputs:
         for name, i in wanted.items():
             if name not in self._subs:
                 cb = functools.partial(self._on_command, name, i)
-                self._subs[name] = self._node.create_subscription(Float64, name, cb, self._qos,
+                self._subs[name] = self._node.create_subscription(self.MSG, name, cb, self._qos,
                                                                   raw=True)
 
     @property
@@ -126,7 +146,7 @@ class TractionInputs:
 
     def _on_command(self, resolved: str, index: int, data: bytes) -> None:
         try:
-            value = traction_command(data)
+            value = self.decode(data)
         except ValueError as exc:
             reason, detail = exc.args
             self._reject(resolved, reason, detail)
@@ -149,7 +169,7 @@ class TractionInputs:
     def unanswered(self, t_ns: int) -> list[str]:
         """Lock-step: the command topics whose applied command does not answer ``t_ns``."""
         tags = self._applied_tag
-        return [topics.traction_topic(i + 1) for i in self._locos if tags.get(i) != t_ns]
+        return [self.topic(i + 1) for i in self._locos if tags.get(i) != t_ns]
 
     def connected(self) -> bool:
         """Return True if every locomotive's command topic has a publisher."""
@@ -158,7 +178,7 @@ class TractionInputs:
     @property
     def stale_names(self) -> list[str]:
         """Return the command topics of the stale locomotives (simulation lock held)."""
-        return [topics.traction_topic(i + 1) for i in sorted(self._stale)]
+        return [self.topic(i + 1) for i in sorted(self._stale)]
 
     @property
     def emergency(self) -> bool:
@@ -186,21 +206,22 @@ class TractionInputs:
         for i, raw in dirty.items():
             self._stale.discard(i)
             self._zeroed.discard(i)
-            sim.set_traction_command(values[i], i)
-            record(topics.traction_topic(i + 1), topics.FLOAT64, t_ns, raw)
+            self.put(sim, values[i], i)
+            record(self.topic(i + 1), self.MSG_TYPE, t_ns, raw)
         for i in sorted(stale - self._stale):
-            action = 'command set to 0' if emergency else 'holding the last command'
-            self._log.warning(f'traction command of coach_{i + 1} stale: nothing for more '
+            action = (f'set to {self.FAILSAFE:g}' if emergency or self.ALWAYS_FAILSAFE
+                      else 'holding the last one')
+            self._log.warning(f'{self.LABEL} of coach_{i + 1} stale: nothing for more '
                               f'than {timeout:g} s; {action}')
         for i in sorted(self._stale - stale):          # input_timeout raised or switched off
-            self._log.info(f'traction command of coach_{i + 1} no longer stale')
+            self._log.info(f'{self.LABEL} of coach_{i + 1} no longer stale')
         self._stale = stale
-        failsafe = stale if emergency else set()
+        failsafe = stale if emergency or self.ALWAYS_FAILSAFE else set()
         for i in sorted(self._zeroed - failsafe):       # the last command holds again
-            sim.set_traction_command(values[i], i)
-            record(topics.traction_topic(i + 1), topics.FLOAT64, t_ns, raws[i])
+            self.put(sim, values[i], i)
+            record(self.topic(i + 1), self.MSG_TYPE, t_ns, raws[i])
         for i in sorted(failsafe - self._zeroed):
-            sim.set_traction_command(0.0, i)
-            record(topics.traction_topic(i + 1), topics.FLOAT64, t_ns,
-                   serialize_message(Float64(data=0.0)))
+            self.put(sim, self.FAILSAFE, i)
+            record(self.topic(i + 1), self.MSG_TYPE, t_ns,
+                   serialize_message(self.MSG(data=self.FAILSAFE)))
         self._zeroed = set(failsafe)

@@ -56,6 +56,17 @@ class TractionEvent:
     command: float            # fraction in [-1, 1]: > 0 traction, < 0 dynamic brake
     topic: str                # relative topic name
     msg: Any = None           # the Float64 message of an input bag (None: a schedule)
+    kind: str = 'traction'    # 'wsp': a slide-protection valve state (Int8) of ``index``
+
+
+def _command(sim: TrainSimulator, e: TractionEvent) -> None:
+    """Hand a command event (traction, EP, slide-protection valve) to ``sim``."""
+    if e.kind == 'wsp':
+        sim.set_wsp_valve(int(e.command), e.index)
+    elif e.index == EP_INDEX:
+        sim.set_ep_command(e.command)
+    else:
+        sim.set_traction_command(e.command, e.index)
 
 
 @dataclass
@@ -260,9 +271,7 @@ def run_simulation(cfg, duration: float, inputs: InputSchedule, *,
               topics.CYLINDER_PER_COACH: lambda e: sim.set_cylinder_pressure(e.gauge, e.index)
               }[inputs.mode]
     brake_events = _DueEvents(events, setter, on_input)
-    traction = _DueEvents(inputs.traction, lambda e: sim.set_ep_command(e.command)
-                          if e.index == EP_INDEX else sim.set_traction_command(e.command, e.index),
-                          on_input)
+    traction = _DueEvents(inputs.traction, lambda e: _command(sim, e), on_input)
     k = 0
     head: float | None = None
     last_progress = time.monotonic()

@@ -27,7 +27,8 @@ from train_dynamics.physics.config.files import (KNOWN_NODE_NAMES, node_sections
                                                  unknown_sections, unknown_sections_message)
 from train_dynamics.physics.config.inputs import (ep_rejection, EP_VALUE_REASONS,
                                                   input_rejection, INPUT_VALUE_REASONS,
-                                                  traction_rejection, TRACTION_VALUE_REASONS)
+                                                  traction_rejection, TRACTION_VALUE_REASONS,
+                                                  wsp_rejection, WSP_VALUE_REASONS)
 from train_dynamics.physics.config.simconfig import load_param_file, SimConfig
 from train_dynamics.physics.config.spec import (ARRAY_KINDS, BOOL, check_value, ConfigError,
                                                 DOUBLE, DOUBLE_ARRAY, INTEGER, ParamSpec, STRING,
@@ -51,4 +52,5 @@ __all__ = [
     'read_param_file', 'read_param_sections', 'resolve_path', 'ROS_BUILTIN_PARAMETERS',
     'SIM_NODE_PARAMETERS', 'SimConfig', 'simulator_memory', 'simulator_params', 'STRING',
     'STRING_ARRAY', 'traction_rejection', 'TRACTION_VALUE_REASONS', 'unknown_sections',
-    'unknown_sections_message', 'validate_value', 'VEHICLE_PARAMETERS']
+    'unknown_sections_message', 'validate_value', 'VEHICLE_PARAMETERS', 'wsp_rejection',
+    'WSP_VALUE_REASONS']

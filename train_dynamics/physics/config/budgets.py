@@ -153,11 +153,13 @@ def sample_topics(cfg: Any) -> tuple[str, ...]:
     Return the JointState topics a run of ``cfg`` records at every output instant.
 
     The outputs of :func:`state_topics`, ``vehicle_motion``, ``vehicle_forces`` for a train
-    with external forces.
+    with external forces, ``wheelsets`` for a train with rotating wheelsets.
     """
     out = state_topics(cfg) + (topics.VEHICLE_MOTION_TOPIC,)
     if cfg.external_forces:
         out += (topics.VEHICLE_FORCES_TOPIC,)
+    if getattr(cfg, 'has_wheelsets', False):
+        out += (topics.WHEELSETS_TOPIC,)
     return out
 
 

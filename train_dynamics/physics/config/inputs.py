@@ -69,3 +69,18 @@ def traction_rejection(command: float) -> tuple[str, str] | None:
     if not -1.0 <= c <= 1.0:
         return 'out_of_range', f'command {c:g} outside [-1, 1]'
     return None
+
+
+#: why a slide-protection valve command is not used (counted per reason like the others)
+WSP_VALUE_REASONS = ('out_of_range',)
+
+
+def wsp_rejection(state: int) -> tuple[str, str] | None:
+    """
+    Return (reason, detail) if a ``coach_<i>/wsp/valve`` state is rejected, else None.
+
+    ``std_msgs/Int8``: 0 normal, 1 hold, 2 vent; anything else is ``out_of_range``.
+    """
+    if int(state) not in (0, 1, 2):
+        return 'out_of_range', f'valve state {int(state)} not 0 (normal), 1 (hold) or 2 (vent)'
+    return None

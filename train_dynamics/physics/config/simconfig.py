@@ -152,6 +152,13 @@ class SimConfig:
     track_curve_starts: list[float] = field(default_factory=list)         # [m]
     track_curve_ends: list[float] = field(default_factory=list)           # [m]
     track_curve_radii: list[float] = field(default_factory=list)          # [m]
+    track_adhesion_positions: list[float] = field(default_factory=list)   # [m] (live)
+    track_adhesion: list[float] = field(default_factory=list)             # mu_low [-] (live)
+    # wheel slide (physics/wheelset.py)
+    wheelsets: bool = False                           # rotating wheelsets, creep law
+    wsp: str = 'none'                                 # slide protection: none/builtin/external
+    wheelset_inertia: float = 440.0                   # vehicle field: J [kg m^2]
+    wheel_radius: float = 0.46                        # vehicle field: r [m]
     traction_schedule_times: list[float] = field(default_factory=list)    # [s], increasing
     traction_schedule_commands: list[float] = field(default_factory=list)  # [-1, 1]
     ep_schedule_times: list[float] = field(default_factory=list)          # [s], increasing
@@ -249,7 +256,14 @@ class SimConfig:
         """Return the line (:class:`~train_dynamics.physics.track.Track`) of the parameters."""
         return track.Track.from_lists(self.initial_position, self.track_gradient_positions,
                                       self.track_gradients, self.track_curve_starts,
-                                      self.track_curve_ends, self.track_curve_radii)
+                                      self.track_curve_ends, self.track_curve_radii,
+                                      self.track_adhesion_positions, self.track_adhesion)
+
+    @property
+    def has_wheelsets(self) -> bool:
+        """Return True when the vehicles run on rotating wheelsets (``wheelsets``, implied)."""
+        return bool(self.wheelsets or self.wsp != 'none'
+                    or any(a < track.DRY_ADHESION for a in self.track_adhesion))
 
     def fill_table(self) -> tuple[list[float], list[float]]:
         """Return the cylinder filling characteristic: times [s], p / p_max."""
@@ -288,6 +302,9 @@ class SimConfig:
                 'publish_rate / integration_step) per vehicle; raise brake_propagation_speed, '
                 'integration_step or publish_rate, or shorten the train')
         self._check_work()
+        if self.has_wheelsets and self.integration_tolerance > 0.0:
+            raise ConfigError('wheelsets (wheelsets, wsp or a track_adhesion below dry) need '
+                              'the fixed step: set integration_tolerance 0')
         # the uniform train's vehicles (and the defaults of a consist's)
         check_friction_below_stiffness(self.values)
         check_traction_power(self.values)

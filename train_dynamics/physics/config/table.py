@@ -395,6 +395,34 @@ _PARAMS = [
     ParamSpec('track_curve_radii', [], DOUBLE_ARRAY,
               'Curve radii [m]; Roeckl resistance 650/(R-55) per mille (R >= 300 m), '
               '500/(R-30) below.', low=100.0, high=1.0e6),
+    ParamSpec('track_adhesion_positions', [], DOUBLE_ARRAY,
+              'Track positions [m] (increasing) where a rail condition starts; dry '
+              '(Curtius-Kniffler, 0.33 at rest) before the first. Changeable while running '
+              '(with track_adhesion, in one batch).', low=-1.0e7, high=1.0e7, dynamic=True),
+    ParamSpec('track_adhesion', [], DOUBLE_ARRAY,
+              'Available wheel-rail adhesion at low speed [-] from each '
+              'track_adhesion_positions entry on (UIC 541-05 low adhesion: 0.02-0.10); falls '
+              'with speed as Curtius-Kniffler; averaged over each vehicle; limits the '
+              'wheelsets, traction and dynamic braking. Changeable while running.',
+              low=0.0, high=1.0, low_exclusive=True, dynamic=True),
+    # Wheel slide and slide protection (physics/wheelset.py).
+    ParamSpec('wheelsets', False, BOOL,
+              'Rotating wheelsets with a creep-force law per vehicle: the brake acts on the '
+              'wheel, the rail on the vehicle through the creep force, wheels can slide and '
+              'lock. Implied by wsp other than none and by any track_adhesion below dry. '
+              'Fixed-step integration only.'),
+    ParamSpec('wsp', 'none', STRING,
+              'Wheel-slide protection, per vehicle a hold and a vent valve on the brake '
+              'cylinder: none, builtin (the reference controller on slip and deceleration '
+              'thresholds) or external (input coach_<i>/wsp/valve).',
+              choices=('none', 'builtin', 'external')),
+    ParamSpec('wheelset_inertia', 440.0, DOUBLE,
+              'Wheelsets: rotational inertia of all the wheelsets of the vehicle [kg m^2] '
+              '(about 110 per passenger wheelset with brake discs, a representative figure; '
+              'four wheelsets).', low=1.0, high=1.0e5, vehicle='wheelset_inertia'),
+    ParamSpec('wheel_radius', 0.46, DOUBLE,
+              'Wheelsets: wheel radius [m] (920 mm new passenger wheels).', low=0.2, high=1.0,
+              vehicle='wheel_radius'),
     ParamSpec('traction_schedule_times', [], DOUBLE_ARRAY,
               'Offline runs without a traction bag: times [s] (increasing) from which every '
               'locomotive holds the matching traction_schedule_commands entry; refused for a '

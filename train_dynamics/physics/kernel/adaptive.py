@@ -20,7 +20,7 @@ import math
 
 import numpy as np
 
-from train_dynamics.physics.kernel import brakes, traction
+from train_dynamics.physics.kernel import brakes, traction, wheelset
 from train_dynamics.physics.kernel.active_set import active_set_step
 from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_couplers_work,
@@ -243,11 +243,12 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held):
 
 @jit
 def advance_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof,
-                     fbt, tet):
+                     aprof, fbt, tet):
     """
     Advance the brake system ``n_ticks`` ticks and the chain with error control; in place.
 
-    Same arrays as :func:`advance_chain`, plus the tick ring ``fbt``, ``tet`` (at least
+    Same arrays as :func:`advance_chain` (the track's adhesion at the chain's last landing,
+    for traction; no wheelsets), plus the tick ring ``fbt``, ``tet`` (at least
     OPTION.LAND + 1 rows of N). The brake system and the inputs run on the fixed tick
     PARAM.H exactly as in the fixed-step kernel; the chain follows with error-controlled
     steps (:func:`_chain_to`) and lands on every multiple of OPTION.LAND ticks (the output
@@ -272,6 +273,8 @@ def advance_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gpr
         iv[CACHE.WS_VALID] = 1
     land = iv[OPTION.LAND]
     for k in range(n_ticks):
+        if iv[OPTION.ADHESION]:
+            wheelset.track_adhesion(coach, aprof)
         _brake_tick(coach, sc, iv, ring, tables, ws, fbt, tet)
         if iv[CLOCK.TICK] % land == 0:
             status = _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held)

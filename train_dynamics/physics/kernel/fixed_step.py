@@ -17,7 +17,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from train_dynamics.physics.kernel import brakes
+from train_dynamics.physics.kernel import brakes, wheelset
 from train_dynamics.physics.kernel.active_set import active_set_step
 from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_couplers_work,
@@ -90,7 +90,7 @@ def _note_standstill(started_held, coach, iv, ws):
 
 
 @jit
-def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof):
+def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof, aprof):
     """
     Advance brakes and chain ``n_steps`` fixed steps, in place; return (steps, status).
 
@@ -99,14 +99,20 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
     float and integer scalars (constants, totals, clocks, counters); fill, rel:
     (2, L) cylinder tables (times [s], p/p_max); ring: head-pressure history [Pa]; ws:
     :func:`make_workspace`; gprof, cprof: (3, K) gradient and curve-resistance profiles
-    (breakpoints, values, integrals; ``track``), used when OPTION.TRACK is set. The layouts are
+    (breakpoints, values, integrals; ``track``), used when OPTION.TRACK is set; aprof: (3, K)
+    the track's adhesion profile (OPTION.ADHESION; :mod:`.wheelset`). The layouts are
     in :mod:`.layout`. Each step: the brake system to the step's end,
     the braking force over the step (trapezoid), one ROS2 step with the active set of held
     coaches, the fault check, then the new state is accepted and the work booked. At a
     standstill with unchanged inputs the active-set step repeats the last one exactly and is
-    skipped (:func:`_repeats_standstill`). With PARAM.MRTOL > 0 (``multirate_tolerance``) the
-    groups of vehicles around couplers over that tolerance are re-integrated in sub-steps
-    before the fault check (:func:`.multirate.refine`).
+    skipped (:func:`_repeats_standstill`). With wheelsets (OPTION.WHEELS) the slide
+    protection acts on the cylinders after the brake system and the wheelsets' creep force
+    replaces the braking force (:mod:`.wheelset`). With PARAM.MRTOL > 0
+    (``multirate_tolerance``) the groups of vehicles around couplers over that tolerance are
+    re-integrated in sub-steps before the fault check (:func:`.multirate.refine`); with
+    wheelsets too, the creep force of the long step acts on them as a constant force over
+    the sub-steps, as the braking force does (the wheel speeds are integrated over the long
+    step).
     """
     gh = GAMMA * sc[PARAM.H]
     held = np.empty(coach.shape[1], dtype=np.bool_)
@@ -121,9 +127,18 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
         invalidate_caches(ws)
         iv[CACHE.STEADY] = 0
         iv[CACHE.WS_VALID] = 1
+    wheels = iv[OPTION.WHEELS]
     for step in range(n_steps):
+        if iv[OPTION.ADHESION]:
+            wheelset.track_adhesion(coach, aprof)
+        if wheels:
+            ws[WORK.PCYL0] = coach[STATE.PCYL]
         brake_system_step(coach, sc, iv, ring, tables, ws)
+        if wheels:
+            wheelset.wsp_valves(coach, sc, iv, ws)
         braking_force_trapezoid(coach, sc, ws)
+        if wheels:
+            wheelset.wheelset_substep(coach, sc, ws)
         if iv[OPTION.EXT]:
             external_step(coach, sc, iv, gprof, cprof, ws)
         started_held = _all_held(coach)
@@ -141,6 +156,8 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
         if iv[OPTION.EXT]:
             sc[TOTAL.WB] += accept_external(sc[PARAM.H], coach, sc, held, ws)
         sc[TOTAL.WB] += accept_step(coach, held, extra_work, ws, iv[OPTION.EXT])
+        if wheels:
+            wheelset.book_wheelsets(coach, sc, ws)
         # the couplers at the new state: their work over the step, and the next step's start
         sc[TOTAL.WC] += eval_couplers_work(coach, cpl, iv[OPTION.MODEL], sc[PARAM.U], gh,
                                            ws) + work_fix

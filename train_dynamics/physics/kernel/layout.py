@@ -89,6 +89,7 @@ DERIVED_VEHICLE_ROWS = [
     'DELAY',        # brake-pipe delay of the vehicle [steps]
     'BRAKE_GAIN',   # friction brakes: normal force per cylinder pressure K1 [N/Pa]
     'BRAKE_OFF',    # friction brakes: normal force lost to the return springs K0 [N]
+    'WHEEL_MASS',   # wheelsets: reduced mass of the wheelset J / r^2 [kg]
 ]
 #: then one row per per-vehicle field that the kernel reads as is, in table order: the
 #: ``row`` of its ParamSpec (config/table.py, :data:`KERNEL_ROWS`: name, unit, range there)
@@ -102,17 +103,28 @@ STATE = _group('StateRows', [
     'FB_AVAIL',     # braking force available at the end of the last step, eq. (13) [N]
     'HELD',         # 1.0 while the brake holds the vehicle at rest
     'T_EFF',        # effective (rate-limited) traction command at the end of the last step
+    'WHEEL',        # wheelsets: wheel peripheral speed [m/s] (>= 0, in the motion's sense)
+    'WDECEL',       # wheelsets: wheel deceleration over the last step [m/s^2]
+    'WSP_CUT',      # 1.0 while the slide-protection valves keep the cylinder below its input
 ], after=(VEHICLE,))
 INPUT = _group('InputRows', [
     'PIPE',         # local pipe pressure (pipe_per_coach), gauge [Pa]
     'CYL',          # cylinder pressure (cylinder_per_coach, or the pneumatic brake's) [Pa]
     'T_CMD',        # traction command in [-1, 1]
+    'VALVE',        # slide-protection valve (wsp external): 0 normal, 1 hold, 2 vent
 ], after=(VEHICLE, STATE))
 OUTPUT = _group('OutputRows', [
     'FB_APPLIED',   # |braking force| applied over the last step [N]
     'F_TRAC',       # traction / dynamic-brake force at the step's end [N, fwd > 0]
     'F_RES',        # running + curve resistance at the step's end [N, fwd > 0]
     'F_GRADE',      # gradient force at the step's end [N, fwd > 0]
+    'ADH_LOW',      # track's available adhesion at low speed, mean over the vehicle [-]
+    'F_CREEP',      # wheelsets: creep force of the last step [N, positive retarding]
+    'ADH_USED',     # wheelsets: creep force / axle load of the last step [-]
+    'ADH_AVAIL',    # wheelsets: available adhesion at the vehicle's speed [-]
+    'VALVE',        # wheelsets: slide-protection valve state of the last step (0, 1, 2)
+    'SLIDE_T',      # wheelsets: time the wheels slid since t = 0 [s]
+    'SLIDE_X',      # wheelsets: distance the vehicle ran on sliding wheels since t = 0 [m]
 ], after=(VEHICLE, STATE, INPUT))
 #: all rows of ``coach``; VEHICLE first, so ``coach[len(VEHICLE):]`` is what reset() rewrites
 COACH = range(len(VEHICLE) + len(STATE) + len(INPUT) + len(OUTPUT))
@@ -169,6 +181,8 @@ TOTAL = _group('TotalSlots', [
     'WT',           # work of traction and dynamic braking since t = 0 [J]
     'WG',           # work of gravity on gradients since t = 0 [J]
     'PEXT',         # impulse of all external forces since t = 0 [N s]
+    'WWB',          # wheelsets: work of the brakes at the wheels since t = 0 [J]
+    'WCREEP',       # wheelsets: work of the creep forces (wheel-rail contact) since t = 0 [J]
 ], after=(PARAM,))
 SCALAR_INPUT = _group('ScalarInputSlots', [
     'HEAD',         # head-end pipe pressure (pipe_head), gauge [Pa]
@@ -191,6 +205,9 @@ OPTION = _group('OptionSlots', [
     'TRACK',        # 1: the line has gradients or curves
     'LAND',         # the error-controlled chain's landing period in ticks (one output period)
     'BUDGET',       # largest number of error-controlled steps per landing period
+    'WHEELS',       # 1: rotating wheelsets with the creep law (kernel/wheelset.py)
+    'WSP',          # slide protection: wheelset.WSP_NONE, WSP_BUILTIN or WSP_EXTERNAL
+    'ADHESION',     # 1: the track has an adhesion profile (OUTPUT.ADH_LOW per step)
 ])
 CLOCK = _group('ClockSlots', [
     'TICK',         # brake-system ticks done (fixed step PARAM.H): the simulator's steps
@@ -272,6 +289,10 @@ WORK = _group('WorkRows', [
     # reset (written by eval_couplers_work, read by observables; reset() zeroes them)
     'FHI',          # largest tension of coupler j [N] (>= 0; N-1 used)
     'FLO',          # largest compression of coupler j, as a force [N] (<= 0)
+    # wheelsets (wheelset.py)
+    'PCYL0',        # cylinder pressures at the step's start [Pa]
+    'UMEAN',        # mean wheel speed over the step [m/s]
+    'VABS',         # |speed| of the vehicle at the step's start [m/s]
     # multirate (multirate.py)
     'ERR',          # local error of coupler j's force over the step [N] (scratch)
     'NSUB',         # sub-steps coupler j took since reset (0: only long steps)

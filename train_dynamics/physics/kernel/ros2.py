@@ -32,8 +32,9 @@ import numpy as np
 
 from train_dynamics.physics.kernel import couplers, traction
 from train_dynamics.physics.kernel.compiler import jit
-from train_dynamics.physics.kernel.layout import COUPLER, STATE, VEHICLE, WORK
+from train_dynamics.physics.kernel.layout import COUPLER, OUTPUT, STATE, VEHICLE, WORK
 from train_dynamics.physics.kernel.track import profile_mean
+from train_dynamics.physics.kernel.traction import CK_AT_REST as DRY_ADHESION
 
 GAMMA = 1.0 + 1.0 / np.sqrt(2.0)
 
@@ -48,7 +49,8 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
     the gradient -m g (mean gradient over the vehicle) / 1000 (``track``; at stage 1 the
     WORK.GR1 that :func:`external_step` left, the same position), the speed-dependent
     resistance d (B |v| + C v^2) against the friction's direction d (Davis; A is with the
-    brake), traction (``traction.traction_force``), and E = gradient + traction -
+    brake), traction (``traction.traction_force``; its adhesion scaled by the track's,
+    OUTPUT.ADH_LOW / DRY_ADHESION, where the rail is not dry), and E = gradient + traction -
     resistance. At stage 2 a vehicle that has not moved (a held one) keeps stage 1's gradient
     force. (Written out here, not in a called function: a per-vehicle call cost the step
     more than the forces themselves.)
@@ -88,10 +90,14 @@ def _stage_external(coach, x, v, h, ws, gx, gv, gc, track, row_gr, row_rd, row_t
         tr = 0.0
         teff = t_eff[i]
         if teff != 0.0:
+            mu0 = coach[VEHICLE.T_ADH, i]
+            low = coach[OUTPUT.ADH_LOW, i]
+            if low != DRY_ADHESION:     # the track's adhesion scales the vehicle's
+                mu0 *= low / DRY_ADHESION
             tr = traction.traction_force(
                 teff, vi, coach[VEHICLE.T_FORCE, i], coach[VEHICLE.T_POWER, i],
                 coach[VEHICLE.DB_FORCE, i], coach[VEHICLE.DB_POWER, i], coach[VEHICLE.DB_FADE, i],
-                coach[VEHICLE.T_ADH, i], coach[VEHICLE.WEIGHT, i])
+                mu0, coach[VEHICLE.WEIGHT, i])
         out_gr[i] = gr
         out_rd[i] = rd
         out_tr[i] = tr
