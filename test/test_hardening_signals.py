@@ -36,6 +36,24 @@ def wait_for(predicate, timeout: float, what: str) -> None:
         time.sleep(0.05)
 
 
+def signal_when(proc: subprocess.Popen, signum: int, ready) -> tuple[str, str, float]:
+    """
+    Call ``ready()`` (it waits until the run is where the signal should hit), then signal.
+
+    Return the process's (stdout, stderr) and the seconds from the signal to its exit; the
+    process is killed if anything fails on the way.
+    """
+    try:
+        ready()
+        t0 = time.monotonic()
+        proc.send_signal(signum)
+        out, err = proc.communicate(timeout=60)
+        return out, err, time.monotonic() - t0
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+
+
 def staged_bytes(parent: Path, name: str) -> int:
     return sum(f.stat().st_size for d in parent.glob(f'.{name}.partial-*')
                for f in d.rglob('*') if f.is_file())
@@ -45,16 +63,9 @@ def staged_bytes(parent: Path, name: str) -> int:
 def test_simulate_signal_stops_within_a_second_and_keeps_the_bag(tmp_path, signum, code):
     out = tmp_path / 'run'
     proc = offline('simulate', '--params', PAPER, '--duration', 100000, '--output', out, '-q')
-    try:
-        # running: the staged bag grows (past the kernels' loading or compiling)
-        wait_for(lambda: staged_bytes(tmp_path, 'run') > 2_000_000, 600, 'a growing bag')
-        t0 = time.monotonic()
-        proc.send_signal(signum)
-        _, err = proc.communicate(timeout=60)
-        took = time.monotonic() - t0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+    # running: the staged bag grows (past the kernels' loading or compiling)
+    _, err, took = signal_when(proc, signum, lambda: wait_for(
+        lambda: staged_bytes(tmp_path, 'run') > 2_000_000, 600, 'a growing bag'))
     assert proc.returncode == code, err
     assert took < 1.0, took
     lines = err.strip().splitlines()
@@ -106,16 +117,12 @@ def test_simulate_at_a_tolerance_no_step_meets_stops_within_a_second(tmp_path, s
         f'    integration_max_steps: {max_period_steps(3)}'))
     out = tmp_path / 'run'
     proc = offline('simulate', '--params', params, '--duration', 100000, '--output', out, '-q')
-    try:
+
+    def ready():
         wait_for(lambda: staged_bytes(tmp_path, 'run') > 200_000, 600, 'a growing bag')
         time.sleep(1.0)                        # braking from t = 1 s: every step rejected
-        t0 = time.monotonic()
-        proc.send_signal(signum)
-        _, err = proc.communicate(timeout=60)
-        took = time.monotonic() - t0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+
+    _, err, took = signal_when(proc, signum, ready)
     assert proc.returncode == code, err
     assert took < 1.5, took
     hist = load_history(out)                   # closed and readable, whole samples
@@ -146,20 +153,17 @@ def test_sim_node_at_a_tolerance_no_step_meets_stops_within_a_second(tmp_path, s
         [sys.executable, '-m', 'train_dynamics.ros.sim_node', '--ros-args', '--params-file',
          str(params), '-p', f'record_bag:={bag}'],
         stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env, cwd=ROOT)
-    try:
-        lines = []
+    lines = []
+
+    def ready():
         for line in proc.stdout:
             lines.append(line)
             if 'started:' in line:
                 break
         time.sleep(3.0)                      # the emergency is on: the kernel spins
-        t0 = time.monotonic()
-        proc.send_signal(signum)
-        out = ''.join(lines) + proc.communicate(timeout=60)[0]
-        took = time.monotonic() - t0
-    finally:
-        if proc.poll() is None:
-            proc.kill()
+
+    rest, _, took = signal_when(proc, signum, ready)
+    out = ''.join(lines) + rest
     assert proc.returncode == 0, out
     assert took < 1.0, (took, out)
     assert 'Traceback' not in out, out
