@@ -28,6 +28,23 @@ def test_gradient_force_is_averaged_over_the_vehicle_length():
     assert np.max(np.abs(np.diff(f))) < m * G * 10e-3 * 0.011 / length * 1.01
 
 
+def test_profile_mean_far_from_the_first_position():
+    """A span inside one piece has that piece's value exactly, a crossing span its mean."""
+    from train_dynamics.physics.kernel.track import profile_mean
+    t = track.Track.from_lists(0.0, adhesion_positions=[-1.0e6, 1.0e3], adhesion=[0.05, 0.1])
+    ax, av, ac = t.adhesion_profile
+    rng = np.random.default_rng(3)
+    for front in rng.uniform(0.0, 975.0, 500):
+        # the running integral from 1000 km back would be off by ~1e-11 relative here
+        assert profile_mean(front - 25.0, front, ax, av, ac) == av[0]
+        assert track.DRY_ADHESION + profile_mean(front - 25.0, front, ax, av, ac) <= 0.05 * (
+            1.0 + 1e-15)
+    # 10 m on 0.05, 15 m on 0.1: (10 * 0.05 + 15 * 0.1) / 25 = 0.08
+    assert track.DRY_ADHESION + profile_mean(990.0, 1015.0, ax, av, ac) == pytest.approx(
+        0.08, rel=1e-9)
+    assert profile_mean(-2.0e6, -1.5e6, ax, av, ac) == 0.0         # before the first: dry
+
+
 def test_uphill_positive_gradient_pulls_back_and_downhill_pushes():
     t = track.Track.from_lists(0.0, [-1000.0, 0.0], [5.0, -8.0])
     grade, _ = t.forces([500.0, -200.0], [20.0, 20.0], [1000.0, 1000.0], G)

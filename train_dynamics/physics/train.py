@@ -38,7 +38,7 @@ from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, 
 from train_dynamics.physics.kernel.resistance import running_resistance
 from train_dynamics.physics.kernel.step import (available_braking_force, make_workspace, OK,
                                                 STATUS_TEXT)
-from train_dynamics.physics.kernel.track import profile_integral
+from train_dynamics.physics.kernel.track import profile_mean
 from train_dynamics.physics.kernel.traction import traction_force
 from train_dynamics.physics.observables import TrainBalances, TrainOutputs
 from train_dynamics.physics.resistance import equivalent_mass
@@ -391,8 +391,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         out = np.empty(self.n)
         for i in range(self.n):
             lo, hi = front[i] - length[i], front[i]
-            out[i] = wheelset.DRY_ADHESION + (
-                profile_integral(hi, *self.aprof) - profile_integral(lo, *self.aprof)) / (hi - lo)
+            out[i] = wheelset.DRY_ADHESION + profile_mean(lo, hi, *self.aprof)
         return out
 
     def set_wsp_valve(self, state: int, index: int) -> None:
