@@ -483,10 +483,11 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'lockstep: the controller inputs each output period waits for. brake: every '
               'active brake-input topic of brake_input, answered by a message stamped with '
               "the output's stamp; traction: the command topic of every locomotive that "
-              'takes one, ep: brake_ep/command (brake_system ep or ecp), each answered by one '
-              'command received after the output was published (std_msgs/Float64 has no '
-              'stamp). A listed input the train does not have is skipped (logged).',
-              choices=('brake', 'traction', 'ep'), dynamic=True, min_items=1),
+              'takes one, ep: brake_ep/command (brake_system ep or ecp), wsp: every '
+              "vehicle's coach_<i>/wsp/valve (wsp external), each answered by one "
+              'command received after the output was published (std_msgs/Float64 and Int8 '
+              'have no stamp). A listed input the train does not have is skipped (logged).',
+              choices=('brake', 'traction', 'ep', 'wsp'), dynamic=True, min_items=1),
     ParamSpec('input_timing', 'arrival', STRING,
               'arrival: a brake input takes effect at the next integration step after it '
               'arrives; stamp: at its header stamp (simulation time), exactly with '
