@@ -20,7 +20,8 @@ stamp in the past; without exact inputs, its step done) takes effect at once and
 :attr:`BrakeInputs.late`; it is recorded at the instant it acted. The header stamps of the
 values the simulator holds tell the lock-step whether every input has answered an output
 (:meth:`BrakeInputs.answered`; with the traction and EP commands and the WSP valves when
-``lockstep_inputs`` declares them: :meth:`BrakeInputs.unanswered`). Active input topics with more than one publisher are found by the graph scan and warned about
+``lockstep_inputs`` declares them: :meth:`BrakeInputs.unanswered`). Active input topics
+with more than one publisher are found by the graph scan and warned about
 (:attr:`BrakeInputs.multiple_publishers`). Rejected and counted per
 reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning naming the topic):
 ``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute
