@@ -14,6 +14,7 @@ import numpy as np
 import pytest
 
 from train_dynamics import topics
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.recording import cdr
 from train_dynamics.recording.bags import bag_info, BagRecorder, read_topics
 from train_dynamics.recording.outputs import OutputEncoder, OutputRows
@@ -35,6 +36,7 @@ class _State:
         self.y = self.x[:-1] - self.x[1:]
         self.ydot = self.v[:-1] - self.v[1:]
         self.coupler_force = rng.normal(size=n - 1) * 1e5
+        self.cfg = SimConfig()          # the outputs' options (the exact wheel speed)
 
 
 def _raw(bag):

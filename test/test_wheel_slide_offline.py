@@ -53,3 +53,48 @@ def test_valves_from_an_input_bag_and_wheelsets_recorded(tmp_path):
     # the least (the brake of coach 1 is off)
     assert wheels.effort[0] < 0.05 * wheels.effort[1]
     assert 0.0 < wheels.velocity[1] < 20.0
+
+
+def test_speed_sensor_quantisation_and_noise_in_the_wheelsets_output(tmp_path):
+    """
+    ``wheel_speed_resolution`` and ``wheel_speed_noise``: the recorded wheel speeds.
+
+    A coasting train (no brake: every wheel rolls at its vehicle's speed, within the
+    rolling creep): each recorded speed is a multiple of the resolution, its error against
+    the vehicle's speed has the mean 0 and the standard deviation sqrt(noise^2 + res^2 / 12)
+    of a noise rounded to a grid (within the sampling error of 303 samples x 3), and two
+    runs with the same seed record the same speeds, another seed other ones.
+    """
+    res, noise = 0.02, 0.05
+
+    def run(seed, name):
+        p = tmp_path / f'{name}.yaml'
+        p.write_text(f"""train_dynamics:
+  ros__parameters:
+    num_coaches: 3
+    initial_speed: 20.0
+    wheelsets: true
+    wheel_speed_resolution: {res}
+    wheel_speed_noise: {noise}
+    wheel_speed_seed: {seed}
+""")
+        out = tmp_path / name
+        assert cli.main(['simulate', '--params', str(p), '--duration', '3',
+                         '--output', str(out), '-q']) == 0
+        got = {}
+        for topic, t_ns, msg in read_topics(str(out), [topics.WHEELSETS_TOPIC,
+                                                       topics.VEHICLE_MOTION_TOPIC]):
+            got.setdefault(topic, []).append(np.array(msg.velocity))
+        return np.array(got[topics.WHEELSETS_TOPIC]), np.array(got[topics.VEHICLE_MOTION_TOPIC])
+
+    u, v = run(7, 'a')
+    steps = u / res
+    np.testing.assert_allclose(steps, np.round(steps), atol=1e-9)
+    err = (u - v).ravel()
+    sigma = np.sqrt(noise ** 2 + res ** 2 / 12.0)
+    assert abs(np.mean(err)) < 4.0 * sigma / np.sqrt(err.size)
+    assert np.std(err) == pytest.approx(sigma, rel=0.15)
+    again, _ = run(7, 'b')
+    np.testing.assert_array_equal(again, u)
+    other, _ = run(8, 'c')
+    assert np.mean(other != u) > 0.5

@@ -168,14 +168,56 @@ def test_multirate_with_wheelsets_balances():
     """
     Wheelsets with ``multirate_tolerance``: the creep force is a constant force over sub-steps.
 
-    Low adhesion, builtin WSP (the valves cycle, the couplers' forces jump): the refined
+    Low adhesion, builtin WSP, coaches of 45 and 90 t alternating (the valves cycle, the
+    couplers' forces jump; equal coaches would brake alike and load no coupler): the refined
     groups (counted) keep the momentum balance to round-off and the energy balance of
     vehicles and wheelsets; the stop differs from the fixed step's by less than 1 %.
     """
-    fixed = _stop(_low(wsp='builtin', num_coaches=6))
-    sim = _low(wsp='builtin', num_coaches=6, multirate_tolerance=1e-4)
+    masses = [45000.0, 90000.0] * 3
+    fixed = _stop(_low(wsp='builtin', masses=masses))
+    sim = _low(wsp='builtin', masses=masses, multirate_tolerance=1e-4)
     r = _stop(sim)
     assert sim.integration_stats['mr_groups'] > 0
     assert abs(r['energy_lost'] - r['work']) <= 0.005 * r['initial_energy']
     assert r['momentum_change'] == pytest.approx(r['impulse'], abs=1e-9 * r['momentum'])
     assert r['distance'] == pytest.approx(fixed['distance'], rel=0.01)
+
+
+@pytest.mark.parametrize('material', ['paper', 'disc'])
+def test_wheelset_solve_against_bisection(material):
+    """
+    The kernel's Newton sub-step against the reference's 60 bisections of the same equation.
+
+    Rolling, sliding and locking wheels (brake from 0 to 3 times the adhesion), from a
+    good, a poor and a far first guess: the wheel speed within the solver's tolerance
+    U_TOL (1 + v) of the root, the creep force within its residual of the creep law at that
+    speed, and the backward-Euler balance J / r^2 (u1 - u0) = h (F_c - F_b) within d U_TOL
+    (d its slope).
+    """
+    from train_dynamics.physics import friction
+    from train_dynamics.physics.kernel import wheelset as kw
+    code = friction.MATERIAL_CODES[material]
+    h, jr, load, g, blocks, rho = 0.002, 2079.0, 441450.0, 9.81, 8.0, 0.55
+    for v in (0.3, 5.0, 44.4):
+        mu = wsl.available_adhesion(v, 0.05 if v < 10.0 else wsl.DRY_ADHESION)
+        for share in (0.0, 0.3, 0.9, 1.1, 3.0):     # brake / (mu N) at the wheel
+            fb_paper = share * mu * load
+            normal = fb_paper / (friction.material_friction(code, v, 1.0, g) * rho) \
+                if code != friction.PAPER else 0.0
+
+            def brake(u, fb_paper=fb_paper, normal=normal):
+                return kw.wheel_brake(u, fb_paper, code, normal, blocks, rho, g)
+
+            for u0 in (v, 0.999 * v, 0.5 * v, 0.0):
+                ref = wsl.wheelset_step(u0, v, h, jr, load, mu, brake)
+                for guess in (ref[0], u0, v + 1.0):
+                    u1, fc, fb = kw.wheelset_solve(u0, v, h, jr, load, mu, fb_paper, code,
+                                                   normal, blocks, rho, g, guess)
+                    tol = kw.U_TOL * (1.0 + v)
+                    f, slope = kw.creep_and_slope(v - u1, v, mu)
+                    d = jr + h * load * slope
+                    assert abs(u1 - ref[0]) <= 2.0 * tol, (v, share, u0, guess)
+                    if u1 > 0.0:
+                        assert abs(jr * (u1 - u0) - h * (fc - fb)) <= 1.01 * d * tol
+                        assert abs(fc - load * f) * h <= 1.01 * d * tol
+                        assert fb == pytest.approx(brake(u1), rel=1e-6)

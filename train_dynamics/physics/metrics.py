@@ -86,6 +86,9 @@ FLAT_KEYS = ('max_tension', 'max_tension_coupler', 'max_tension_time', 'max_comp
              'brake_energy', 'coupler_work', 'coupler_dissipated', 'blocking_count',
              'max_blocking_overrun', 'impact_count', 'max_impact_speed', 'limit_crossings',
              'samples', 't_end')
+#: the wheelsets' metrics of :meth:`RunMetrics.flat` (a simulator with rotating wheelsets)
+SLIDING_KEYS = ('max_sliding_time', 'max_sliding_time_vehicle', 'max_sliding_distance',
+                'max_sliding_distance_vehicle')
 
 
 def _per_coupler(value: Any, m: int, default: float) -> np.ndarray:
@@ -434,10 +437,8 @@ class RunMetrics:
             out['max_compression_every_step'] = float(np.max(self.envelope[1]))
         if self.sliding is not None:
             it, ix = int(np.argmax(self.sliding[0])), int(np.argmax(self.sliding[1]))
-            out.update({'max_sliding_time': float(self.sliding[0][it]),
-                        'max_sliding_time_vehicle': it + 1,
-                        'max_sliding_distance': float(self.sliding[1][ix]),
-                        'max_sliding_distance_vehicle': ix + 1})
+            out.update(zip(SLIDING_KEYS, (float(self.sliding[0][it]), it + 1,
+                                          float(self.sliding[1][ix]), ix + 1)))
         if self.brake_onset is not None and self.stop_time is not None:
             out['stopping_time_from_brake'] = self.stop_time - self.brake_onset[0]
             out['stopping_distance_from_brake'] = self.stop_x - self.brake_onset[1]
@@ -487,6 +488,8 @@ class RunMetrics:
             'max_compression_every_step', 'max_deceleration',
             'max_jerk', 'max_jerk_vehicle', 'blocking_count', 'impact_count',
             'limit_crossings')]
+        # wheelsets: the longest sliding time and distance so far, with their vehicles
+        values += [(k, _fmt(f[k])) for k in SLIDING_KEYS if k in f]
         cross = self.crossings()
         if not cross:
             return 'OK', 'no limit crossed', values

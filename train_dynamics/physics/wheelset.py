@@ -180,6 +180,27 @@ class BrakeTest:
                 'sliding_distance': slide_distance}
 
 
+def speed_sensor(u: np.ndarray, t_ns: int, resolution: float, noise: float,
+                 seed: int) -> np.ndarray:
+    """
+    Return the wheel speeds [m/s] a speed sensor reports for the true speeds ``u`` at ``t_ns``.
+
+    u + noise n (n standard normal, one draw per vehicle from a generator seeded with
+    (seed, t_ns): the same output time gives the same draws, in the node and offline), held
+    >= 0, then rounded to the nearest multiple of ``resolution`` (a toothed wheel counted
+    over a gate time: resolution = 2 pi r / (teeth gate)); 0 and 0: ``u`` itself.
+    """
+    if noise == 0.0 and resolution == 0.0:
+        return u
+    out = np.asarray(u, dtype=float)
+    if noise > 0.0:
+        draw = np.random.default_rng((int(seed), int(t_ns))).standard_normal(out.shape)
+        out = np.maximum(out + noise * draw, 0.0)
+    if resolution > 0.0:
+        out = resolution * np.floor(out / resolution + 0.5)
+    return out
+
+
 def adhesion_limited_distance(v0: float, mu_low: float, g: float = 9.81, n: int = 2001) -> float:
     """Return the ideal stopping distance [m] at the available adhesion: int v dv / (mu(v) g)."""
     speeds = np.linspace(0.0, v0, n)

@@ -39,6 +39,7 @@ from typing import Any
 from train_dynamics import topics
 from train_dynamics.physics.config.budgets import (has_ep_state, has_reservoirs, radio_remotes,
                                                    state_topics)
+from train_dynamics.physics.wheelset import speed_sensor
 from train_dynamics.recording.cdr import (fluid_pressure_layout, joint_state_layout,
                                           JointStateEncoder)
 
@@ -134,18 +135,23 @@ class OutputEncoder:
         return self._coaches(t_ns, *self.forces_fields(sim))
 
     @staticmethod
-    def wheelsets_fields(sim: Any) -> tuple[Any, Any, Any]:
+    def wheelsets_fields(t_ns: int, sim: Any) -> tuple[Any, Any, Any]:
         """
-        Return the fields of ``wheelsets``: JointState ``coach_1..N``.
+        Return the fields of ``wheelsets`` at ``t_ns``: JointState ``coach_1..N``.
 
-        position = available adhesion [-], velocity = wheel peripheral speed [m/s], effort =
-        creep force [N, positive retarding].
+        position = available adhesion [-], velocity = wheel peripheral speed [m/s] as the
+        speed sensor reports it (``wheel_speed_resolution``, ``wheel_speed_noise``:
+        :func:`~train_dynamics.physics.wheelset.speed_sensor`), effort = creep force [N,
+        positive retarding].
         """
-        return sim.adhesion_available, sim.wheel_speed, sim.creep_force
+        cfg = sim.cfg
+        return sim.adhesion_available, speed_sensor(
+            sim.wheel_speed, t_ns, cfg.wheel_speed_resolution, cfg.wheel_speed_noise,
+            cfg.wheel_speed_seed), sim.creep_force
 
     def encode_wheelsets(self, t_ns: int, sim: Any) -> bytes:
         """Return ``wheelsets`` of ``sim``'s present state (:meth:`wheelsets_fields`)."""
-        return self._coaches(t_ns, *self.wheelsets_fields(sim))
+        return self._coaches(t_ns, *self.wheelsets_fields(t_ns, sim))
 
     def motion_fields(self, t_ns: int, sim: Any) -> tuple[Any, Any, Any]:
         """
@@ -200,7 +206,7 @@ class OutputRows:
         if self.forces:
             out += (enc.forces_fields(sim),)
         if self.wheelsets:
-            out += (enc.wheelsets_fields(sim),)
+            out += (enc.wheelsets_fields(t_ns, sim),)
         if self.head_pipe:
             out += ((head, 0.0),)
         return out

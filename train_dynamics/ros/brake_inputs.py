@@ -19,9 +19,9 @@ at the first integration step at or after the stamp). One that can no longer act
 stamp in the past; without exact inputs, its step done) takes effect at once and is counted in
 :attr:`BrakeInputs.late`; it is recorded at the instant it acted. The header stamps of the
 values the simulator holds tell the lock-step whether every input has answered an output
-(:meth:`BrakeInputs.answered`; with the traction and EP commands when ``lockstep_inputs``
-declares them: :meth:`BrakeInputs.unanswered`). Active
-input topics with more than one publisher are found by the graph scan and warned about
+(:meth:`BrakeInputs.answered`; with the traction and EP commands and the WSP valves when
+``lockstep_inputs`` declares them: :meth:`BrakeInputs.unanswered`). Active input topics
+with more than one publisher are found by the graph scan and warned about
 (:attr:`BrakeInputs.multiple_publishers`). Rejected and counted per
 reason (:data:`REJECT_REASONS`, in ``/diagnostics``, with a throttled warning naming the topic):
 ``non_finite`` (NaN, +-inf), ``negative`` (absolute pressure < 0), ``too_high`` (absolute
@@ -78,7 +78,7 @@ PER_COACH = (topics.PIPE_PER_COACH, topics.CYLINDER_PER_COACH)
 MAX_ABSOLUTE_PRESSURE = topics.MAX_ABSOLUTE_PRESSURE
 #: ``lockstep_inputs``: the controller inputs a lock-step period can wait for
 LOCKSTEP_INPUTS = SIM_NODE_PARAMETERS['lockstep_inputs'].choices
-BRAKE, TRACTION, EP = LOCKSTEP_INPUTS
+BRAKE, TRACTION, EP, WSP = LOCKSTEP_INPUTS
 #: Reasons an input message is rejected (keys of the counts in /diagnostics).
 REJECT_REASONS = ('non_finite', 'negative', 'too_high', 'wrong_mode', 'unknown_coach',
                   'malformed', 'out_of_range', 'not_locomotive')
@@ -565,8 +565,9 @@ class BrakeInputs:
         Return the input topics of ``families`` whose applied input does not answer ``t_ns``.
 
         ``brake`` (:data:`LOCKSTEP_INPUTS`): every active brake input holds a value stamped
-        ``t_ns``; ``traction``, ``ep``: the applied command arrived after the output stamped
-        ``t_ns`` was published. Empty: every declared input has answered.
+        ``t_ns``; ``traction``, ``ep``, ``wsp``: the applied command (valve state) arrived
+        after the output stamped ``t_ns`` was published. Empty: every declared input has
+        answered.
         """
         out: list[str] = []
         if BRAKE in families:
@@ -577,6 +578,8 @@ class BrakeInputs:
             out += self.traction.unanswered(t_ns)
         if EP in families:
             out += self.ep.unanswered(t_ns)
+        if WSP in families:
+            out += self.wsp.unanswered(t_ns)
         return out
 
     def answered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> bool:
@@ -591,12 +594,13 @@ class BrakeInputs:
         return ((BRAKE not in families
                  or all(s.get_publisher_count() > 0 for s in self._active))
                 and (TRACTION not in families or self.traction.connected())
-                and (EP not in families or self.ep.connected()))
+                and (EP not in families or self.ep.connected())
+                and (WSP not in families or self.wsp.connected()))
 
     def missing_inputs(self, families: tuple[str, ...]) -> list[str]:
         """Return the families of ``families`` this run has no input topic of."""
         return [f for f in families if (f == TRACTION and not self.traction.active)
-                or (f == EP and not self.ep.active)]
+                or (f == EP and not self.ep.active) or (f == WSP and not self.wsp.active)]
 
     def _report_stale(self, stale: bool) -> None:
         self._stale = stale

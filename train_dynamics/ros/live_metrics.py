@@ -56,8 +56,10 @@ class LiveMetrics:
         if self._metrics is None:
             return
         queue = self._queue
+        sliding = ((sim.sliding_time, sim.sliding_distance)
+                   if getattr(sim, 'wheelsets', False) else None)
         queue.append((sim.t, sim.y, sim.ydot, sim.coupler_force, sim.x, sim.v, sim.brake_force,
-                      sim.coupler_force_envelope))
+                      sim.coupler_force_envelope, sliding))
         if len(queue) > MAX_PENDING:
             self.fold()
 
@@ -73,12 +75,14 @@ class LiveMetrics:
 
     def _fold(self) -> None:
         queue, metrics = self._queue, self._metrics
-        envelope = None
+        envelope = sliding = None
         while queue:
-            *sample, envelope = queue.popleft()
+            *sample, envelope, sliding = queue.popleft()
             metrics.add(*sample)
         if envelope is not None:        # running extremes: the latest holds the others
             metrics.set_envelope(*envelope)
+        if sliding is not None:         # running sums: the latest holds the others
+            metrics.set_sliding(*sliding)
 
     def set_limits(self, coupler_force_limit: float, jerk_limit: float) -> None:
         """Change the limits of the run's metrics (0 = off)."""

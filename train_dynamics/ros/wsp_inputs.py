@@ -12,7 +12,9 @@ Staleness (``input_timeout`` > 0): a vehicle whose valve state has not been refr
 driver commands it; a valve left venting by a dead controller would leave the vehicle
 without brake), whatever ``on_input_timeout`` says; the next state restores it. The same
 handling as the traction commands (:class:`~train_dynamics.ros.traction_inputs.TractionInputs`,
-whose hooks this class sets).
+whose hooks this class sets), lock-step included (``wsp`` in ``lockstep_inputs``: a state
+answers the latest output published before it arrived; each period waits for one state
+per vehicle answering its output).
 """
 from __future__ import annotations
 

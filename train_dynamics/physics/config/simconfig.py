@@ -159,6 +159,9 @@ class SimConfig:
     wsp: str = 'none'                                 # slide protection: none/builtin/external
     wheelset_inertia: float = 440.0                   # vehicle field: J [kg m^2]
     wheel_radius: float = 0.46                        # vehicle field: r [m]
+    wheel_speed_resolution: float = 0.0               # speed sensor: quantisation [m/s]
+    wheel_speed_noise: float = 0.0                    # speed sensor: noise std [m/s]
+    wheel_speed_seed: int = 0                         # speed sensor: seed of the noise
     traction_schedule_times: list[float] = field(default_factory=list)    # [s], increasing
     traction_schedule_commands: list[float] = field(default_factory=list)  # [-1, 1]
     ep_schedule_times: list[float] = field(default_factory=list)          # [s], increasing

@@ -423,6 +423,19 @@ _PARAMS = [
     ParamSpec('wheel_radius', 0.46, DOUBLE,
               'Wheelsets: wheel radius [m] (920 mm new passenger wheels).', low=0.2, high=1.0,
               vehicle='wheel_radius'),
+    ParamSpec('wheel_speed_resolution', 0.0, DOUBLE,
+              'Wheelsets: the speed sensor of the wheelsets output, its quantisation step '
+              '[m/s] (the speed rounded to the nearest multiple; e.g. 0.05 for a 100-tooth '
+              'wheel counted over 0.6 s at r = 0.46 m); 0 = the exact speed. The builtin WSP '
+              'reads the exact speed.', low=0.0, high=1.0),
+    ParamSpec('wheel_speed_noise', 0.0, DOUBLE,
+              "Wheelsets: standard deviation [m/s] of the speed sensor's Gaussian noise in "
+              'the wheelsets output (added before the quantisation, the result held >= 0); '
+              'the same for a given wheel_speed_seed and output time, node and offline.',
+              low=0.0, high=1.0),
+    ParamSpec('wheel_speed_seed', 0, INTEGER,
+              'Wheelsets: seed of the speed-sensor noise (with the output time stamp [ns] it '
+              "seeds each sample's draws: reproducible).", low=0, high=2 ** 31 - 1),
     ParamSpec('traction_schedule_times', [], DOUBLE_ARRAY,
               'Offline runs without a traction bag: times [s] (increasing) from which every '
               'locomotive holds the matching traction_schedule_commands entry; refused for a '
@@ -483,10 +496,11 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'lockstep: the controller inputs each output period waits for. brake: every '
               'active brake-input topic of brake_input, answered by a message stamped with '
               "the output's stamp; traction: the command topic of every locomotive that "
-              'takes one, ep: brake_ep/command (brake_system ep or ecp), each answered by one '
-              'command received after the output was published (std_msgs/Float64 has no '
-              'stamp). A listed input the train does not have is skipped (logged).',
-              choices=('brake', 'traction', 'ep'), dynamic=True, min_items=1),
+              'takes one, ep: brake_ep/command (brake_system ep or ecp), wsp: every '
+              "vehicle's coach_<i>/wsp/valve (wsp external), each answered by one "
+              'command received after the output was published (std_msgs/Float64 and Int8 '
+              'have no stamp). A listed input the train does not have is skipped (logged).',
+              choices=('brake', 'traction', 'ep', 'wsp'), dynamic=True, min_items=1),
     ParamSpec('input_timing', 'arrival', STRING,
               'arrival: a brake input takes effect at the next integration step after it '
               'arrives; stamp: at its header stamp (simulation time), exactly with '

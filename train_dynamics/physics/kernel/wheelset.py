@@ -136,7 +136,8 @@ def wheel_brake(u: float, fb_paper: float, material: int, normal: float, blocks:
 
 
 @jit(inline=True)
-def wheelset_solve(u0, v, h, jr, load, mu, fb_paper, material, normal, blocks, rho, g):
+def wheelset_solve(u0, v, h, jr, load, mu, fb_paper, material, normal, blocks, rho, g,
+                   guess):
     """
     Return (u1, F_c, F_b): the wheel speed [m/s] after h [s], creep and brake force [N].
 
@@ -144,9 +145,13 @@ def wheelset_solve(u0, v, h, jr, load, mu, fb_paper, material, normal, blocks, r
     v >= 0 the vehicle's speed [m/s], mu the available adhesion): static friction holds a
     locked wheel while jr u0 + h F_c(v) <= h F_b(0) (F_b then the friction that holds it;
     only looked at when the brake could stop the wheel within the step); else a safeguarded
-    Newton iteration on the bracket [0, u_max] (bisection where a Newton step leaves it; the
-    derivative leaves out the brake's slow change with speed), ending at the point whose
-    Newton step is below U_TOL, with that point's forces.
+    Newton iteration from ``guess`` [m/s] (the caller's extrapolation of the wheel speed) on
+    the bracket [0, u_max] (bisection where a Newton step leaves it; the derivative leaves out
+    the brake's slow change with speed), ending at the first Newton point whose residual is
+    within the tolerance (d U_TOL, d the residual's slope): with the creep force linearised
+    at the point it stepped from (the residual then the brake's change and the creep law's
+    curvature over the step), or at a point whose Newton step is at most U_TOL, with that
+    point's forces. The caller's guess makes one evaluation of the creep law the rule.
     """
     fb0 = wheel_brake(0.0, fb_paper, material, normal, blocks, rho, g)
     if jr * u0 <= h * fb0:      # the brake could stop the wheel within the step
@@ -155,8 +160,9 @@ def wheelset_solve(u0, v, h, jr, load, mu, fb_paper, material, normal, blocks, r
             return 0.0, fc0, (jr * u0 + h * fc0) / h
     lo = 0.0
     hi = max(u0, v) + h * load / jr + 1e-9
-    u = min(max(u0, 0.0), hi)
+    u = min(max(guess, 0.0), hi)
     tol = U_TOL * (1.0 + v)
+    c2 = (max(v, V0) * XI0) ** 2
     fc = 0.0
     fb = 0.0
     for _ in range(ITERATIONS):
@@ -164,16 +170,28 @@ def wheelset_solve(u0, v, h, jr, load, mu, fb_paper, material, normal, blocks, r
         fc = load * f
         fb = wheel_brake(u, fb_paper, material, normal, blocks, rho, g)
         r = jr * (u - u0) - h * (fc - fb)
+        d = jr + h * load * slope
+        if d > 0.0:
+            step = r / d
+            un = u - step
+            # accept the Newton point with the creep force linearised at u when the
+            # linearisation error h N |f''| step^2 / 2 (|f''| <= mu / c^2, c = ref XI0, for
+            # c <= 0.29: speeds below 145 m/s) and the brake's change h |F_b(un) - F_b(u)|
+            # leave a residual of at most d tol, as a converged point's own forces do
+            if un >= 0.0 and h * load * mu * step * step <= 2.0 * d * tol * c2:
+                fbn = wheel_brake(un, fb_paper, material, normal, blocks, rho, g)
+                if h * abs(fbn - fb) <= d * tol:
+                    return un, fc + load * slope * step, fbn
+        else:
+            un = -1.0
         if r > 0.0:
             hi = u
         else:
             lo = u
-        d = jr + h * load * slope
-        un = u - r / d if d > 0.0 else 0.5 * (lo + hi)
+        if hi - lo <= tol:
+            break
         if not (lo < un < hi):
             un = 0.5 * (lo + hi)
-        if abs(un - u) <= tol or hi - lo <= tol:
-            break       # u within tol of the root: its own forces (the residual ~ d tol)
         u = un
     return u, fc, fb
 
@@ -279,9 +297,10 @@ def wheelset_substep(coach, sc, ws):
         material = int(coach[VEHICLE.MATERIAL, i])
         normal = max(coach[STATE.PCYL, i] * coach[VEHICLE.BRAKE_GAIN, i]
                      - coach[VEHICLE.BRAKE_OFF, i], 0.0)
+        # the first guess: the wheel's last deceleration carried on over the step
         u1, fc, fbw = wheelset_solve(u0, s, h, coach[VEHICLE.WHEEL_MASS, i], load, mu,
                                      fb_next[i], material, normal, coach[VEHICLE.BLOCKS, i],
-                                     coach[VEHICLE.RHO, i], g)
+                                     coach[VEHICLE.RHO, i], g, u0 - h * wdecel[i])
         wwb += h * fbw * 0.5 * (u0 + u1)
         umean[i] = 0.5 * (u0 + u1)
         wheel[i] = u1
