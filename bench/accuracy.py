@@ -35,14 +35,18 @@ from train_dynamics.physics.train import TrainSimulator
 #: (label, overrides): the default first
 SETTINGS = (
     ('fixed 2 ms (default)', {}),
+    ('fixed 1 ms', {'integration_step': 1e-3}),
     ('fixed 0.5 ms', {'integration_step': 5e-4}),
     ('fixed 0.1 ms', {'integration_step': 1e-4}),
+    ('tolerance 3e-3', {'integration_tolerance': 3e-3}),
+    ('tolerance 2e-3', {'integration_tolerance': 2e-3}),
     ('tolerance 1e-3', {'integration_tolerance': 1e-3}),
     ('tolerance 1e-4', {'integration_tolerance': 1e-4}),
     ('tolerance 1e-5', {'integration_tolerance': 1e-5}),
     ('multirate 1e-2', {'multirate_tolerance': 1e-2}),
     ('multirate 1e-3', {'multirate_tolerance': 1e-3}),
     ('multirate 3e-4', {'multirate_tolerance': 3e-4}),
+    ('multirate 2e-4', {'multirate_tolerance': 2e-4}),
     ('multirate 1e-4', {'multirate_tolerance': 1e-4}),
 )
 DT = 0.002      # [s] read-out
