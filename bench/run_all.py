@@ -359,6 +359,8 @@ def main(argv=None) -> int:
     ap.add_argument('--ref-max-n', type=int, default=100)
     ap.add_argument('--no-write', action='store_true')
     ap.add_argument('--no-pneumatic', action='store_true', help='skip bench/pneumatic.py')
+    ap.add_argument('--no-wheelsets', action='store_true',
+                    help='skip the wheelsets\' cost (bench/vehicle_cost.py)')
     ap.add_argument('--from-json', metavar='RAW',
                     help='only re-render RESULTS.md from a raw file (bench/last_run.json)')
     args = ap.parse_args(argv)
@@ -412,6 +414,11 @@ def main(argv=None) -> int:
         pneu_md = pneumatic.render(rows, None if args.no_node else pneumatic.run_node(log=log))
         with open(pneumatic.RESULTS_MD, 'w') as fh:
             fh.write(pneu_md)
+    wheel_md = ''
+    if not args.no_wheelsets:       # bench/vehicle_cost.py owns its section
+        import vehicle_cost
+        log('wheelsets: cost per vehicle-step with and without (paper47, freight)')
+        wheel_md = vehicle_cost.wheelset_section(log=log, write=not args.no_write)
     if not args.no_sweep:
         try:
             sweepbench.run_and_write(log=log, write=not args.no_write)
@@ -437,6 +444,8 @@ def main(argv=None) -> int:
     text = render(mach, load, core_res, node_res)
     if pneu_md:
         text = text.rstrip('\n') + '\n\n' + pneu_md
+    if wheel_md:
+        text = text.rstrip('\n') + '\n\n' + wheel_md
     if freight_res is not None:
         text = text.rstrip('\n') + '\n\n' + freight.render(freight_res) + '\n'
     print(text)

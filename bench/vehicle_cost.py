@@ -144,6 +144,40 @@ def interleave(versions, cases, repeats: int = 5, log=print) -> dict:
                                  default=None)} for key, rs in runs.items()}
 
 
+#: ``make bench``'s wheelset section: each train with and without rotating wheelsets
+WHEELSET_PAIRS = (('paper47', 'paper47+w'), ('freight', 'freight+w'))
+#: the target of the wheel-slide model's cost: at most this times the same train without
+WHEELSET_TARGET = 1.5
+WHEELSET_MD = os.path.join(HERE, 'wheelset_cost_results.md')
+
+
+def wheelset_section(repeats: int = 3, log=print, write: bool = True) -> str:
+    """
+    Measure the cost of rotating wheelsets (``+w``) against the same train without them.
+
+    Interleaved fresh processes, best moving vehicle-step of ``repeats``; returns (and
+    writes to ``bench/wheelset_cost_results.md``) a markdown table with the ratio.
+    """
+    cases = [c for pair in WHEELSET_PAIRS for c in pair]
+    load = os.getloadavg()[0]
+    res = interleave([('this', sys.executable, None)], cases, repeats, log=log)
+    lines = ['### Cost of rotating wheelsets (ns per moving vehicle-step)', '',
+             f'Best of {repeats} interleaved runs, each in a fresh process (bench/vehicle_cost.py), '
+             f'load average {load:.1f} at the start; target at most {WHEELSET_TARGET}x the '
+             'same train without wheelsets.', '',
+             '| train | without | with wheelsets | ratio | target met |',
+             '| --- | --- | --- | --- | --- |']
+    for plain, wheels in WHEELSET_PAIRS:
+        a, b = res[f'this {plain}']['moving'], res[f'this {wheels}']['moving']
+        lines.append(f'| {plain} | {a:.1f} | {b:.1f} | {b / a:.2f}x | '
+                     f'{"yes" if b / a <= WHEELSET_TARGET else "no"} |')
+    text = '\n'.join(lines) + '\n'
+    if write:
+        with open(WHEELSET_MD, 'w', encoding='utf-8') as fh:
+            fh.write(text)
+    return text
+
+
 def main(argv=None) -> None:
     """Interleave the cases over the kernel versions; print best, median and spread."""
     ap = argparse.ArgumentParser(description=__doc__.split('\n')[1])
