@@ -360,7 +360,7 @@ def main(argv=None) -> int:
     ap.add_argument('--no-write', action='store_true')
     ap.add_argument('--no-pneumatic', action='store_true', help='skip bench/pneumatic.py')
     ap.add_argument('--no-wheelsets', action='store_true',
-                    help='skip the wheelsets\' cost (bench/vehicle_cost.py)')
+                    help="skip the wheelsets' cost (bench/vehicle_cost.py)")
     ap.add_argument('--from-json', metavar='RAW',
                     help='only re-render RESULTS.md from a raw file (bench/last_run.json)')
     args = ap.parse_args(argv)
