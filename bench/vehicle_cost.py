@@ -163,8 +163,8 @@ def wheelset_section(repeats: int = 3, log=print, write: bool = True) -> str:
     res = interleave([('this', sys.executable, None)], cases, repeats, log=log)
     lines = ['### Cost of rotating wheelsets (ns per moving vehicle-step)', '',
              f'Best of {repeats} interleaved runs, each in a fresh process '
-             f'(bench/vehicle_cost.py), load average {load:.1f} at the start; target at most {WHEELSET_TARGET}x the '
-             'same train without wheelsets.', '',
+             f'(bench/vehicle_cost.py), load average {load:.1f} at the start; target at '
+             f'most {WHEELSET_TARGET}x the same train without wheelsets.', '',
              '| train | without | with wheelsets | ratio | target met |',
              '| --- | --- | --- | --- | --- |']
     for plain, wheels in WHEELSET_PAIRS:
