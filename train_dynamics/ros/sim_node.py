@@ -30,8 +30,9 @@ lock; the simulation thread never reads it: each part holds the values it uses).
 Parameters: every parameter of :data:`train_dynamics.physics.config.PARAMETERS` plus the
 node's own (:data:`~train_dynamics.physics.config.SIM_NODE_PARAMETERS`): ``duration``
 (simulation seconds after which the node stops by itself, 0 = forever), ``wait_for_input``
-(hold t = 0 until the brake-input topics have publishers, at most that many wall seconds) and
-``record_flush_period``. Invalid values are rejected with a reason and change nothing. The
+(hold t = 0 until the brake-input topics have publishers, at most that many wall seconds),
+``realtime_priority`` (the simulation thread's SCHED_FIFO priority,
+:mod:`~train_dynamics.ros.pacing`) and ``record_flush_period``. Invalid values are rejected with a reason and change nothing. The
 live ones (``dynamic``: ``model_type``, ``scale_factor``, ``real_time_factor``,
 ``publish_clock``, ``input_timeout``, ``on_input_timeout``, and the node's own) act at once
 (the state is untouched). Every other (structural) parameter is accepted as PENDING: it is
@@ -137,6 +138,7 @@ class SimNode(Node):
         self._pacer = Pacer(self._lock, self.get_logger(), self.context, self._inputs,
                             self._outputs)
         self._pacer.duration = float(self.get_parameter('duration').value)
+        self._pacer.set_realtime_priority(self.get_parameter('realtime_priority').value)
         self._control = RunControl(self, self._lock, self._inputs, self._outputs,
                                    self._pacer.wake)
         self._pacer.control = self._control
@@ -221,6 +223,8 @@ class SimNode(Node):
             self._inputs.set_policy(cfg.input_timeout, cfg.on_input_timeout)
             if 'duration' in changes:
                 self._pacer.set_duration(changes['duration'])
+            if 'realtime_priority' in changes:
+                self._pacer.set_realtime_priority(changes['realtime_priority'])
             if 'wait_for_input' in changes:
                 self._inputs.wait_for_input = changes['wait_for_input']
             if CONTROL_PARAMETERS & set(changes):
@@ -353,7 +357,8 @@ class SimNode(Node):
             duration=pacer.duration, behind_warn=BEHIND_WARN, pending=pending,
             integration=sim.integration_stats, control=self._control.report(),
             waiting=self._control.waiting(now),
-            parameter_file_warning='; '.join(self.parameter_file_warnings))
+            parameter_file_warning='; '.join(self.parameter_file_warnings),
+            scheduling=pacer.scheduling)
         if writer is not None:
             report.recording, report.recorded = str(writer.path), writer.written
             report.backlog, report.record_error = writer.backlog, writer.error
