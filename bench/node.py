@@ -260,7 +260,7 @@ def table(res: dict) -> str:
         f"| node RSS at the end (max) | {res['rss_mib']:.0f} MiB ({res['rss_max_mib']:.0f}) | |",
         f"| node's simulation thread (/diagnostics) / probe | "
         f"{_scheduling(res['diagnostics'])} / {res['probe_scheduling']} | |",
-        "| load average (1 min) before / after the run | "
+        '| load average (1 min) before / after the run | '
         + ' / '.join(f'{x[0]:.2f}' for x in (res['load_before'], res['load_after'])) + ' | |',
     ]
     integ = {k.split('/')[-1]: v for k, v in res['diagnostics'].items()
@@ -304,7 +304,7 @@ def main(argv=None) -> int:
                     metavar='NAME:=VALUE', help='another sim_node parameter, e.g. '
                     '-p integration_tolerance:=0.01 (the work budget: fallback_periods)')
     ap.add_argument('--probe-priority', type=int, default=PROBE_PRIORITY,
-                    help='SCHED_FIFO priority of the probe\'s DDS threads (0: normal)')
+                    help="SCHED_FIFO priority of the probe's DDS threads (0: normal)")
     args = ap.parse_args(argv)
     coaches, params = CASES[args.case] if args.case else (args.coaches, {})
     params = {**params, **dict(args.param)}

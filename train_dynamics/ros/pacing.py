@@ -18,20 +18,24 @@ Scheduling: the work of an output period is far below the period (0.15 core for 
 with the pneumatic brake at 100 Hz), so the output timing is set by how late the thread wakes
 up, i.e. by the operating system's scheduler. At normal priority, on a machine whose cores are
 busy with other processes (load 7-8 on 2 cores), the wake-ups were 9 ms late at the 99th
-percentile and the outputs' p99 jitter 7.5 ms; at ``SCHED_FIFO`` the same wake-ups were
-0.15 ms late and the jitter 0.7 ms (garbage collection: 0.06 ms per collection, a few per
-second; the /diagnostics callback: 0.2 ms under the lock). The thread therefore asks for
-``SCHED_FIFO`` at ``realtime_priority`` (POSIX real-time scheduling; Linux ``sched(7)``) while
-it keeps up, and drops back to normal scheduling while it integrates without pausing
-(catching up, ``real_time_factor`` 0), so that a simulation that cannot keep up never holds a
-core away from the rest of the machine. Where that priority is not permitted (no
-``CAP_SYS_NICE``, ``ulimit -r`` 0) the thread stays at normal priority and says so once.
+percentile and the outputs' p99 jitter 7.5 ms; at ``SCHED_FIFO`` the same wake-ups were 0.15 ms
+late and the jitter 0.7 ms (garbage collection: 0.06 ms per collection, a few per second; the
+/diagnostics callback: 0.2 ms under the lock). The thread therefore asks for ``SCHED_FIFO`` at
+``realtime_priority`` (POSIX real-time scheduling; Linux ``sched(7)``) while it keeps up, and
+drops back to normal scheduling while it integrates without pausing (catching up,
+``real_time_factor`` 0), so that a simulation that cannot keep up never holds a core away from
+the rest of the machine. The executor thread of ``sim_node``'s ``main`` (callbacks,
+/diagnostics: a few ms of Python a second) follows one priority below: the simulation thread
+needs the interpreter lock (GIL) that thread holds, and a normal-priority holder preempted by
+other processes would delay it by their time slice (priority inversion through the GIL).
+Threads these two start (the bag writer) return to normal scheduling. Where that priority is
+not permitted (no ``CAP_SYS_NICE``, ``ulimit -r`` 0) the thread stays at normal priority and
+says so once.
 """
 from __future__ import annotations
 
 import contextlib
 import math
-import os
 import sys
 import threading
 import time
@@ -41,6 +45,7 @@ from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.ros.brake_inputs import BrakeInputs
 from train_dynamics.ros.publishers import Outputs
 from train_dynamics.ros.run_control import EXIT_LOCKSTEP_TIMEOUT, WAIT_POLL
+from train_dynamics.ros.scheduling import set_priority
 from train_dynamics.simulation.runner import end_step
 
 MIN_SLEEP = 0.001        # [s wall] shortest pause between two pacing iterations
@@ -145,6 +150,9 @@ class Pacer:
         self.realtime_priority = 0
         self._priority_now = 0          # simulation thread only: the priority it has
         self._priority_denied = -1      # the priority last refused (not asked again)
+        #: the executor thread, which follows this one's priority (0: none; set by ``main``:
+        #: a node created inside another program leaves that program's threads alone)
+        self.executor_tid = 0
         self.scheduling = 'normal'      # what the thread runs at (/diagnostics, log)
 
     def wake(self) -> None:
@@ -233,10 +241,9 @@ class Pacer:
         if want == self._priority_now or (want and want == self._priority_denied):
             return
         try:
-            if want:
-                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(want))
-            else:
-                os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
+            set_priority(0, want)
+            if self.executor_tid:      # one below: this thread preempts it, others do not
+                set_priority(self.executor_tid, max(want - 1, 1) if want else 0)
         except (AttributeError, OSError) as exc:   # not permitted, or not Linux
             if want:
                 self._priority_denied = want

@@ -27,19 +27,19 @@ values between their callbacks and the simulation thread. This node owns the run
 configuration ``_cfg`` (replaced and changed by the executor thread only, under the simulation
 lock; the simulation thread never reads it: each part holds the values it uses).
 
-Parameters: every parameter of :data:`train_dynamics.physics.config.PARAMETERS` plus the
-node's own (:data:`~train_dynamics.physics.config.SIM_NODE_PARAMETERS`): ``duration``
-(simulation seconds after which the node stops by itself, 0 = forever), ``wait_for_input``
-(hold t = 0 until the brake-input topics have publishers, at most that many wall seconds),
+Parameters: every parameter of :data:`train_dynamics.physics.config.PARAMETERS` plus the node's
+own (:data:`~train_dynamics.physics.config.SIM_NODE_PARAMETERS`): ``duration`` (simulation
+seconds after which the node stops by itself, 0 = forever), ``wait_for_input`` (hold t = 0
+until the brake-input topics have publishers, at most that many wall seconds),
 ``realtime_priority`` (the simulation thread's SCHED_FIFO priority,
-:mod:`~train_dynamics.ros.pacing`) and ``record_flush_period``. Invalid values are rejected with a reason and change nothing. The
-live ones (``dynamic``: ``model_type``, ``scale_factor``, ``real_time_factor``,
-``publish_clock``, ``input_timeout``, ``on_input_timeout``, and the node's own) act at once
-(the state is untouched). Every other (structural) parameter is accepted as PENDING: it is
-stored, logged as pending and applied by the ``reset`` service (``~/reset``, i.e.
-``/train_dynamics/reset``, ``std_srvs/srv/Trigger``), which restarts the scenario from t = 0
-with the current parameter values and says in its response (and the log) what changed; a
-recording continues in a new bag ``<record_bag>_reset<k>``.
+:mod:`~train_dynamics.ros.pacing`) and ``record_flush_period``. Invalid values are rejected
+with a reason and change nothing. The live ones (``dynamic``: ``model_type``, ``scale_factor``,
+``real_time_factor``, ``publish_clock``, ``input_timeout``, ``on_input_timeout``, and the
+node's own) act at once (the state is untouched). Every other (structural) parameter is
+accepted as PENDING: it is stored, logged as pending and applied by the ``reset`` service
+(``~/reset``, i.e. ``/train_dynamics/reset``, ``std_srvs/srv/Trigger``), which restarts the
+scenario from t = 0 with the current parameter values and says in its response (and the log)
+what changed; a recording continues in a new bag ``<record_bag>_reset<k>``.
 
 Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``duration``);
 4 lock-step timeout (``lockstep_on_timeout`` stop);
@@ -48,6 +48,7 @@ Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``dura
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from typing import Any
 
@@ -458,7 +459,13 @@ def main(args: list[str] | None = None) -> int:
     Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 4 lock-step
     timeout (``lockstep_on_timeout`` stop), 1 other errors (a recording that failed included).
     """
-    return run_node('sim_node', SimNode, args, node_name=NODE_NAME, specs=SPECS, exits=(
+    def create() -> SimNode:
+        node = SimNode()
+        # this thread spins the executor: it follows the simulation thread's priority (pacing)
+        node._pacer.executor_tid = threading.get_native_id()
+        return node
+
+    return run_node('sim_node', create, args, node_name=NODE_NAME, specs=SPECS, exits=(
         ExitOn((ConfigError, ParameterException, FileExistsError, ValueError),
                'invalid parameters', 2),
         ExitOn((BagError, OSError), 'cannot record', 1)))
