@@ -45,7 +45,7 @@ from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.ros.brake_inputs import BrakeInputs
 from train_dynamics.ros.publishers import Outputs
 from train_dynamics.ros.run_control import EXIT_LOCKSTEP_TIMEOUT, WAIT_POLL
-from train_dynamics.ros.scheduling import set_priority
+from train_dynamics.ros.scheduling import normal_priority, set_priority
 from train_dynamics.simulation.runner import end_step
 
 MIN_SLEEP = 0.001        # [s wall] shortest pause between two pacing iterations
@@ -148,7 +148,7 @@ class Pacer:
         self._held = False              # the control held the run at the last iteration
         #: SCHED_FIFO priority asked for while keeping up (0: normal scheduling)
         self.realtime_priority = 0
-        self._priority_now = 0          # simulation thread only: the priority it has
+        self._priority_now = (0, 0)     # simulation thread only: (priority, executor_tid) set
         self._priority_denied = -1      # the priority last refused (not asked again)
         #: the executor thread, which follows this one's priority (0: none; set by ``main``:
         #: a node created inside another program leaves that program's threads alone)
@@ -231,20 +231,44 @@ class Pacer:
         self.realtime_priority = int(priority)
         self._wake.set()
 
+    @contextlib.contextmanager
+    def executor_at_normal_priority(self) -> Iterator[None]:
+        """
+        Run the block with the executor thread (the caller) at normal priority.
+
+        For long work on that thread (a reset builds and warms up a new simulator, which may
+        compile kernels): it must not hold a core at real-time priority meanwhile.
+        """
+        tid = self.executor_tid
+        if not tid or tid != threading.get_native_id():
+            yield
+            return
+        with self.lock.held():
+            self.executor_tid = 0          # the simulation thread leaves it alone
+            normal_priority()
+        try:
+            yield
+        finally:
+            with self.lock.held():
+                self.executor_tid = tid    # set again at the next iteration
+
     def _schedule(self, busy: bool) -> None:
         """
-        Set the simulation thread's scheduling (called by that thread, between iterations).
+        Set the simulation thread's scheduling (that thread, simulation lock held).
 
         ``busy``: the thread integrates without pausing; it then runs at normal priority.
         """
         want = 0 if busy else self.realtime_priority
-        if want == self._priority_now or (want and want == self._priority_denied):
+        tid = self.executor_tid
+        if (want, tid) == self._priority_now or (want and want == self._priority_denied):
             return
+        self._priority_now = (want, tid)
         try:
             set_priority(0, want)
-            if self.executor_tid:      # one below: this thread preempts it, others do not
-                set_priority(self.executor_tid, max(want - 1, 1) if want else 0)
+            if tid:      # one below: this thread preempts it, other processes do not
+                set_priority(tid, max(want - 1, 1) if want else 0)
         except (AttributeError, OSError) as exc:   # not permitted, or not Linux
+            normal_priority()
             if want:
                 self._priority_denied = want
                 self._log.info(
@@ -252,9 +276,8 @@ class Pacer:
                     f'{exc}); the simulation thread runs at normal priority, its output timing '
                     "then depends on the machine's load (needs CAP_SYS_NICE or ulimit -r)")
             self.scheduling = 'normal'
-            self._priority_now = 0
+            self._priority_now = (0, tid)
             return
-        self._priority_now = want
         self.scheduling = f'SCHED_FIFO {want}' if want else 'normal'
 
     def _run(self) -> None:
@@ -262,6 +285,7 @@ class Pacer:
             try:
                 with self.lock:
                     wake = self._iterate()
+                    self._schedule(busy=wake is None)
             except Exception as exc:  # noqa: BLE001
                 if self._stop.is_set() or not self._context.ok():
                     break            # shut down under our feet (SIGINT/SIGTERM)
@@ -270,7 +294,6 @@ class Pacer:
                     self.finished = True
                     self.exit_code = 1
                 wake = time.monotonic() + IDLE
-            self._schedule(busy=wake is None)
             if wake is None:
                 if self.lock.waiting:
                     time.sleep(YIELD)

@@ -80,6 +80,7 @@ from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
                                          open_bag, reset_bag_path)
 from train_dynamics.ros.run_control import RunControl
+from train_dynamics.ros.scheduling import normal_priority
 
 __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
            'MAX_ABSOLUTE_PRESSURE', 'MAX_RECORD_BACKLOG', 'REJECT_REASONS']
@@ -298,6 +299,10 @@ class SimNode(Node):
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response):
         """``reset``: restart from t = 0 with the current (incl. pending) parameter values."""
+        with self._pacer.executor_at_normal_priority():
+            return self._reset(response)
+
+    def _reset(self, response: Trigger.Response):
         log = self.get_logger()
         try:
             cfg = SimConfig.from_dict(self._parameter_values())
@@ -434,6 +439,8 @@ class SimNode(Node):
         if not self._destroyed and hasattr(self, '_pacer'):
             self._destroyed = True
             self._pacer.stop_thread()
+            if self._pacer.executor_tid == threading.get_native_id():
+                normal_priority()      # finishing the bag and shutting down: no hurry
             writer = self._outputs.take_writer()
             if writer is not None:
                 # After SIGINT/SIGTERM the context is gone: log without /rosout.
