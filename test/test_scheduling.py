@@ -15,6 +15,7 @@ from train_dynamics.ros import pacing
 
 
 class _Log:
+
     def __init__(self):
         self.lines = []
 
