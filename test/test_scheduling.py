@@ -9,6 +9,8 @@ never change a real thread's priority); no timing is asserted.
 """
 from __future__ import annotations
 
+import sys
+
 import pytest
 
 from train_dynamics.ros import pacing
@@ -99,3 +101,22 @@ def test_refused_priority_logged_once_and_not_asked_again(monkeypatch):
     pacer._schedule(busy=False)
     assert asked[1:] == [(0, 30)]
     assert len(pacer._log.lines) == 2
+
+
+def test_cpu_wake_latency_request(monkeypatch, tmp_path):
+    from train_dynamics.ros import scheduling
+
+    target = tmp_path / 'cpu_dma_latency'
+    target.write_bytes(b'')
+    monkeypatch.setattr(scheduling, 'CPU_DMA_LATENCY', str(target))
+    req = scheduling.CpuWakeLatency(25)
+    assert req.held and req.status == '25 us'
+    assert len(target.read_bytes()) == 4           # one 32-bit integer [us]
+    assert int.from_bytes(target.read_bytes(), sys.byteorder, signed=True) == 25
+    req.release()
+    req.release()                                  # idempotent
+    assert not req.held and req.status == 'none'
+    assert scheduling.CpuWakeLatency(-1).status == 'none'      # no request
+    monkeypatch.setattr(scheduling, 'CPU_DMA_LATENCY', str(tmp_path / 'missing' / 'x'))
+    refused = scheduling.CpuWakeLatency(0)
+    assert not refused.held and refused.status.startswith('not granted')

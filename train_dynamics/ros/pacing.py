@@ -154,6 +154,7 @@ class Pacer:
         #: a node created inside another program leaves that program's threads alone)
         self.executor_tid = 0
         self.scheduling = 'normal'      # what the thread runs at (/diagnostics, log)
+        self.cpu_wake_latency = 'none'  # the node's PM QoS request (/diagnostics)
 
     def wake(self) -> None:
         """Wake the simulation thread (an input arrived, the run control changed)."""

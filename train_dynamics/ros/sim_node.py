@@ -32,14 +32,16 @@ own (:data:`~train_dynamics.physics.config.SIM_NODE_PARAMETERS`): ``duration`` (
 seconds after which the node stops by itself, 0 = forever), ``wait_for_input`` (hold t = 0
 until the brake-input topics have publishers, at most that many wall seconds),
 ``realtime_priority`` (the simulation thread's SCHED_FIFO priority,
-:mod:`~train_dynamics.ros.pacing`) and ``record_flush_period``. Invalid values are rejected
-with a reason and change nothing. The live ones (``dynamic``: ``model_type``, ``scale_factor``,
-``real_time_factor``, ``publish_clock``, ``input_timeout``, ``on_input_timeout``, and the
-node's own) act at once (the state is untouched). Every other (structural) parameter is
-accepted as PENDING: it is stored, logged as pending and applied by the ``reset`` service
-(``~/reset``, i.e. ``/train_dynamics/reset``, ``std_srvs/srv/Trigger``), which restarts the
-scenario from t = 0 with the current parameter values and says in its response (and the log)
-what changed; a recording continues in a new bag ``<record_bag>_reset<k>``.
+:mod:`~train_dynamics.ros.pacing`), ``cpu_wake_latency`` (a PM QoS request held while the node
+runs, :class:`~train_dynamics.ros.scheduling.CpuWakeLatency`) and ``record_flush_period``.
+Invalid values are rejected with a reason and change nothing. The live ones (``dynamic``:
+``model_type``, ``scale_factor``, ``real_time_factor``, ``publish_clock``, ``input_timeout``,
+``on_input_timeout``, and the node's own) act at once (the state is untouched). Every other
+(structural) parameter is accepted as PENDING: it is stored, logged as pending and applied by
+the ``reset`` service (``~/reset``, i.e. ``/train_dynamics/reset``, ``std_srvs/srv/Trigger``),
+which restarts the scenario from t = 0 with the current parameter values and says in its
+response (and the log) what changed; a recording continues in a new bag
+``<record_bag>_reset<k>``.
 
 Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``duration``);
 4 lock-step timeout (``lockstep_on_timeout`` stop);
@@ -80,7 +82,7 @@ from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
                                          open_bag, reset_bag_path)
 from train_dynamics.ros.run_control import RunControl
-from train_dynamics.ros.scheduling import normal_priority
+from train_dynamics.ros.scheduling import CpuWakeLatency, normal_priority
 
 __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
            'MAX_ABSOLUTE_PRESSURE', 'MAX_RECORD_BACKLOG', 'REJECT_REASONS']
@@ -141,6 +143,8 @@ class SimNode(Node):
                             self._outputs)
         self._pacer.duration = float(self.get_parameter('duration').value)
         self._pacer.set_realtime_priority(self.get_parameter('realtime_priority').value)
+        self._wake_latency: CpuWakeLatency | None = None
+        self._request_wake_latency(self.get_parameter('cpu_wake_latency').value)
         self._control = RunControl(self, self._lock, self._inputs, self._outputs,
                                    self._pacer.wake)
         self._pacer.control = self._control
@@ -180,6 +184,17 @@ class SimNode(Node):
         # wake the simulation thread on each input only where it waits for them
         self._inputs.on_input = (self._pacer.wake if sync_mode == 'lockstep'
                                  or self._inputs.by_stamp else None)
+
+    def _request_wake_latency(self, limit_us: int) -> None:
+        """Hold a CPU wake-up latency request of ``limit_us`` (-1: none) instead of the last."""
+        if self._wake_latency is not None:
+            self._wake_latency.release()
+        self._wake_latency = CpuWakeLatency(limit_us)
+        if limit_us >= 0 and not self._wake_latency.held:
+            self.get_logger().info(
+                f'cpu_wake_latency {limit_us} us: {self._wake_latency.status}; idle CPUs may '
+                'wake the simulation thread late (needs write access to /dev/cpu_dma_latency)')
+        self._pacer.cpu_wake_latency = self._wake_latency.status
 
     def _parameter_values(self) -> dict[str, Any]:
         return ros_parameters.parameter_values(self, PARAMETERS)
@@ -227,6 +242,8 @@ class SimNode(Node):
                 self._pacer.set_duration(changes['duration'])
             if 'realtime_priority' in changes:
                 self._pacer.set_realtime_priority(changes['realtime_priority'])
+        if 'cpu_wake_latency' in changes:
+            self._request_wake_latency(changes['cpu_wake_latency'])
             if 'wait_for_input' in changes:
                 self._inputs.wait_for_input = changes['wait_for_input']
             if CONTROL_PARAMETERS & set(changes):
@@ -364,7 +381,7 @@ class SimNode(Node):
             integration=sim.integration_stats, control=self._control.report(),
             waiting=self._control.waiting(now),
             parameter_file_warning='; '.join(self.parameter_file_warnings),
-            scheduling=pacer.scheduling)
+            scheduling=pacer.scheduling, cpu_wake_latency=pacer.cpu_wake_latency)
         if writer is not None:
             report.recording, report.recorded = str(writer.path), writer.written
             report.backlog, report.record_error = writer.backlog, writer.error
@@ -441,6 +458,8 @@ class SimNode(Node):
             self._pacer.stop_thread()
             if self._pacer.executor_tid == threading.get_native_id():
                 normal_priority()      # finishing the bag and shutting down: no hurry
+            if getattr(self, '_wake_latency', None) is not None:
+                self._wake_latency.release()
             writer = self._outputs.take_writer()
             if writer is not None:
                 # After SIGINT/SIGTERM the context is gone: log without /rosout.
