@@ -30,7 +30,8 @@ needs the interpreter lock (GIL) that thread holds, and a normal-priority holder
 other processes would delay it by their time slice (priority inversion through the GIL).
 Threads these two start (the bag writer) return to normal scheduling. Where that priority is
 not permitted (no ``CAP_SYS_NICE``, ``ulimit -r`` 0) the thread stays at normal priority and
-says so once.
+says so once. On a quiet machine the remaining delay is an idle CPU's wake-up: the node's
+``cpu_wake_latency`` (:class:`train_dynamics.ros.scheduling.CpuWakeLatency`).
 """
 from __future__ import annotations
 
