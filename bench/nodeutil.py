@@ -118,13 +118,24 @@ class Listener:
     """
 
     def __init__(self, name: str = 'bench_listener', qos_depth: int = 10,
-                 record: bool = True):
+                 record: bool = True, message_info: bool = False, priority: int = 0):
         import rclpy
         from rclpy.qos import QoSProfile, ReliabilityPolicy, HistoryPolicy
         from sensor_msgs.msg import FluidPressure, JointState
         from diagnostic_msgs.msg import DiagnosticArray
 
         ros_env()
+        # ``priority`` > 0: the DDS threads of this process (created with its context and node,
+        # they inherit the creating thread's policy) run at SCHED_FIFO ``priority`` where
+        # permitted, so that the load of other processes does not delay the receptions this
+        # probe records; its Python threads stay at normal priority
+        self.scheduling = 'normal'
+        if priority > 0:
+            try:
+                os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+                self.scheduling = f'SCHED_FIFO {priority} (DDS threads)'
+            except (AttributeError, OSError) as exc:
+                self.scheduling = f'normal (SCHED_FIFO not granted: {exc})'
         self._rclpy = rclpy
         self.context = rclpy.Context()
         rclpy.init(context=self.context)
@@ -133,6 +144,10 @@ class Listener:
                          history=HistoryPolicy.KEEP_LAST)
         self.arrivals: list[float] = []
         self.stamps: list[int] = []
+        #: per message, from the rmw's message info [ns, system clock]: when the node's DDS
+        #: writer sent it, and when this process's DDS reader received it (before any Python)
+        self.sources: list[int] = []
+        self.receptions: list[int] = []
         self.record = record
         self.count = 0
         self.last_stamp_ns = -1
@@ -140,21 +155,35 @@ class Listener:
         self.non_monotonic = 0
         self._diag_raw: bytes | None = None
         self.diag_count = 0
-        self.node.create_subscription(JointState, 'couplers', self._on_couplers, qos, raw=True)
+        self.message_info = message_info
+        self.node.create_subscription(
+            JointState, 'couplers', self._on_couplers_info if message_info else self._on_couplers,
+            qos, raw=True)
         self.node.create_subscription(DiagnosticArray, '/diagnostics', self._on_diag, 10,
                                       raw=True)
         self._DiagnosticArray = DiagnosticArray
         self.pub = self.node.create_publisher(FluidPressure, 'brake_pipe/pressure', 10)
         self._FluidPressure = FluidPressure
         # a lean subscriber: the C++ EventsExecutor, raw messages, no Python deserialisation
-        # on the hot path (a Python executor adds its own millisecond jitter to what it sees)
+        # on the hot path (a Python executor adds its own millisecond jitter to what it sees).
+        # ``message_info``: the rmw's timestamps of each message (its DDS reception in this
+        # process, taken before any executor sees it): rclpy 7.1's EventsExecutor cannot pass
+        # them (SystemError), the SingleThreadedExecutor can, and its own delay then does not
+        # enter the reception times
+        from rclpy.executors import SingleThreadedExecutor
         from train_dynamics.ros.sim_node import make_executor
-        self.executor = make_executor(self.context)
+        self.executor = (SingleThreadedExecutor(context=self.context) if message_info
+                         else make_executor(self.context))
         self.executor.add_node(self.node)
+        if self.scheduling.startswith('SCHED_FIFO'):
+            os.sched_setscheduler(0, os.SCHED_OTHER, os.sched_param(0))
         self._stop = threading.Event()
         self._thread: threading.Thread | None = None
 
-    def _on_couplers(self, raw: bytes) -> None:
+    def _on_couplers_info(self, raw: bytes, info: dict) -> None:
+        self._on_couplers(raw, info)
+
+    def _on_couplers(self, raw: bytes, info: dict | None = None) -> None:
         now = time.monotonic()
         stamp = cdr_stamp_ns(raw)
         if self.first_arrival is None:
@@ -166,6 +195,9 @@ class Listener:
         if self.record:
             self.arrivals.append(now)
             self.stamps.append(stamp)
+            if info is not None:
+                self.sources.append(int(info['source_timestamp']))
+                self.receptions.append(int(info['received_timestamp']))
 
     def _on_diag(self, raw: bytes) -> None:
         self.diag_count += 1

@@ -76,6 +76,10 @@ class SimulationReport:
     waiting: str = ''
     #: parameter files with no section for the node (WARN), '' when none
     parameter_file_warning: str = ''
+    #: the simulation thread's scheduling ('SCHED_FIFO <priority>' or 'normal')
+    scheduling: str = ''
+    #: the node's CPU wake-up latency request ('0 us', 'none', 'not granted (...)')
+    cpu_wake_latency: str = ''
 
 
 def integration_values(stats: dict | None) -> dict[str, str]:
@@ -202,6 +206,7 @@ def simulation_status(r: SimulationReport, hardware_id: str) -> DiagnosticStatus
         'finished': str(r.finished).lower(), 'pending_changes': r.pending,
         'recording': r.recording, 'recorded_messages': str(r.recorded),
         'record_backlog': str(r.backlog), 'record_backlog_bytes': str(r.backlog_bytes),
+        'scheduling': r.scheduling, 'cpu_wake_latency': r.cpu_wake_latency,
     }
     kv.update(integration_values(r.integration))
     kv.update(r.control)

@@ -29,6 +29,7 @@ from train_dynamics import topics
 from train_dynamics.physics.config import SimConfig
 from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.outputs import output_topics, parameters_json, run_metadata
+from train_dynamics.ros.scheduling import normal_priority
 
 #: messages queued for the bag writer before the simulation waits (the disk cannot keep up)
 MAX_RECORD_BACKLOG = 20000
@@ -204,6 +205,7 @@ class BagWriter:
             return item, False
 
     def _run(self) -> None:
+        normal_priority()     # started by a real-time thread (reset): bag I/O stays normal
         last_flush = time.monotonic()
         unflushed = False
         try:

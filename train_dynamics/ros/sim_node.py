@@ -27,18 +27,21 @@ values between their callbacks and the simulation thread. This node owns the run
 configuration ``_cfg`` (replaced and changed by the executor thread only, under the simulation
 lock; the simulation thread never reads it: each part holds the values it uses).
 
-Parameters: every parameter of :data:`train_dynamics.physics.config.PARAMETERS` plus the
-node's own (:data:`~train_dynamics.physics.config.SIM_NODE_PARAMETERS`): ``duration``
-(simulation seconds after which the node stops by itself, 0 = forever), ``wait_for_input``
-(hold t = 0 until the brake-input topics have publishers, at most that many wall seconds) and
-``record_flush_period``. Invalid values are rejected with a reason and change nothing. The
-live ones (``dynamic``: ``model_type``, ``scale_factor``, ``real_time_factor``,
-``publish_clock``, ``input_timeout``, ``on_input_timeout``, and the node's own) act at once
-(the state is untouched). Every other (structural) parameter is accepted as PENDING: it is
-stored, logged as pending and applied by the ``reset`` service (``~/reset``, i.e.
-``/train_dynamics/reset``, ``std_srvs/srv/Trigger``), which restarts the scenario from t = 0
-with the current parameter values and says in its response (and the log) what changed; a
-recording continues in a new bag ``<record_bag>_reset<k>``.
+Parameters: every parameter of :data:`train_dynamics.physics.config.PARAMETERS` plus the node's
+own (:data:`~train_dynamics.physics.config.SIM_NODE_PARAMETERS`): ``duration`` (simulation
+seconds after which the node stops by itself, 0 = forever), ``wait_for_input`` (hold t = 0
+until the brake-input topics have publishers, at most that many wall seconds),
+``realtime_priority`` (the simulation thread's SCHED_FIFO priority,
+:mod:`~train_dynamics.ros.pacing`), ``cpu_wake_latency`` (a PM QoS request held while the node
+runs, :class:`~train_dynamics.ros.scheduling.CpuWakeLatency`) and ``record_flush_period``.
+Invalid values are rejected with a reason and change nothing. The live ones (``dynamic``:
+``model_type``, ``scale_factor``, ``real_time_factor``, ``publish_clock``, ``input_timeout``,
+``on_input_timeout``, and the node's own) act at once (the state is untouched). Every other
+(structural) parameter is accepted as PENDING: it is stored, logged as pending and applied by
+the ``reset`` service (``~/reset``, i.e. ``/train_dynamics/reset``, ``std_srvs/srv/Trigger``),
+which restarts the scenario from t = 0 with the current parameter values and says in its
+response (and the log) what changed; a recording continues in a new bag
+``<record_bag>_reset<k>``.
 
 Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``duration``);
 4 lock-step timeout (``lockstep_on_timeout`` stop);
@@ -47,6 +50,7 @@ Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``dura
 from __future__ import annotations
 
 import sys
+import threading
 import time
 from typing import Any
 
@@ -78,6 +82,7 @@ from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
                                          open_bag, reset_bag_path)
 from train_dynamics.ros.run_control import RunControl
+from train_dynamics.ros.scheduling import CpuWakeLatency, normal_priority
 
 __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
            'MAX_ABSOLUTE_PRESSURE', 'MAX_RECORD_BACKLOG', 'REJECT_REASONS']
@@ -137,6 +142,9 @@ class SimNode(Node):
         self._pacer = Pacer(self._lock, self.get_logger(), self.context, self._inputs,
                             self._outputs)
         self._pacer.duration = float(self.get_parameter('duration').value)
+        self._pacer.set_realtime_priority(self.get_parameter('realtime_priority').value)
+        self._wake_latency: CpuWakeLatency | None = None
+        self._request_wake_latency(self.get_parameter('cpu_wake_latency').value)
         self._control = RunControl(self, self._lock, self._inputs, self._outputs,
                                    self._pacer.wake)
         self._pacer.control = self._control
@@ -176,6 +184,17 @@ class SimNode(Node):
         # wake the simulation thread on each input only where it waits for them
         self._inputs.on_input = (self._pacer.wake if sync_mode == 'lockstep'
                                  or self._inputs.by_stamp else None)
+
+    def _request_wake_latency(self, limit_us: int) -> None:
+        """Hold a CPU wake-up latency request of ``limit_us`` (-1: none) instead of the last."""
+        if self._wake_latency is not None:
+            self._wake_latency.release()
+        self._wake_latency = CpuWakeLatency(limit_us)
+        if limit_us >= 0 and not self._wake_latency.held:
+            self.get_logger().info(
+                f'cpu_wake_latency {limit_us} us: {self._wake_latency.status}; idle CPUs may '
+                'wake the simulation thread late (needs write access to /dev/cpu_dma_latency)')
+        self._pacer.cpu_wake_latency = self._wake_latency.status
 
     def _parameter_values(self) -> dict[str, Any]:
         return ros_parameters.parameter_values(self, PARAMETERS)
@@ -221,6 +240,10 @@ class SimNode(Node):
             self._inputs.set_policy(cfg.input_timeout, cfg.on_input_timeout)
             if 'duration' in changes:
                 self._pacer.set_duration(changes['duration'])
+            if 'realtime_priority' in changes:
+                self._pacer.set_realtime_priority(changes['realtime_priority'])
+        if 'cpu_wake_latency' in changes:
+            self._request_wake_latency(changes['cpu_wake_latency'])
             if 'wait_for_input' in changes:
                 self._inputs.wait_for_input = changes['wait_for_input']
             if CONTROL_PARAMETERS & set(changes):
@@ -293,6 +316,10 @@ class SimNode(Node):
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response):
         """``reset``: restart from t = 0 with the current (incl. pending) parameter values."""
+        with self._pacer.executor_at_normal_priority():
+            return self._reset(response)
+
+    def _reset(self, response: Trigger.Response):
         log = self.get_logger()
         try:
             cfg = SimConfig.from_dict(self._parameter_values())
@@ -353,7 +380,8 @@ class SimNode(Node):
             duration=pacer.duration, behind_warn=BEHIND_WARN, pending=pending,
             integration=sim.integration_stats, control=self._control.report(),
             waiting=self._control.waiting(now),
-            parameter_file_warning='; '.join(self.parameter_file_warnings))
+            parameter_file_warning='; '.join(self.parameter_file_warnings),
+            scheduling=pacer.scheduling, cpu_wake_latency=pacer.cpu_wake_latency)
         if writer is not None:
             report.recording, report.recorded = str(writer.path), writer.written
             report.backlog, report.record_error = writer.backlog, writer.error
@@ -428,6 +456,10 @@ class SimNode(Node):
         if not self._destroyed and hasattr(self, '_pacer'):
             self._destroyed = True
             self._pacer.stop_thread()
+            if self._pacer.executor_tid == threading.get_native_id():
+                normal_priority()      # finishing the bag and shutting down: no hurry
+            if getattr(self, '_wake_latency', None) is not None:
+                self._wake_latency.release()
             writer = self._outputs.take_writer()
             if writer is not None:
                 # After SIGINT/SIGTERM the context is gone: log without /rosout.
@@ -453,7 +485,13 @@ def main(args: list[str] | None = None) -> int:
     Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 4 lock-step
     timeout (``lockstep_on_timeout`` stop), 1 other errors (a recording that failed included).
     """
-    return run_node('sim_node', SimNode, args, node_name=NODE_NAME, specs=SPECS, exits=(
+    def create() -> SimNode:
+        node = SimNode()
+        # this thread spins the executor: it follows the simulation thread's priority (pacing)
+        node._pacer.executor_tid = threading.get_native_id()
+        return node
+
+    return run_node('sim_node', create, args, node_name=NODE_NAME, specs=SPECS, exits=(
         ExitOn((ConfigError, ParameterException, FileExistsError, ValueError),
                'invalid parameters', 2),
         ExitOn((BagError, OSError), 'cannot record', 1)))

@@ -520,6 +520,19 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
     ParamSpec('step_periods', 1, INTEGER,
               'Output periods the ~/step service advances a paused simulation by.',
               low=1, high=1000000000, dynamic=True),
+    ParamSpec('realtime_priority', 20, INTEGER,
+              'SCHED_FIFO priority (1-99) of the simulation thread while it keeps up with '
+              'real_time_factor, so that the load of other processes does not delay its '
+              'outputs; 0 = normal scheduling. Needs CAP_SYS_NICE or an rtprio limit (ulimit '
+              '-r); without either the thread runs at normal priority (logged).',
+              low=0, high=99, dynamic=True),
+    ParamSpec('cpu_wake_latency', 0, INTEGER,
+              'Longest CPU wake-up latency [us] the node asks the kernel for while it runs '
+              '(Linux PM QoS, /dev/cpu_dma_latency): idle CPUs stay in idle states that wake '
+              'within it (in a VM: poll instead of halting), at the cost of their power; -1 = '
+              'no request. Needs write access to /dev/cpu_dma_latency (root by default); '
+              'without it nothing is asked (logged).',
+              low=-1, high=100000, dynamic=True),
     ParamSpec('record_flush_period', 10.0, DOUBLE,
               'Wall-clock period [s] at which the record_bag MCAP file is finished and a new '
               'one started: a SIGKILL loses at most this much of the recording.',
