@@ -419,6 +419,16 @@ def main(argv=None) -> int:
         import vehicle_cost
         log('wheelsets: cost per vehicle-step with and without (paper47, freight)')
         wheel_md = vehicle_cost.wheelset_section(log=log, write=not args.no_write)
+        if not args.no_node:
+            import node as nodebench
+            n, params = nodebench.CASES['wheelsets300']
+            log(f'node: {n} vehicles with wheelsets, 100 Hz, real time, 60 s')
+            try:
+                res = nodebench.run(n=n, rate=100.0, duration=60.0, log=log, extra_params=params)
+                wheel_md += ('\n#### The node with 300 vehicles and wheelsets (100 Hz, 60 s)\n\n'
+                             + nodebench.table(res) + '\n')
+            except Exception as exc:  # noqa: BLE001 - report and keep the other results
+                log(f'wheelsets node benchmark failed: {exc}')
     if not args.no_sweep:
         try:
             sweepbench.run_and_write(log=log, write=not args.no_write)
