@@ -59,6 +59,11 @@ def _config(case: str):
     from train_dynamics.physics.config import load_param_file, SimConfig
     if case.endswith('+w'):
         return _config(case[:-2]).replace(wheelsets=True)
+    for suffix, only in (('+ev', False), ('+eo', True)):
+        if suffix in case:       # ``uniform100+mr1e-3+ev0.5``: multirate_events 0.5
+            case, ev = case.split(suffix)      # (+eo: events only, no error flags)
+            return _config(case).replace(multirate_events=float(ev),
+                                         multirate_error_flags=not only)
     for suffix, name in (('+mr', 'multirate_tolerance'), ('+tol', 'integration_tolerance')):
         if suffix in case:       # ``uniform100+mr1e-3``, ``uniform100+tol1e-3``
             case, tol = case.split(suffix)
