@@ -59,6 +59,9 @@ def _config(case: str):
     from train_dynamics.physics.config import load_param_file, SimConfig
     if case.endswith('+w'):
         return _config(case[:-2]).replace(wheelsets=True)
+    if '+rw' in case:       # ``uniform100+mr1e-3+rw0.3``: multirate_reversal_weight 0.3
+        case, w = case.split('+rw')
+        return _config(case).replace(multirate_reversal_weight=float(w))
     for suffix, only in (('+ev', False), ('+eo', True)):
         if suffix in case:       # ``uniform100+mr1e-3+ev0.5``: multirate_events 0.5
             case, ev = case.split(suffix)      # (+eo: events only, no error flags)

@@ -172,6 +172,7 @@ class SimConfig:
     multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = off (fixed step only)
     multirate_events: float = 0.0                     # [-]; 0 = off
     multirate_error_flags: bool = True
+    multirate_reversal_weight: float = 0.0            # [-]; 0 = off
 
     #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
     _consist = None

@@ -481,6 +481,11 @@ _PARAMS = [
               'Multirate: flag couplers by their local error estimate (multirate_tolerance); '
               'false: by the events of multirate_events only (the sub-steps stay '
               'error-controlled at multirate_tolerance).'),
+    ParamSpec('multirate_reversal_weight', 0.0, DOUBLE,
+              "Multirate: a coupler's local error is at least this weight times its relative "
+              'velocity error times k_f |y| u, the slope of the tanh law at its next friction '
+              'reversal [-] (outside the friction band the estimate does not see velocity '
+              'errors that shift the reversal). 0 = off.', low=0.0, high=100.0),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}

@@ -175,6 +175,7 @@ PARAM = _group('ParamSlots', [
     'MRTOL',        # multirate_tolerance: local coupler-force error / force level [-]; 0 off
     'MREV',         # multirate_events: largest change of u ydot per step in the band [-]; 0 off
     'MRERR',        # multirate_error_flags: 1.0 flag couplers by the error estimate, 0.0 not
+    'MRVW',         # multirate_reversal_weight: velocity error at the reversal slope [-]; 0 off
 ])
 TOTAL = _group('TotalSlots', [
     'WB',           # work of the brakes since t = 0 [J]

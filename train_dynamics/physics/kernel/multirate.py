@@ -118,14 +118,17 @@ def event_flags(coach, cpl, sc, tol_f, ws, err):
 
 
 @jit(inline=True)
-def coupler_errors(h, ws, out):
+def coupler_errors(h, ws, out, cpl, u, w):
     """
     Write each coupler's local force error [N] of the ROS2 step just solved to ``out``.
 
     Embedded first-order solution: e_x = h/2 ((1 - g) h b1 + g h b2), e_v = h/2 (b1 + b2)
     per vehicle, e_j = |dF/dy (e_xj - e_xj+1) + dF/dydot (e_vj - e_vj+1)| with the stage
-    matrix's slopes (dF/dydot = KK / (g h) - g h dF/dy). Returns max_j |F_j| [N] at the
-    step's start.
+    matrix's slopes (dF/dydot = KK / (g h) - g h dF/dy). With w > 0 (PARAM.MRVW) at least
+    w k |y| u |e_vj - e_vj+1|: the velocity error weighted by the slope the tanh law has at
+    the coupler's next friction reversal (k = k_f in compression, k_fc in tension, u [s/m]),
+    where outside the band dF/dydot ~ 0 hides it. Returns max_j |F_j| [N] at the step's
+    start.
     """
     b1 = ws[WORK.B1]
     b2 = ws[WORK.B2]
@@ -144,6 +147,10 @@ def coupler_errors(h, ws, out):
         j = i - 1
         dfdv = kk[j] / gh - gh * dfdy[j]
         out[j] = abs(dfdy[j] * (ex_prev - ex) + dfdv * (ev_prev - ev))
+        if w > 0.0:
+            y = ws[WORK.YKEY, j]
+            k = cpl[COUPLER.KF, j] if y < 0.0 else cpl[COUPLER.KFC, j]
+            out[j] = max(out[j], w * k * abs(y) * u * abs(ev_prev - ev))
         fmax = max(fmax, abs(F0[j]))
         ex_prev = ex
         ev_prev = ev
@@ -255,7 +262,7 @@ def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof):
             eval_couplers(x, v, scpl, model, u, GAMMA * hl, sws)
         sws[WORK.VSTART][:] = v
         ros2_step(hl, sub, scpl, model, u, held, sws, False, False, gprof)
-        coupler_errors(hl, sws, err)
+        coupler_errors(hl, sws, err, scpl, u, sc[PARAM.MRVW])
         e = 0.0
         for j in range(nc - 1):
             e = max(e, err[j])
@@ -317,7 +324,7 @@ def refine(h, coach, cpl, sc, iv, held, ws, gprof):
     n = coach.shape[1]
     m = n - 1
     err = ws[WORK.ERR]
-    fmax = coupler_errors(h, ws, err)
+    fmax = coupler_errors(h, ws, err, cpl, sc[PARAM.U], sc[PARAM.MRVW])
     tol_f = sc[PARAM.MRTOL] * max(fmax, sc[PARAM.FFLOOR])
     if sc[PARAM.MREV] > 0.0:
         event_flags(coach, cpl, sc, tol_f, ws, err)
