@@ -56,7 +56,7 @@ SETTINGS = (
     for ev in (1.0, 0.5, 0.25, 0.1, 0.05, 0.02)) + tuple(
     (f'multirate {tol:.0e}'.replace('e-0', 'e-') + f' + reversal weight {w:g}',
      {'multirate_tolerance': tol, 'multirate_reversal_weight': w})
-    for tol in (1e-2, 3e-3, 1e-3) for w in (10.0, 3.0, 1.0, 0.3, 0.1, 0.03))
+    for tol in (1e-2, 3e-3, 1e-3) for w in (10.0, 5.0, 3.0, 2.0, 1.0, 0.5, 0.3, 0.1, 0.03))
 DT = 0.002      # [s] read-out
 
 
