@@ -49,11 +49,6 @@ SETTINGS = (
     ('multirate 2e-4', {'multirate_tolerance': 2e-4}),
     ('multirate 1e-4', {'multirate_tolerance': 1e-4}),
 ) + tuple(
-    (f'{"events" if only else "multirate"} {tol:.0e}'.replace('e-0', 'e-')
-     + f' + events {ev:g}',
-     {'multirate_tolerance': tol, 'multirate_events': ev, 'multirate_error_flags': not only})
-    for only in (False, True) for tol in (1e-2, 3e-3, 1e-3, 3e-4, 1e-4)
-    for ev in (1.0, 0.5, 0.25, 0.1, 0.05, 0.02)) + tuple(
     (f'multirate {tol:.0e}'.replace('e-0', 'e-') + f' + reversal weight {w:g}',
      {'multirate_tolerance': tol, 'multirate_reversal_weight': w})
     for tol in (1e-2, 3e-3, 1e-3) for w in (10.0, 5.0, 3.0, 2.0, 1.0, 0.5, 0.3, 0.1, 0.03))

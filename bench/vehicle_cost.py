@@ -62,11 +62,6 @@ def _config(case: str):
     if '+rw' in case:       # ``uniform100+mr1e-3+rw0.3``: multirate_reversal_weight 0.3
         case, w = case.split('+rw')
         return _config(case).replace(multirate_reversal_weight=float(w))
-    for suffix, only in (('+ev', False), ('+eo', True)):
-        if suffix in case:       # ``uniform100+mr1e-3+ev0.5``: multirate_events 0.5
-            case, ev = case.split(suffix)      # (+eo: events only, no error flags)
-            return _config(case).replace(multirate_events=float(ev),
-                                         multirate_error_flags=not only)
     for suffix, name in (('+mr', 'multirate_tolerance'), ('+tol', 'integration_tolerance')):
         if suffix in case:       # ``uniform100+mr1e-3``, ``uniform100+tol1e-3``
             case, tol = case.split(suffix)

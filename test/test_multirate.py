@@ -205,23 +205,3 @@ def test_reversal_weight_weighs_velocity_error_by_the_reversal_slope():
     assert out[:2] == pytest.approx(expected, rel=1e-12)
     assert expected[0] == pytest.approx(2.0 * 4e5 * 0.03 * 1000.0 * 0.0009, rel=1e-12)
 
-
-def test_event_flags_band_and_breakpoints():
-    """
-    The events of multirate_events: the friction band |u ydot| < 3 and the law's breakpoints.
-
-    u = 1000 s/m: a step from ydot = -4 to -3.5 mm/s stays outside the band (no event); from
-    -4 to -2 mm/s it enters it, a change of 2 in u ydot (8 steps of 0.25); one crossing
-    zero from -1 to +1 mm/s changes it by 2. Draw-gear free play 10 mm, stroke 20 mm: y from
-    5 to 12 mm crosses the free play's end, 5 to 9 mm nothing, 25 to 31 mm the stroke's end.
-    """
-    assert multirate._band_ratio(1000.0, -0.004, -0.0035, 0.25) == 0.0
-    assert multirate._band_ratio(1000.0, -0.004, -0.002, 0.25) == pytest.approx(8.0)
-    assert multirate._band_ratio(1000.0, -0.001, 0.001, 0.5) == pytest.approx(4.0)
-    cpl = np.zeros((len(COUPLER), 1))
-    cpl[COUPLER.GT] = cpl[COUPLER.GC] = 0.01
-    cpl[COUPLER.ST] = cpl[COUPLER.SC] = 0.02
-    assert multirate._crosses_breakpoint(0, 0.005, 0.012, cpl)
-    assert not multirate._crosses_breakpoint(0, 0.005, 0.009, cpl)
-    assert multirate._crosses_breakpoint(0, 0.025, 0.031, cpl)
-    assert multirate._crosses_breakpoint(0, -0.005, -0.011, cpl)

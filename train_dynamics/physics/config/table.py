@@ -471,16 +471,6 @@ _PARAMS = [
               'two neighbouring vehicles on either side in error-controlled sub-steps, the rest '
               'of the train keeping the step (momentum exact). 0 = off; not with '
               'integration_tolerance > 0.', low=0.0, high=0.1),
-    ParamSpec('multirate_events', 0.0, DOUBLE,
-              'Multirate event flags (with multirate_tolerance > 0): a coupler whose step '
-              'crosses a breakpoint of its law (free play, stroke end) or changes u ydot '
-              'by more than this inside the friction band |u ydot| < 3 (tanh law) is '
-              're-integrated too, its sub-steps limited to this change of u ydot in the band '
-              '[-]. 0 = off.', low=0.0, high=100.0),
-    ParamSpec('multirate_error_flags', True, BOOL,
-              'Multirate: flag couplers by their local error estimate (multirate_tolerance); '
-              'false: by the events of multirate_events only (the sub-steps stay '
-              'error-controlled at multirate_tolerance).'),
     ParamSpec('multirate_reversal_weight', 0.0, DOUBLE,
               "Multirate: a coupler's local error is at least this weight times its relative "
               'velocity error times k_f |y| u, the slope of the tanh law at its next friction '

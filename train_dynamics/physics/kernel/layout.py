@@ -173,8 +173,6 @@ PARAM = _group('ParamSlots', [
     'FFLOOR',       # force level below which the tolerance is absolute [N]
     'FRICTION',     # 1.0: some vehicle brakes with a friction material (not paper)
     'MRTOL',        # multirate_tolerance: local coupler-force error / force level [-]; 0 off
-    'MREV',         # multirate_events: largest change of u ydot per step in the band [-]; 0 off
-    'MRERR',        # multirate_error_flags: 1.0 flag couplers by the error estimate, 0.0 not
     'MRVW',         # multirate_reversal_weight: velocity error at the reversal slope [-]; 0 off
 ])
 TOTAL = _group('TotalSlots', [

@@ -8,7 +8,9 @@ limits the step only around itself. After the long ROS2 step h of the whole trai
 1. estimates each coupler's local force error with the embedded first-order solution of
    ROS2 (Verwer et al. 1999; as the error-controlled driver, :mod:`.adaptive`, but per
    coupler): e_j = |dF/dy e_yj + dF/dydot e_ydotj| [N], the stage difference h/2 (k1 + k2)
-   weighted into the coupler's force (:func:`coupler_errors`);
+   weighted into the coupler's force (:func:`coupler_errors`); with
+   ``multirate_reversal_weight`` w > 0 at least w k |y| u times the relative-velocity error,
+   the error the reversal it shifts will make (tanh law, eq. 14);
 2. flags the couplers with e_j > tol * max(max_k |F_k|, F_floor) (``multirate_tolerance``
    tol [-], the same norm as ``integration_tolerance``: relative to the largest coupler
    force in the train, F_floor = 1e-3 of the heaviest vehicle's weight);
@@ -59,62 +61,6 @@ MAX_SUB = 200
 SAFETY = 0.9
 FAC_MIN = 0.2
 FAC_MAX = 5.0
-#: friction band of the tanh law: |u ydot| < BAND is a coupler within its friction reversal
-#: (tanh 3 = 0.995: outside it the friction force is within 0.5 % of its amplitude)
-BAND = 3.0
-
-
-@jit(inline=True)
-def _band_ratio(u, dv0, dv1, limit):
-    """
-    Return |u (dv1 - dv0)| / limit when [u dv0, u dv1] meets the band |u ydot| < BAND, else 0.
-
-    The change of the tanh law's argument over a step, relative to the change ``limit`` [-]
-    a step may take within the friction reversal (``multirate_events``).
-    """
-    a = u * dv0
-    b = u * dv1
-    if min(a, b) >= BAND or max(a, b) <= -BAND:
-        return 0.0
-    return abs(b - a) / limit
-
-
-@jit(inline=True)
-def _crosses_breakpoint(j, y0, y1, cpl):
-    """Tell whether coupler j's y [m] passes a breakpoint of its law between y0 and y1."""
-    lo = min(y0, y1)
-    hi = max(y0, y1)
-    gt = cpl[COUPLER.GT, j]
-    gc = cpl[COUPLER.GC, j]
-    for yb in (-(gc + cpl[COUPLER.SC, j]), -gc, gt, gt + cpl[COUPLER.ST, j]):
-        if lo < yb < hi:
-            return True
-    return False
-
-
-@jit(inline=True)
-def event_flags(coach, cpl, sc, tol_f, ws, err):
-    """
-    Flag (err_j > tol_f) the couplers whose long step crossed an event of their law.
-
-    Events: a breakpoint of the law (free play, stroke end; :func:`_crosses_breakpoint`)
-    between the step's start (STATE.X) and end (WORK.XNEW), or a change of u ydot by more
-    than PARAM.MREV within the friction band (:func:`_band_ratio`). With PARAM.MRERR = 0
-    the error estimate's flags are cleared first (events only).
-    """
-    x0 = coach[STATE.X]
-    v0 = ws[WORK.VSTART]
-    x1 = ws[WORK.XNEW]
-    v1 = ws[WORK.VNEW]
-    u = sc[PARAM.U]
-    limit = sc[PARAM.MREV]
-    only = sc[PARAM.MRERR] == 0.0
-    for j in range(x0.shape[0] - 1):
-        if only:
-            err[j] = 0.0
-        r = _band_ratio(u, v0[j] - v0[j + 1], v1[j] - v1[j + 1], limit)
-        if r > 1.0 or _crosses_breakpoint(j, x0[j] - x0[j + 1], x1[j] - x1[j + 1], cpl):
-            err[j] = max(err[j], tol_f * max(2.0, r * r))
 
 
 @jit(inline=True)
@@ -126,8 +72,10 @@ def coupler_errors(h, ws, out, cpl, u, w):
     per vehicle, e_j = |dF/dy (e_xj - e_xj+1) + dF/dydot (e_vj - e_vj+1)| with the stage
     matrix's slopes (dF/dydot = KK / (g h) - g h dF/dy). With w > 0 (PARAM.MRVW) at least
     w k |y| u |e_vj - e_vj+1|: the velocity error weighted by the slope the tanh law has at
-    the coupler's next friction reversal (k = k_f in compression, k_fc in tension, u [s/m]),
-    where outside the band dF/dydot ~ 0 hides it. Returns max_j |F_j| [N] at the step's
+    the coupler's next friction reversal (k = k_f in compression, k_fc in tension, u [s/m];
+    |y| with the free play: an upper bound of the friction's amplitude), where outside the
+    band dF/dydot ~ 0 hides it: a relative-velocity error of a sliding coupler shifts its
+    next reversal, by ~ error / relative acceleration. Returns max_j |F_j| [N] at the step's
     start.
     """
     b1 = ws[WORK.B1]
@@ -219,7 +167,6 @@ def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof):
     nc = b - a + 1
     model = iv[OPTION.MODEL]
     u = sc[PARAM.U]
-    limit = sc[PARAM.MREV]
     sub = coach[:, a:b + 1].copy()
     scpl = cpl[:, a:b].copy()
     sws = np.zeros((ws.shape[0], nc))
@@ -267,10 +214,6 @@ def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof):
         for j in range(nc - 1):
             e = max(e, err[j])
         e /= tol_f
-        if limit > 0.0:     # the friction reversal in steps of at most ``limit`` in u ydot
-            for j in range(nc - 1):
-                r = _band_ratio(u, v[j] - v[j + 1], v_new[j] - v_new[j + 1], limit)
-                e = max(e, r * r)
         if e > 1.0 and forced == 0.0:
             hs = hl * max(FAC_MIN, SAFETY / np.sqrt(e))
             continue
@@ -326,8 +269,6 @@ def refine(h, coach, cpl, sc, iv, held, ws, gprof):
     err = ws[WORK.ERR]
     fmax = coupler_errors(h, ws, err, cpl, sc[PARAM.U], sc[PARAM.MRVW])
     tol_f = sc[PARAM.MRTOL] * max(fmax, sc[PARAM.FFLOOR])
-    if sc[PARAM.MREV] > 0.0:
-        event_flags(coach, cpl, sc, tol_f, ws, err)
     corr = 0.0
     j = 0
     while j < m:
