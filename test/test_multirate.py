@@ -204,4 +204,3 @@ def test_reversal_weight_weighs_velocity_error_by_the_reversal_slope():
                 2.0 * 1.0e5 * 0.02 * u * abs(ev[1] - ev[2])]
     assert out[:2] == pytest.approx(expected, rel=1e-12)
     assert expected[0] == pytest.approx(2.0 * 4e5 * 0.03 * 1000.0 * 0.0009, rel=1e-12)
-
