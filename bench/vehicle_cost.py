@@ -59,6 +59,9 @@ def _config(case: str):
     from train_dynamics.physics.config import load_param_file, SimConfig
     if case.endswith('+w'):
         return _config(case[:-2]).replace(wheelsets=True)
+    if '+rw' in case:       # ``uniform100+mr1e-3+rw0.3``: multirate_reversal_weight 0.3
+        case, w = case.split('+rw')
+        return _config(case).replace(multirate_reversal_weight=float(w))
     for suffix, name in (('+mr', 'multirate_tolerance'), ('+tol', 'integration_tolerance')):
         if suffix in case:       # ``uniform100+mr1e-3``, ``uniform100+tol1e-3``
             case, tol = case.split(suffix)

@@ -175,3 +175,32 @@ def test_coupler_work_summed_over_sub_steps_closes_the_energy_balance():
         assert sim.work_brake == 0.0 and lost > 1e3
         residuals.append(abs(lost - sim.work_coupler) / lost)
     assert residuals[1] < 1e-3 < residuals[0], residuals
+
+
+def test_reversal_weight_weighs_velocity_error_by_the_reversal_slope():
+    """
+    multirate_reversal_weight w: e_j >= w k |y| u |e_vj - e_vj+1| (k = k_f or k_fc by y's sign).
+
+    Three vehicles, hand-set stages: e_v = h/2 (b1 + b2) per vehicle. The force-error rows
+    (DFDY, KK) are zero, so the weight alone makes the errors: coupler 0 in compression
+    (y = -30 mm, k_f), coupler 1 in tension (y = 20 mm, k_fc); w = 0 leaves them 0.
+    """
+    n = 3
+    h = 0.002
+    u = 1000.0
+    ws = np.zeros((len(WORK), n))
+    ws[WORK.B1] = [0.5, -0.2, 0.1]           # [m/s^2]
+    ws[WORK.B2] = [0.3, 0.1, -0.4]
+    ws[WORK.YKEY, :2] = [-0.03, 0.02]
+    cpl = np.zeros((len(COUPLER), n - 1))
+    cpl[COUPLER.KF] = 4.0e5
+    cpl[COUPLER.KFC] = 1.0e5
+    ev = 0.5 * h * (ws[WORK.B1] + ws[WORK.B2])
+    out = np.zeros(n)
+    multirate.coupler_errors(h, ws, out, cpl, u, 0.0)
+    assert np.all(out[:2] == 0.0)
+    multirate.coupler_errors(h, ws, out, cpl, u, 2.0)
+    expected = [2.0 * 4.0e5 * 0.03 * u * abs(ev[0] - ev[1]),
+                2.0 * 1.0e5 * 0.02 * u * abs(ev[1] - ev[2])]
+    assert out[:2] == pytest.approx(expected, rel=1e-12)
+    assert expected[0] == pytest.approx(2.0 * 4e5 * 0.03 * 1000.0 * 0.0009, rel=1e-12)

@@ -203,6 +203,7 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             1e-3 * float(np.max(self.masses)) * float(cfg.gravity)]
         sc[PARAM.FRICTION] = float(np.any(c[VEHICLE.MATERIAL] != friction.PAPER))
         sc[PARAM.MRTOL] = float(cfg.multirate_tolerance)
+        sc[PARAM.MRVW] = float(cfg.multirate_reversal_weight)
         # the pneumatic brake hands the chain its cylinder pressures (cylinder_per_coach)
         iv[OPTION.MODE] = brakes.CYLINDER_PER_COACH if self.pneu is not None else self.mode
         iv[OPTION.EXT] = int(cfg.external_forces)

@@ -170,6 +170,7 @@ class SimConfig:
     integration_tolerance: float = INTEGRATION_TOLERANCE  # [-]; 0 = fixed step
     integration_max_steps: int = 100                  # steps per output period
     multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = off (fixed step only)
+    multirate_reversal_weight: float = 0.0            # [-]; 0 = off
 
     #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
     _consist = None

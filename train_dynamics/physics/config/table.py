@@ -471,6 +471,11 @@ _PARAMS = [
               'two neighbouring vehicles on either side in error-controlled sub-steps, the rest '
               'of the train keeping the step (momentum exact). 0 = off; not with '
               'integration_tolerance > 0.', low=0.0, high=0.1),
+    ParamSpec('multirate_reversal_weight', 0.0, DOUBLE,
+              "Multirate: a coupler's local error is at least this weight times its relative "
+              'velocity error times k_f |y| u, the slope of the tanh law at its next friction '
+              'reversal [-] (outside the friction band the estimate does not see velocity '
+              'errors that shift the reversal). 0 = off.', low=0.0, high=100.0),
 ]
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}

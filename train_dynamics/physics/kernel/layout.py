@@ -173,6 +173,7 @@ PARAM = _group('ParamSlots', [
     'FFLOOR',       # force level below which the tolerance is absolute [N]
     'FRICTION',     # 1.0: some vehicle brakes with a friction material (not paper)
     'MRTOL',        # multirate_tolerance: local coupler-force error / force level [-]; 0 off
+    'MRVW',         # multirate_reversal_weight: velocity error at the reversal slope [-]; 0 off
 ])
 TOTAL = _group('TotalSlots', [
     'WB',           # work of the brakes since t = 0 [J]

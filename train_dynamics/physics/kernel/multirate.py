@@ -8,7 +8,9 @@ limits the step only around itself. After the long ROS2 step h of the whole trai
 1. estimates each coupler's local force error with the embedded first-order solution of
    ROS2 (Verwer et al. 1999; as the error-controlled driver, :mod:`.adaptive`, but per
    coupler): e_j = |dF/dy e_yj + dF/dydot e_ydotj| [N], the stage difference h/2 (k1 + k2)
-   weighted into the coupler's force (:func:`coupler_errors`);
+   weighted into the coupler's force (:func:`coupler_errors`); with
+   ``multirate_reversal_weight`` w > 0 at least w k |y| u times the relative-velocity error,
+   the error the reversal it shifts will make (tanh law, eq. 14);
 2. flags the couplers with e_j > tol * max(max_k |F_k|, F_floor) (``multirate_tolerance``
    tol [-], the same norm as ``integration_tolerance``: relative to the largest coupler
    force in the train, F_floor = 1e-3 of the heaviest vehicle's weight);
@@ -44,7 +46,7 @@ import numpy as np
 
 from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.coupler_rows import eval_couplers
-from train_dynamics.physics.kernel.layout import COUNT, OPTION, PARAM, STATE, WORK
+from train_dynamics.physics.kernel.layout import COUNT, COUPLER, OPTION, PARAM, STATE, WORK
 from train_dynamics.physics.kernel.ros2 import GAMMA, ros2_step
 
 #: vehicles added to a flagged coupler's group on either side. Measured (bench/accuracy.py,
@@ -62,14 +64,19 @@ FAC_MAX = 5.0
 
 
 @jit(inline=True)
-def coupler_errors(h, ws, out):
+def coupler_errors(h, ws, out, cpl, u, w):
     """
     Write each coupler's local force error [N] of the ROS2 step just solved to ``out``.
 
     Embedded first-order solution: e_x = h/2 ((1 - g) h b1 + g h b2), e_v = h/2 (b1 + b2)
     per vehicle, e_j = |dF/dy (e_xj - e_xj+1) + dF/dydot (e_vj - e_vj+1)| with the stage
-    matrix's slopes (dF/dydot = KK / (g h) - g h dF/dy). Returns max_j |F_j| [N] at the
-    step's start.
+    matrix's slopes (dF/dydot = KK / (g h) - g h dF/dy). With w > 0 (PARAM.MRVW) at least
+    w k |y| u |e_vj - e_vj+1|: the velocity error weighted by the slope the tanh law has at
+    the coupler's next friction reversal (k = k_f in compression, k_fc in tension, u [s/m];
+    |y| with the free play: an upper bound of the friction's amplitude), where outside the
+    band dF/dydot ~ 0 hides it: a relative-velocity error of a sliding coupler shifts its
+    next reversal, by ~ error / relative acceleration. Returns max_j |F_j| [N] at the step's
+    start.
     """
     b1 = ws[WORK.B1]
     b2 = ws[WORK.B2]
@@ -88,6 +95,10 @@ def coupler_errors(h, ws, out):
         j = i - 1
         dfdv = kk[j] / gh - gh * dfdy[j]
         out[j] = abs(dfdy[j] * (ex_prev - ex) + dfdv * (ev_prev - ev))
+        if w > 0.0:
+            y = ws[WORK.YKEY, j]
+            k = cpl[COUPLER.KF, j] if y < 0.0 else cpl[COUPLER.KFC, j]
+            out[j] = max(out[j], w * k * abs(y) * u * abs(ev_prev - ev))
         fmax = max(fmax, abs(F0[j]))
         ex_prev = ex
         ev_prev = ev
@@ -198,7 +209,7 @@ def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof):
             eval_couplers(x, v, scpl, model, u, GAMMA * hl, sws)
         sws[WORK.VSTART][:] = v
         ros2_step(hl, sub, scpl, model, u, held, sws, False, False, gprof)
-        coupler_errors(hl, sws, err)
+        coupler_errors(hl, sws, err, scpl, u, sc[PARAM.MRVW])
         e = 0.0
         for j in range(nc - 1):
             e = max(e, err[j])
@@ -256,7 +267,7 @@ def refine(h, coach, cpl, sc, iv, held, ws, gprof):
     n = coach.shape[1]
     m = n - 1
     err = ws[WORK.ERR]
-    fmax = coupler_errors(h, ws, err)
+    fmax = coupler_errors(h, ws, err, cpl, sc[PARAM.U], sc[PARAM.MRVW])
     tol_f = sc[PARAM.MRTOL] * max(fmax, sc[PARAM.FFLOOR])
     corr = 0.0
     j = 0
