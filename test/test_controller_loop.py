@@ -15,7 +15,7 @@ import pytest
 
 from train_dynamics.physics.config import ConfigError
 from train_dynamics.recording.bags import read_topics
-from train_dynamics.testing import Criterion, run_scenario, Scenario
+from train_dynamics.testing import Criterion, harness, run_scenario, Scenario
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENARIO = ROOT / 'examples' / 'stop_from_50kmh.yaml'
@@ -29,7 +29,18 @@ def _files(bag: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(bag.iterdir())}
 
 
-def test_lockstep_closed_loop_is_byte_identical_and_loses_no_command(tmp_path):
+@pytest.fixture
+def no_report(monkeypatch):
+    """
+    Skip the harness's metrics report (``train-dynamics report``, figures: 17-26 s a run).
+
+    For the tests of the lockstep bags themselves; the report of a harness run is tested
+    with the PI controller and its harsh twin below.
+    """
+    monkeypatch.setattr(harness, '_metrics', lambda bag, out, namespace: {'report': 'skipped'})
+
+
+def test_lockstep_closed_loop_is_byte_identical_and_loses_no_command(tmp_path, no_report):
     runs = [run_scenario(SCENARIO, PI, tmp_path / f'run{k}') for k in (1, 2)]
     for run in runs:
         assert run.returncode == 0 and not run.error, run.report()
@@ -50,7 +61,7 @@ def test_lockstep_closed_loop_is_byte_identical_and_loses_no_command(tmp_path):
     assert all(t == stamp for t, stamp in commands)
 
 
-def test_lockstep_waits_for_traction_commands_and_is_byte_identical(tmp_path):
+def test_lockstep_waits_for_traction_commands_and_is_byte_identical(tmp_path, no_report):
     """
     A controller answering each output with the brake pipe and, 5 ms later, a traction command.
 

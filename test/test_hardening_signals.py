@@ -110,23 +110,35 @@ def test_sweep_signal_stops_within_a_second_and_keeps_finished_cases(tmp_path):
 
 @pytest.mark.parametrize('signum, code', [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_simulate_at_a_tolerance_no_step_meets_stops_within_a_second(tmp_path, signum, code):
-    """Tolerance 1e-15 with the highest accepted budget: a signal still stops it, bag kept."""
+    """
+    Tolerance 1e-15 with the highest accepted budget: a signal still stops it, bag kept.
+
+    The emergency at t = 0.1 s (not the paper's 1 s): ten output periods of coasting, then
+    braking, where every step is rejected down to the smallest. The signal comes 1.5 s after
+    the bag was opened (its header staged), well into the braking.
+    """
+    text = Path(PAPER).read_text()
+    assert '"1.0:emergency"' in text
     params = tmp_path / 'p.yaml'
-    params.write_text(Path(PAPER).read_text().replace(
+    params.write_text(text.replace(
         'integration_step: 0.002', 'integration_step: 0.002\n    integration_tolerance: 1.0e-15\n'
-        f'    integration_max_steps: {max_period_steps(3)}'))
+        f'    integration_max_steps: {max_period_steps(3)}').replace(
+        '"1.0:emergency"', '"0.1:emergency"'))
     out = tmp_path / 'run'
     proc = offline('simulate', '--params', params, '--duration', 100000, '--output', out, '-q')
 
     def ready():
-        wait_for(lambda: staged_bytes(tmp_path, 'run') > 200_000, 600, 'a growing bag')
-        time.sleep(1.0)                        # braking from t = 1 s: every step rejected
+        # the run started: its bag is open (it grows only at the first chunk's flush, ~45 s
+        # of wall time at this tolerance)
+        wait_for(lambda: staged_bytes(tmp_path, 'run') > 0, 600, 'the bag opened')
+        time.sleep(1.5)                        # braking from t = 0.1 s: every step rejected
 
     _, err, took = signal_when(proc, signum, ready)
     assert proc.returncode == code, err
     assert took < 1.5, took
     hist = load_history(out)                   # closed and readable, whole samples
     assert len(hist.couplers) == len(hist.coaches) > 10
+    assert hist.couplers.t[-1] > 0.1           # the signal came in the braking (0.41 s here)
     assert not list(tmp_path.glob('.run.partial-*'))
 
 
