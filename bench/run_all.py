@@ -434,6 +434,11 @@ def main(argv=None) -> int:
             sweepbench.run_and_write(log=log, write=not args.no_write)
         except Exception as exc:  # noqa: BLE001 - report and keep the other results
             log(f'sweep benchmark failed: {exc}')
+        try:
+            import sweep_plan_cost       # printed only: planning the largest sweep allowed
+            sweep_plan_cost.run(log=log)
+        except Exception as exc:  # noqa: BLE001 - one benchmark must not stop the others
+            log(f'sweep plan benchmark failed: {exc}')
     if not args.no_lockstep:
         try:
             lockstepbench.run_and_write(log=log, write=not args.no_write)
