@@ -242,12 +242,12 @@ class SimNode(Node):
                 self._pacer.set_duration(changes['duration'])
             if 'realtime_priority' in changes:
                 self._pacer.set_realtime_priority(changes['realtime_priority'])
-        if 'cpu_wake_latency' in changes:
-            self._request_wake_latency(changes['cpu_wake_latency'])
             if 'wait_for_input' in changes:
                 self._inputs.wait_for_input = changes['wait_for_input']
             if CONTROL_PARAMETERS & set(changes):
                 self._configure_control()
+        if 'cpu_wake_latency' in changes:
+            self._request_wake_latency(changes['cpu_wake_latency'])
         if 'record_flush_period' in changes:
             self._flush_period = changes['record_flush_period']
         structural = [n for n in changes if not SPECS[n].dynamic]
