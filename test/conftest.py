@@ -4,6 +4,8 @@ Shared test setup: a private, loopback-only ROS 2 domain per test session.
 Before anything imports rclpy this sets, for this process and every subprocess it starts:
 
 - ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``: DDS discovery never leaves the machine.
+- SIGINT handled (children start with its default disposition) even where the session was
+  started with it ignored, since tests signal the processes they start.
 - ``ROS_DOMAIN_ID``: one domain per pytest session, from 1..60, held with an exclusive lock
   file (``$TMPDIR/train_dynamics_ros_domain_<id>.lock``) for the whole session, so that two
   test sessions running at once on the machine never share a domain. (61..69 are kept for
@@ -26,6 +28,7 @@ Shared test code lives in helper modules without the ``test_`` prefix (``physics
 from __future__ import annotations
 
 import os
+import signal
 import tempfile
 import time
 
@@ -58,6 +61,14 @@ def _choose_domain() -> int:
 
 os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
 os.environ['ROS_DOMAIN_ID'] = str(_choose_domain())
+
+# Tests send SIGINT to the commands and nodes they start, as Ctrl-C would. A test session
+# started with SIGINT ignored (a background job of a non-interactive shell: `make test &` in
+# a script) passes that on to every child, which then rightly ignores it (Python installs its
+# KeyboardInterrupt handler only where SIGINT is at its default). A handled signal is reset to
+# its default in a child at exec: handling it here gives every child the default disposition.
+if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+    signal.signal(signal.SIGINT, signal.default_int_handler)
 os.environ.setdefault('MPLBACKEND', 'Agg')
 
 import pytest  # noqa: E402
