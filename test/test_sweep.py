@@ -58,7 +58,7 @@ def reference_rows(base, sweep_file):
     Run the plan's cases one after the other in this process (the same case function).
 
     Once per module for a base file and sweep text (the resume and the killed-worker tests
-    share SLOW's six slow cases); the plan is made from each test's own file.
+    share SLOW's six 2.5 s cases); the plan is made from each test's own file.
     """
     plan = make_plan(base, sweep_file)
     key = (str(base), open(sweep_file).read())
@@ -251,11 +251,10 @@ def test_sweep_on_a_local_cluster_and_on_dask_workers_equals_sequential_runs(tmp
 
 # -- robustness -----------------------------------------------------------------------
 
-#: slow cases (~1.3 s each on a quiet 2-core machine, ~3 s loaded: 0.04 ms steps), so that a
-#: case is running when the sweep is interrupted or its worker is killed (at 0.1 ms steps, a
-#: case took 0.5 s on a quiet machine and the sweep once finished before the interrupt; at
-#: ~1 s a loaded machine delivered the last four results in one burst, before the interrupt)
-SLOW = {'duration': 40.0, 'grid': {'integration_step': [4e-5]},
+#: slow cases (~2.5 s each on this machine: 0.1 ms steps), so that a case is running when the
+#: sweep is interrupted or its worker is killed (at ~1 s a loaded machine delivered the last
+#: four results in one burst, before the interrupt)
+SLOW = {'duration': 40.0, 'grid': {'integration_step': [1e-4]},
         'lhs': {'samples': 6, 'seed': 5, 'ranges': {'brake_propagation_speed': [150.0, 300.0]}}}
 
 
