@@ -251,9 +251,8 @@ def test_sweep_on_a_local_cluster_and_on_dask_workers_equals_sequential_runs(tmp
 
 # -- robustness -----------------------------------------------------------------------
 
-#: slow cases (~2.5 s each on this machine: 0.1 ms steps), so that a case is running when the
-#: sweep is interrupted or its worker is killed (at ~1 s a loaded machine delivered the last
-#: four results in one burst, before the interrupt)
+#: slow cases (0.1 ms steps: ~0.5 s each on a quiet 2-core machine, ~2.5 s loaded), so that a
+#: case is running when the sweep is interrupted or its worker is killed
 SLOW = {'duration': 40.0, 'grid': {'integration_step': [1e-4]},
         'lhs': {'samples': 6, 'seed': 5, 'ranges': {'brake_propagation_speed': [150.0, 300.0]}}}
 
