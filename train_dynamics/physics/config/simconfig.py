@@ -30,7 +30,8 @@ from train_dynamics.physics.config.files import simulator_params
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERVICE_PRESSURE,
                                                  G_FILL_TIME, G_RELEASE_TIME,
-                                                 INTEGRATION_TOLERANCE, MULTIRATE_TOLERANCE,
+                                                 INTEGRATION_TOLERANCE, MULTIRATE_REVERSAL_WEIGHT,
+                                                 MULTIRATE_TOLERANCE,
                                                  P_FILL_FRACTION,
                                                  P_FILL_TIME, P_RELEASE_FRACTION, P_RELEASE_TIME,
                                                  PARAMETERS, PIPE_NOMINAL_PRESSURE, validate_value)
@@ -169,8 +170,8 @@ class SimConfig:
     # error-controlled stepping
     integration_tolerance: float = INTEGRATION_TOLERANCE  # [-]; 0 = fixed step
     integration_max_steps: int = 100                  # steps per output period
-    multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = off (fixed step only)
-    multirate_reversal_weight: float = 0.0            # [-]; 0 = off
+    multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = plain fixed step
+    multirate_reversal_weight: float = MULTIRATE_REVERSAL_WEIGHT  # [-]; 0 = off
 
     #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
     _consist = None
@@ -391,10 +392,6 @@ class SimConfig:
 
     def _check_work(self) -> None:
         """Refuse an error-control work budget that could keep one output period busy."""
-        if self.integration_tolerance > 0.0 and self.multirate_tolerance > 0.0:
-            raise ConfigError('multirate_tolerance refines the fixed step; with '
-                              'integration_tolerance > 0 the whole chain is error-controlled '
-                              'already: set one of them to 0')
         limit = max_period_steps(self.n_coaches)
         if self.integration_tolerance > 0.0 and self.integration_max_steps > limit:
             raise ConfigError(

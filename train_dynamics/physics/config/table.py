@@ -44,8 +44,14 @@ G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
 
 #: default integration_tolerance: 0 = fixed step
 INTEGRATION_TOLERANCE = 0.0
-#: default multirate_tolerance: 0 = every coupler at the fixed step
-MULTIRATE_TOLERANCE = 0.0
+#: default multirate_tolerance and multirate_reversal_weight: the cheapest setting measured
+#: that keeps every coupler-force and displacement sample within 2 % of the independent
+#: reference's peak on the four accuracy cases and within 0.1 % on the paper's scenario
+#: (bench/accuracy_results.md: force 0.090 / 0.303 / 0.253 / 0.88 %, displacement 0.053 /
+#: 0.031 / 0.039 / 0.11 % on paper / khz_unequal / mixed_freeplay / paper30; the fixed 2 ms
+#: step alone 0.256 / 50.1 / 14.8 / 6.57 %)
+MULTIRATE_TOLERANCE = 1.0e-3
+MULTIRATE_REVERSAL_WEIGHT = 1.0
 
 #: the most vehicles of a train, however given (num_coaches, masses, a consist file's counts)
 MAX_VEHICLES = 100_000
@@ -465,13 +471,16 @@ _PARAMS = [
               'work per period: 25000 / (1 + N / 20) steps for N vehicles.', low=1,
               high=1000000),
     ParamSpec('multirate_tolerance', MULTIRATE_TOLERANCE, DOUBLE,
-              'Multirate fixed step: after each integration_step, a coupler whose local force '
-              'error (ROS2 embedded estimate) exceeds this fraction of the largest coupler force '
-              "in the train (at least 1e-3 of a vehicle's weight) [-] is re-integrated with its "
-              'two neighbouring vehicles on either side in error-controlled sub-steps, the rest '
-              'of the train keeping the step (momentum exact). 0 = off; not with '
-              'integration_tolerance > 0.', low=0.0, high=0.1),
-    ParamSpec('multirate_reversal_weight', 0.0, DOUBLE,
+              'Multirate fixed step (the default integration): after each integration_step, a '
+              'coupler whose local force error (ROS2 embedded estimate) exceeds this fraction '
+              "of the largest coupler force in the train (at least 1e-3 of a vehicle's weight) "
+              '[-] is re-integrated with its two neighbouring vehicles on either side in '
+              'error-controlled sub-steps, the rest of the train keeping the step (momentum '
+              'exact). 0 = every coupler at the plain fixed step (the fastest, least accurate '
+              'setting). Acts with the tanh law only (the sign law, discontinuous at zero '
+              'relative speed, keeps the plain fixed step) and not under error control '
+              '(integration_tolerance > 0 controls every step already).', low=0.0, high=0.1),
+    ParamSpec('multirate_reversal_weight', MULTIRATE_REVERSAL_WEIGHT, DOUBLE,
               "Multirate: a coupler's local error is at least this weight times its relative "
               'velocity error times k_f |y| u, the slope of the tanh law at its next friction '
               'reversal [-] (outside the friction band the estimate does not see velocity '

@@ -20,6 +20,7 @@ import numpy as np
 from train_dynamics.physics.kernel import brakes, wheelset
 from train_dynamics.physics.kernel.active_set import active_set_step
 from train_dynamics.physics.kernel.compiler import jit
+from train_dynamics.physics.kernel.couplers import TANH
 from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_couplers_work,
                                                         invalidate_caches)
 from train_dynamics.physics.kernel.layout import CACHE, OPTION, PARAM, STATE, TOTAL, VEHICLE, WORK
@@ -108,7 +109,7 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
     skipped (:func:`_repeats_standstill`). With wheelsets (OPTION.WHEELS) the slide
     protection acts on the cylinders after the brake system and the wheelsets' creep force
     replaces the braking force (:mod:`.wheelset`). With PARAM.MRTOL > 0
-    (``multirate_tolerance``) the groups of vehicles around couplers over that tolerance are
+    (``multirate_tolerance``, the default) and the tanh law the groups of vehicles around couplers over that tolerance are
     re-integrated in sub-steps before the fault check (:func:`.multirate.refine`); with
     wheelsets too, the creep force of the long step acts on them as a constant force over
     the sub-steps, as the braking force does (the wheel speeds are integrated over the long
@@ -148,7 +149,9 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
             extra_work = 0.0
         else:
             extra_work = active_set_step(sc[PARAM.H], coach, cpl, sc, iv, held, ws, gprof)
-            if sc[PARAM.MRTOL] > 0.0:      # multirate: events re-integrated in sub-steps
+            # multirate: events re-integrated in sub-steps; the tanh law only (the sign law
+            # jumps at zero relative speed: no local error estimate converges there)
+            if sc[PARAM.MRTOL] > 0.0 and iv[OPTION.MODEL] == TANH:
                 work_fix = refine(sc[PARAM.H], coach, cpl, sc, iv, held, ws, gprof)
         status = fault_check(ws, sc[PARAM.YLIM])
         if status != OK:
