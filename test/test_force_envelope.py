@@ -35,11 +35,25 @@ def every_step():
 
 
 def test_envelope_is_the_extreme_of_every_step(every_step):
-    sim, F = every_step
-    tension, compression = sim.coupler_force_envelope
+    """
+    Plain fixed step: the envelope is the extreme of every step's forces, exactly.
+
+    At the default the multirate sub-steps widen it too: at least every step's extreme, equal
+    to it for each coupler that never took a sub-step, wider for some that did.
+    """
+    plain, F = _run(500.0, multirate_tolerance=0.0)
+    tension, compression = plain.coupler_force_envelope
     np.testing.assert_array_equal(tension, np.maximum(F.max(axis=0), 0.0))
     np.testing.assert_array_equal(compression, np.maximum(-F.min(axis=0), 0.0))
     assert compression.max() > 1e6          # the buffers blocked (K_b = 1e8 N/m)
+    sim, F = every_step
+    tension, compression = sim.coupler_force_envelope
+    steps_t, steps_c = np.maximum(F.max(axis=0), 0.0), np.maximum(-F.min(axis=0), 0.0)
+    assert np.all(tension >= steps_t) and np.all(compression >= steps_c)
+    untouched = sim.substeps_per_coupler == 0
+    np.testing.assert_array_equal(tension[untouched], steps_t[untouched])
+    np.testing.assert_array_equal(compression[untouched], steps_c[untouched])
+    assert np.any(compression > steps_c)    # a sub-step's force between two steps
 
 
 def test_envelope_does_not_depend_on_the_output_rate_and_beats_the_samples(every_step):

@@ -20,9 +20,9 @@ import numpy as np
 from train_dynamics.physics.kernel import brakes, wheelset
 from train_dynamics.physics.kernel.active_set import active_set_step
 from train_dynamics.physics.kernel.compiler import jit
-from train_dynamics.physics.kernel.couplers import TANH
 from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_couplers_work,
                                                         invalidate_caches)
+from train_dynamics.physics.kernel.couplers import TANH
 from train_dynamics.physics.kernel.layout import CACHE, OPTION, PARAM, STATE, TOTAL, VEHICLE, WORK
 from train_dynamics.physics.kernel.multirate import refine
 from train_dynamics.physics.kernel.ros2 import GAMMA
@@ -109,8 +109,9 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
     skipped (:func:`_repeats_standstill`). With wheelsets (OPTION.WHEELS) the slide
     protection acts on the cylinders after the brake system and the wheelsets' creep force
     replaces the braking force (:mod:`.wheelset`). With PARAM.MRTOL > 0
-    (``multirate_tolerance``, the default) and the tanh law the groups of vehicles around couplers over that tolerance are
-    re-integrated in sub-steps before the fault check (:func:`.multirate.refine`); with
+    (``multirate_tolerance``, the default) and the tanh law the groups of vehicles around
+    couplers over that tolerance are re-integrated in sub-steps before the fault check
+    (:func:`.multirate.refine`); with
     wheelsets too, the creep force of the long step acts on them as a constant force over
     the sub-steps, as the braking force does (the wheel speeds are integrated over the long
     step).

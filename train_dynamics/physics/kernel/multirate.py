@@ -64,7 +64,7 @@ FAC_MAX = 5.0
 
 
 @jit(inline=True)
-def coupler_errors(h, ws, out, cpl, u, w):
+def coupler_errors(h, ws, out, cpl, u, w, x):
     """
     Write each coupler's local force error [N] of the ROS2 step just solved to ``out``.
 
@@ -73,7 +73,8 @@ def coupler_errors(h, ws, out, cpl, u, w):
     matrix's slopes (dF/dydot = KK / (g h) - g h dF/dy). With w > 0 (PARAM.MRVW) at least
     w k |y| u |e_vj - e_vj+1|: the velocity error weighted by the slope the tanh law has at
     the coupler's next friction reversal (k = k_f in compression, k_fc in tension, u [s/m];
-    |y| with the free play: an upper bound of the friction's amplitude), where outside the
+    y = x_j - x_j+1 from the positions x [m] at the step's start, |y| with the free play: an
+    upper bound of the friction's amplitude), where outside the
     band dF/dydot ~ 0 hides it: a relative-velocity error of a sliding coupler shifts its
     next reversal, by ~ error / relative acceleration. Returns max_j |F_j| [N] at the step's
     start.
@@ -96,7 +97,7 @@ def coupler_errors(h, ws, out, cpl, u, w):
         dfdv = kk[j] / gh - gh * dfdy[j]
         out[j] = abs(dfdy[j] * (ex_prev - ex) + dfdv * (ev_prev - ev))
         if w > 0.0:
-            y = ws[WORK.YKEY, j]
+            y = x[j] - x[j + 1]
             k = cpl[COUPLER.KF, j] if y < 0.0 else cpl[COUPLER.KFC, j]
             out[j] = max(out[j], w * k * abs(y) * u * abs(ev_prev - ev))
         fmax = max(fmax, abs(F0[j]))
@@ -209,7 +210,7 @@ def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof):
             eval_couplers(x, v, scpl, model, u, GAMMA * hl, sws)
         sws[WORK.VSTART][:] = v
         ros2_step(hl, sub, scpl, model, u, held, sws, False, False, gprof)
-        coupler_errors(hl, sws, err, scpl, u, sc[PARAM.MRVW])
+        coupler_errors(hl, sws, err, scpl, u, sc[PARAM.MRVW], x)
         e = 0.0
         for j in range(nc - 1):
             e = max(e, err[j])
@@ -267,7 +268,7 @@ def refine(h, coach, cpl, sc, iv, held, ws, gprof):
     n = coach.shape[1]
     m = n - 1
     err = ws[WORK.ERR]
-    fmax = coupler_errors(h, ws, err, cpl, sc[PARAM.U], sc[PARAM.MRVW])
+    fmax = coupler_errors(h, ws, err, cpl, sc[PARAM.U], sc[PARAM.MRVW], coach[STATE.X])
     tol_f = sc[PARAM.MRTOL] * max(fmax, sc[PARAM.FFLOOR])
     corr = 0.0
     j = 0
