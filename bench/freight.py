@@ -140,11 +140,12 @@ def target(settings, repeats: int = 5, log=print) -> list[dict]:
     once untimed (samples every SAMPLE); the timed span ends STOP_MARGIN before the first
     vehicle stops (the earliest over the settings: all timed over the same span); then
     ``repeats`` whole runs of each setting, interleaved, in this process (kernels warm);
-    the figure is the fastest (and beside it the least process CPU time). Accuracy: the independent reference of ``core.py`` (Radau)
-    has no pneumatic brake, traction, gradients, curves, resistance or strokes, so there is
-    no independent figure here; the rows give instead every coupler-force and displacement
-    sample against the SAME model at a fixed 0.1 ms step (multirate off), max over samples
-    and couplers / its peak (a convergence figure, not an independent one).
+    the figure is the fastest (and beside it the least process CPU time). Accuracy: the
+    independent reference of ``core.py`` (Radau) has no pneumatic brake, traction,
+    gradients, curves, resistance or strokes, so there is no independent figure here; the
+    rows give instead every coupler-force and displacement sample against the SAME model
+    at a fixed 0.1 ms step (multirate off), max over samples and couplers / its peak (a
+    convergence figure, not an independent one).
     """
     base = load_param_file(PARAMS)
     cfgs = [base.replace(**over) if over else base for _, over in settings]
