@@ -825,7 +825,7 @@ def run(ref_max_n: int = 100, sizes=SIZES, models=MODELS, steps=STEP_VARIANTS,
         row = {'n': n, 'wall_s': b['wall_s'], 'rtf': b['rtf'], 'nfev': b['nfev'],
                'status': b['status'], 'extrapolated': False}
         if ours is not None:
-            row['speedup'] = b['wall_s'] / ours['wall_s']
+            row['speedup'] = ours['rtf'] / b['rtf']      # real-time factors
             k = int(round(ours['window'] / OUTPUT_DT))
             env = np.asarray(b['envelope'][:k + 1])
             row['peak_window_N'] = float(env.max())
@@ -851,7 +851,7 @@ def run(ref_max_n: int = 100, sizes=SIZES, models=MODELS, steps=STEP_VARIANTS,
             ours = next((r for r in results['cases'] if r['n'] == n and r['model'] == 'tanh'
                          and r['u'] == 1000.0), None)
             if ours is not None:
-                row['speedup'] = w / ours['wall_s']
+                row['speedup'] = ours['rtf'] / (T_END / w)
             results['baseline'].append(row)
     return results
 
