@@ -531,6 +531,9 @@ def main(argv=None) -> int:
         try:
             freight_rows = freight.target(core.target_settings(args.default_overrides),
                                           log=log)
+        except Exception as exc:  # noqa: BLE001 - report and keep the other results
+            log(f'freight target failed: {exc}')
+        try:
             freight_res = freight.run(log=log)
         except Exception as exc:  # noqa: BLE001 - report and keep the other results
             log(f'freight benchmark failed: {exc}')
