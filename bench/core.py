@@ -1,5 +1,5 @@
 """
-Benchmark of the physics core: speed, accuracy and memory of the fixed-step model.
+Benchmark of the physics core: speed, accuracy and memory at the default settings.
 
 Scenario: the paper's emergency braking generalised to N coaches (config defaults: 45 t
 coaches at 44.444 m/s, ``pipe_head``). The head brake-pipe pressure is set to 0 gauge at
@@ -11,29 +11,43 @@ default strokes (105 mm buffers, 60 mm draw gear) trains of 100 coaches and more
 neither the reference nor the scipy baseline models.
 
 Every case runs in a fresh Python process (``python bench/core.py --case JSON``), so that
-warm-up, memory and timing of one case do not leak into the next:
+warm-up, memory and timing of one case do not leak into the next. Every setting but the
+integration step (and the law and u of the case) is SimConfig's default, so the cases
+follow the default integration (e.g. ``multirate_tolerance``):
 
 - warm-up (excluded from the timing, reported separately): one ``TrainSimulator`` and one
   ``advance(1)``, i.e. numba's cache load (or compilation when the cache is cold);
-- timed run: ``sim.advance_to`` in 10 ms chunks (the node's 100 Hz output) and after each
-  chunk ``sim.coupler_force`` and its max |F|, like the node reads its outputs. The virtual
-  machine's speed drifts by up to 2x within seconds, so the run is repeated (5 times, 3 for
-  the slowest cases) and the wall time is the sum over its six 10 s parts of each part's
-  fastest time (the runs are deterministic: every run computes the same steps);
-- memory: a second, untimed run of the same scenario (new simulator, same loop) under
+- memory and accuracy: an untimed run over [0, 60 s] (:func:`sampled_run`) under
   ``tracemalloc``: the peak of Python/numpy heap allocations [KiB] made by constructing the
   simulator and running it (numba's internal scratch arrays are not traced; they are a
   handful of N-element arrays per ``advance`` call). The process's peak RSS (VmHWM) is
-  reported too, for context;
-- accuracy (same untimed run): the envelope max_j |F_j(t)| on the 10 ms grid, compared with
-  the tight-tolerance reference :func:`train_dynamics.physics.reference.reference_solution`
-  (Radau, rtol 1e-9, atol 1e-11, analytical Jacobian) driven by the brake forces as a
-  function of time, Fb_i(t) = mu_a m_i g fill(t - t_e - d_i) (d_i the pipe delay of coach
-  i). The run checks that this formula is what the simulator applies (it applies the mean
-  over the step, 0.5 (Fb(t-h) + Fb(t))) and reports the largest mismatch. The reference
-  ignores the brake holding a stopped coach, so the comparison covers [0, W], W = 0.5 s
-  before the first coach stops (in our run or in the reference, whichever is first), at most
-  60 s.
+  reported too, for context. The run samples every 10 ms the envelope max_j |F_j(t)| and,
+  where the per-coupler reference is cached, max_j |F_j - F_ref,j| and max_j |y_j - y_ref,j|;
+  these are compared with the tight-tolerance reference
+  :func:`train_dynamics.physics.reference.reference_solution` (Radau, rtol 1e-9, atol 1e-11,
+  analytical Jacobian) driven by the brake forces as a function of time,
+  Fb_i(t) = mu_a m_i g fill(t - t_e - d_i) (d_i the pipe delay of coach i). The run checks
+  that this formula is what the simulator applies (it applies the mean over the step,
+  0.5 (Fb(t-h) + Fb(t))) and reports the largest mismatch. The reference ignores the brake
+  holding a stopped coach, so the comparison covers [0, W], W = 0.5 s before the first
+  coach stops (in our run or in the reference, whichever is first), at most 60 s. Sample
+  accuracy (:func:`sample_errors`): max over the samples in [0, W] and the couplers of
+  |F_j - F_ref,j| / max |F_ref| (and the same for the displacements y_j);
+- timed runs: whole runs over [0, W] (:func:`timed_run`), the span in which every coach
+  moves (a stopped train costs almost nothing and would flatter the figure):
+  ``sim.advance_to`` in 10 ms chunks and after each chunk ``sim.coupler_force`` and its
+  max |F|, as the node reads its outputs. The virtual machine's speed drifts by up to 2x
+  within seconds, so the whole run is repeated (5 times, 3 for the slowest cases) and the
+  figure is the fastest whole run; real-time factor = W / wall (the same from the least
+  process CPU time is kept beside it: on a loaded host the wall time includes other work).
+
+The target rows (``--targets``; :func:`target_case`, one fresh process per train) measure
+the speed targets at the DEFAULT settings: 100 and 1000 of the paper's coaches (tanh
+u = 1000, the configuration sets only the train and the paper's idealisation), with the
+sample accuracy beside the speed, and the plain fixed step (``multirate_tolerance`` 0) the
+same way for comparison. The settings are timed interleaved (A B A B ...) in whole runs over
+the same moving span; ``--default-overrides JSON`` applies settings on top of the defaults
+(to try a planned default; the rows name them).
 
 The baseline is what a user would write: ``scipy.integrate.solve_ivp`` (RK45, rtol 1e-6,
 default atol 1e-6) on the paper's relative equations of motion (17)-(18) generalised to N
@@ -43,10 +57,14 @@ a plain vectorised numpy right-hand side, no Jacobian), same brake forces, 60 s.
 Reference solutions (over 0-60 s, the envelope up to the first stop) are cached in
 ``bench/reference_cache.json``, keyed by everything they depend on, including a numerical
 fingerprint of the force law and the reference solver's defaults, so they are recomputed
-only when the physics changes (delete the file to force it). The reference never depends on
+only when the physics changes (delete the file to force it). Their per-coupler samples
+(F and y every 10 ms, float32: ~25 MB for 1000 coaches) are kept outside the repository, in
+``~/.cache/train_dynamics/bench-reference/<key>.npz`` (same key;
+``TRAIN_DYNAMICS_BENCH_REF_DIR`` overrides the folder). The reference never depends on
 the strokes (it has none); :func:`check_idealisation` makes sure the simulated train is the
-one the reference solves. ``python bench/core.py --refs``
-fills the cache; ``make bench`` computes missing ones up to ``--ref-max-n`` coaches.
+one the reference solves. ``python bench/core.py --refs [--samples]``
+fills the cache; ``make bench`` computes missing ones up to ``--ref-max-n`` coaches (the
+target rows' per-coupler ones up to ``--target-ref-max-n``, 1000 by default: ~2-4 min).
 
 numpy, scipy and the package are imported inside the functions on purpose: each case runs
 in a fresh process that times its own import and start-up, and the driver stays light.
@@ -86,8 +104,7 @@ def _default_h() -> float:
 
 
 DEFAULT_H = _default_h()    # the package's default integration_step [s]
-TIMED_REPEATS = 5           # timed runs per case (3 for the slowest cases)
-SEGMENTS = 6                # parts of a run timed separately (best of the runs per part)
+TIMED_REPEATS = 5           # timed whole runs per case (3 for the slowest cases)
 SLOW_HOST = 0.8             # a case timed below this host speed is timed again ...
 RETRIES = 2                 # ... at most this many times
 STEP_VARIANTS = tuple((n, h) for n in (100, 1000) for h in STEP_CHOICES if h != DEFAULT_H)
@@ -169,14 +186,148 @@ def calibration_s(reps: int = 5) -> float:
     return best
 
 
-def measure_case(n: int, model: str, u: float, h: float) -> dict:
-    """Run in a fresh process: warm-up, timed run, untimed memory/accuracy run."""
+def _start(cfg):
+    """Return a new simulator of ``cfg`` with the emergency set up (head pipe vented)."""
+    from train_dynamics.physics.train import TrainSimulator
+    sim = TrainSimulator(cfg)
+    if T_EMERGENCY <= 0.0:
+        sim.set_head_pipe_pressure(0.0)
+    else:
+        sim.schedule(T_EMERGENCY, lambda: sim.set_head_pipe_pressure(0.0))
+    return sim
+
+
+def moving_span(t_first_stop: float | None, ref: dict | None = None) -> float:
+    """
+    Return the timed span [s]: the comparison window (:func:`comparison_window`).
+
+    The train moves over all of it (it ends STOP_MARGIN before the first coach stops): a
+    stopped train costs almost nothing and would flatter the real-time factor.
+    """
+    return comparison_window(t_first_stop, ref)
+
+
+def timed_run(cfg, t_span: float) -> tuple[float, float]:
+    """
+    Return the wall and CPU time [s] of one whole run over [0, t_span], as a user meets it.
+
+    A new simulator; ``sim.advance_to`` in 10 ms chunks and after each chunk
+    ``sim.coupler_force`` and its max |F| (the node's 100 Hz read-out). The CPU time of the
+    process (``time.process_time``) is kept beside the wall time: on a loaded host the wall
+    time includes the time other processes ran.
+    """
     import numpy as np
+    sim = _start(cfg)
+    chunks = int(round(t_span / OUTPUT_DT))
+    peak = 0.0
+    c0 = time.process_time()
+    t0 = time.perf_counter()
+    for k in range(1, chunks + 1):
+        sim.advance_to(k * OUTPUT_DT)
+        m = float(np.abs(sim.coupler_force).max())
+        if m > peak:
+            peak = m
+    return time.perf_counter() - t0, time.process_time() - c0
+
+
+def sampled_run(cfg, ref: dict | None, brakes: bool = True) -> dict:
+    """
+    Run [0, T_END] untimed and sample it every 10 ms.
+
+    Returns the envelope max_j |F_j| per sample, the first instant a coach is at rest (or
+    held), the largest mismatch of the applied brake forces with :func:`brake_formula`
+    (``brakes``), and, when ``ref`` holds per-coupler samples ('F', 'y'), per sample k
+    max_j |F_j - F_ref,j| and max_j |y_j - y_ref,j| (up to the reference's last valid
+    sample), so that the caller takes the maximum over its comparison window. The sample
+    arrays are allocated before the simulator (outside a caller's ``tracemalloc`` figure
+    when the caller passes them in ``ref['_buffers']``) and returned as numpy arrays.
+    """
+    import numpy as np
+    chunks = int(round(T_END / OUTPUT_DT))
+    bufs = (ref or {}).get('_buffers') or sample_buffers()
+    env, err_f, err_y = bufs['envelope'], bufs['sample_err_F'], bufs['sample_err_y']
+    fb_of_t, _ = brake_formula(cfg)
+    fmax = np.max(cfg.adhesion_coefficient * np.asarray(cfg.mass_array) * cfg.gravity)
+    h = float(cfg.integration_step)
+    mismatch = 0.0
+    t_first_stop = None
+    ref_f = ref.get('F') if ref is not None else None
+    ref_y = ref.get('y') if ref is not None else None
+    k_ref = min(ref_f.shape[0], chunks + 1) if ref_f is not None else 0
+    sim = _start(cfg)
+    for k in range(1, chunks + 1):
+        sim.advance_to(k * OUTPUT_DT)
+        f = sim.coupler_force
+        env[k] = np.abs(f).max()
+        if k < k_ref:
+            err_f[k] = np.abs(f - ref_f[k]).max()
+            err_y[k] = np.abs(sim.y - ref_y[k]).max()
+        if t_first_stop is None:
+            if np.any(sim.held) or np.any(sim.v <= 0.0):
+                t_first_stop = sim.t
+            elif brakes:    # brakes as the simulator applied them over the last step
+                t = sim.t
+                expect = 0.5 * (fb_of_t(t - h) + fb_of_t(t))
+                mismatch = max(mismatch, float(np.max(np.abs(sim.brake_force - expect))) / fmax)
+    out = {'envelope': env, 't_first_stop': t_first_stop, 'brake_mismatch': mismatch,
+           'fault': sim.fault, 'steps': int(sim.steps),
+           'peak_N': float(env.max()), 'integration': dict(sim.integration_stats)}
+    if ref_f is not None:
+        out.update(sample_err_F=err_f[:k_ref], sample_err_y=err_y[:k_ref])
+    return out
+
+
+def sample_buffers() -> dict:
+    """Return zeroed per-sample arrays for :func:`sampled_run` (one per 10 ms sample)."""
+    import numpy as np
+    k = int(round(T_END / OUTPUT_DT)) + 1
+    return {key: np.zeros(k) for key in ('envelope', 'sample_err_F', 'sample_err_y')}
+
+
+def _lists(run: dict) -> dict:
+    """Return ``run`` with its numpy arrays as lists (JSON)."""
+    return {k: v.tolist() if hasattr(v, 'tolist') else v for k, v in run.items()}
+
+
+def sample_errors(run: dict, ref: dict | None, window: float) -> dict:
+    """
+    Return the sample accuracy of ``run`` (:func:`sampled_run`) over [0, window].
+
+    'force_err': max over the 10 ms samples and couplers of |F - F_ref| / max |F_ref|;
+    'disp_err': the same for the coupler displacements y; 'peak_err': (our peak - reference
+    peak) / reference peak; 'env_err' = max over samples of |max_j |F_j| - the reference's|
+    / reference peak. Empty without a reference (no 'F' samples: only peak and envelope).
+    """
+    import numpy as np
+    if ref is None:
+        return {}
+    k = int(round(window / OUTPUT_DT))
+    env = np.asarray(run['envelope'][:k + 1])
+    renv = np.asarray(ref['envelope'][:k + 1])
+    rpk = float(renv.max())
+    out = {'ref_peak_N': rpk, 'ref_t_peak': float(np.argmax(renv) * OUTPUT_DT),
+           'peak_err': (float(env.max()) - rpk) / rpk,
+           'env_err': float(np.max(np.abs(env - renv))) / rpk}
+    dev = np.abs(env - renv) / rpk
+    above = np.nonzero(dev > 0.01)[0]
+    out['t_env_err_1pct'] = float(above[0] * OUTPUT_DT) if above.size else None
+    if 'sample_err_F' in run and 'F' in ref:
+        out['force_err'] = float(np.max(run['sample_err_F'][:k + 1])
+                                 / np.abs(ref['F'][:k + 1]).max())
+        out['disp_err'] = float(np.max(run['sample_err_y'][:k + 1])
+                                / np.abs(ref['y'][:k + 1]).max())
+    return out
+
+
+def measure_case(n: int, model: str, u: float, h: float) -> dict:
+    """Run in a fresh process: warm-up, untimed memory/accuracy run, timed whole runs."""
+    import tracemalloc
     t0 = time.perf_counter()
     from train_dynamics.physics.train import TrainSimulator
     t_import = time.perf_counter() - t0
     cfg = make_config(n, model, u, h)
-    out = {'n': n, 'model': model, 'u': u, 'h': h, 'import_s': t_import}
+    out = {'n': n, 'model': model, 'u': u, 'h': h, 'import_s': t_import,
+           'multirate': float(cfg.values['multirate_tolerance'])}
 
     # warm-up: numba cache load (or compile), excluded from the timing
     t0 = time.perf_counter()
@@ -185,74 +336,102 @@ def measure_case(n: int, model: str, u: float, h: float) -> dict:
     _ = sim.coupler_force
     out['warmup_s'] = time.perf_counter() - t0
 
-    cal_before = calibration_s()
-    # timed runs. The machine is shared and virtual: its speed drifts by up to 2x within
-    # seconds. Each run is split into SEGMENTS equal parts of simulated time; the figure is
-    # the sum over the parts of their fastest time in TIMED_REPEATS runs (the runs are
-    # deterministic, so every run computes the same steps). The fastest and the median
-    # whole run are kept in the raw data.
-    chunks = int(round(T_END / OUTPUT_DT))
-    seg_len = chunks // SEGMENTS
-    repeats = TIMED_REPEATS if n * (0.005 / h) < 2000 else 3
-    walls = []
-    seg_best = [float('inf')] * SEGMENTS
-    for _ in range(repeats):
-        sim = TrainSimulator(cfg)
-        if T_EMERGENCY <= 0.0:
-            sim.set_head_pipe_pressure(0.0)
-        peak = 0.0
-        t0 = t_seg = time.perf_counter()
-        for k in range(1, chunks + 1):
-            if T_EMERGENCY > 0.0 and abs((k - 1) * OUTPUT_DT - T_EMERGENCY) < 1e-9:
-                sim.set_head_pipe_pressure(0.0)
-            sim.advance_to(k * OUTPUT_DT)
-            f = sim.coupler_force
-            m = float(np.abs(f).max())
-            if m > peak:
-                peak = m
-            if k % seg_len == 0:
-                now = time.perf_counter()
-                j = k // seg_len - 1
-                seg_best[j] = min(seg_best[j], now - t_seg)
-                t_seg = now
-        walls.append(time.perf_counter() - t0)
-    wall = sum(seg_best)
-    out.update(wall_s=wall, wall_min_run_s=min(walls), segments_s=seg_best,
-               wall_median_s=sorted(walls)[len(walls) // 2], walls_s=walls, repeats=repeats,
-               rtf=T_END / wall, steps=int(sim.steps), peak_N=peak, fault=sim.fault)
-    out['calibration_s'] = min(cal_before, calibration_s())
-
-    # untimed: memory (tracemalloc) and accuracy data
-    import tracemalloc
-    env = np.zeros(chunks + 1)
-    fb_of_t, _ = brake_formula(cfg)
-    brake_mismatch = 0.0
-    t_first_stop = None
+    # the reference (cached only; the driver fills the cache) with its per-coupler samples
+    ref = cached_reference(n, u) if model == 'tanh' else None
+    # untimed: memory (tracemalloc) and accuracy data; the sample arrays allocated before
+    if ref is not None:
+        ref['_buffers'] = sample_buffers()
     tracemalloc.start()
-    sim = TrainSimulator(cfg)
-    if T_EMERGENCY <= 0.0:
-        sim.set_head_pipe_pressure(0.0)
-    for k in range(1, chunks + 1):
-        if T_EMERGENCY > 0.0 and abs((k - 1) * OUTPUT_DT - T_EMERGENCY) < 1e-9:
-            sim.set_head_pipe_pressure(0.0)
-        sim.advance_to(k * OUTPUT_DT)
-        f = sim.coupler_force
-        env[k] = float(np.abs(f).max())
-        if t_first_stop is None:
-            if np.any(sim.held) or np.any(sim.v <= 0.0):
-                t_first_stop = sim.t
-            else:   # brakes as the simulator applied them over the last step (all moving)
-                t = sim.t
-                expect = 0.5 * (fb_of_t(t - h) + fb_of_t(t))
-                mism = float(np.max(np.abs(sim.brake_force - expect)) / np.max(
-                    cfg.adhesion_coefficient * np.asarray(cfg.mass_array) * cfg.gravity))
-                brake_mismatch = max(brake_mismatch, mism)
+    run = sampled_run(cfg, ref)
     _, tm_peak = tracemalloc.get_traced_memory()
     tracemalloc.stop()
-    out.update(tracemalloc_peak_kib=tm_peak / 1024.0, vmhwm_mib=_rss_kib('VmHWM') / 1024.0,
-               t_first_stop=t_first_stop, brake_mismatch=brake_mismatch,
-               envelope=env.tolist())
+    out.update(_lists(run), tracemalloc_peak_kib=tm_peak / 1024.0,
+               vmhwm_mib=_rss_kib('VmHWM') / 1024.0)
+    out['ref_samples'] = ref is not None and 'F' in ref
+    cal_before = calibration_s()
+    # timed: whole runs of the moving train (the span ends before the first coach stops:
+    # a stopped train costs almost nothing). The machine is shared and virtual (its speed
+    # drifts by up to 2x within seconds): best of TIMED_REPEATS whole runs.
+    span = moving_span(out['t_first_stop'], ref)
+    repeats = TIMED_REPEATS if n * (0.005 / h) < 2000 else 3
+    times = [timed_run(cfg, span) for _ in range(repeats)]
+    walls = [w for w, _ in times]
+    wall = min(walls)
+    cpu = min(c for _, c in times)
+    out.update(wall_s=wall, walls_s=walls, wall_median_s=sorted(walls)[len(walls) // 2],
+               repeats=repeats, span_s=span, rtf=span / wall, cpu_s=cpu, rtf_cpu=span / cpu)
+    out['calibration_s'] = min(cal_before, calibration_s())
     return out
+
+
+#: the speed targets at default settings: N paper coaches (tanh u = 1000), real-time factor
+SPEED_TARGETS = ((100, 200.0), (1000, 20.0))
+#: the sample-accuracy target: every coupler-force and displacement sample within this
+#: fraction of the reference's peak
+SAMPLE_TARGET = 0.02
+#: the plain fixed step (every coupler at integration_step), for comparison
+FIXED_STEP = {'multirate_tolerance': 0.0, 'integration_tolerance': 0.0}
+
+
+def default_config(n: int, **overrides):
+    """
+    Return N paper coaches at the package's DEFAULT settings (plus ``overrides``).
+
+    Only num_coaches and the paper's idealisation (strokes out of reach, checked) are set:
+    the integration settings are SimConfig's defaults, so the target rows follow them.
+    """
+    from train_dynamics.physics.config import SimConfig
+    cfg = SimConfig.from_dict({'num_coaches': int(n), **PAPER_IDEALISATION, **overrides})
+    check_idealisation(cfg)
+    if cfg.values['model_type'] != 'tanh':
+        raise ValueError('core bench: the reference solves the tanh law only')
+    return cfg
+
+
+def target_case(n: int, settings: list, repeats: int) -> list[dict]:
+    """
+    Run in a fresh process: speed and sample accuracy of N coaches for each setting.
+
+    ``settings``: [(label, overrides of the defaults)]. Each setting: warm-up, then an
+    untimed run sampled every 10 ms against the cached reference (:func:`sampled_run`,
+    :func:`sample_errors`); the timed span is the comparison window of the settings (the
+    earliest, so every setting is timed over the same moving span); then ``repeats`` whole
+    runs of each setting, interleaved (A B A B ...: the host's drift meets every setting
+    alike); the figure is the fastest whole run.
+    """
+    from train_dynamics.physics.train import TrainSimulator
+    cfgs = [default_config(n, **over) for _, over in settings]
+    u = float(cfgs[0].values['scale_factor'])
+    ref = cached_reference(n, u)
+    rows = []
+    for (label, over), cfg in zip(settings, cfgs):
+        TrainSimulator(cfg).advance(1)          # numba warm-up, not timed
+        run = sampled_run(cfg, ref)
+        rows.append({'n': n, 'u': u, 'label': label, 'overrides': over,
+                     'h': float(cfg.integration_step),
+                     'multirate': float(cfg.values['multirate_tolerance']),
+                     'reversal_weight': float(cfg.values['multirate_reversal_weight']),
+                     'integration_tolerance': float(cfg.values['integration_tolerance']),
+                     't_first_stop': run['t_first_stop'], 'fault': run['fault'],
+                     'steps': run['steps'], 'integration': run['integration'],
+                     'brake_mismatch': run['brake_mismatch'], '_run': run})
+    span = min(moving_span(r['t_first_stop'], ref) for r in rows)
+    times = [[] for _ in rows]
+    cal = calibration_s()
+    for _ in range(repeats):
+        for k, cfg in enumerate(cfgs):
+            times[k].append(timed_run(cfg, span))
+    cal = min(cal, calibration_s())
+    for r, t in zip(rows, times):
+        run = r.pop('_run')
+        w = [a for a, _ in t]
+        cpu = min(c for _, c in t)
+        r.update(sample_errors(run, ref, span), span_s=span, walls_s=w, wall_s=min(w),
+                 rtf=span / min(w), cpu_s=cpu, rtf_cpu=span / cpu, calibration_s=cal,
+                 repeats=repeats,
+                 ref_samples=ref is not None and 'F' in ref,
+                 ref_note='' if ref is not None else 'no cached reference')
+    return rows
 
 
 # --------------------------------------------------------------------------- reference
@@ -321,12 +500,25 @@ def save_cache_entry(key: str, entry: dict) -> None:
     os.replace(tmp, CACHE_PATH)
 
 
-def compute_reference(n: int, u: float) -> dict:
+#: per-coupler reference samples (too big for the repository: ~25 MB for 1000 coaches),
+#: one ``<reference_key>.npz`` each; TRAIN_DYNAMICS_BENCH_REF_DIR overrides the folder
+SAMPLES_DIR = os.environ.get('TRAIN_DYNAMICS_BENCH_REF_DIR', os.path.join(
+    os.path.expanduser('~'), '.cache', 'train_dynamics', 'bench-reference'))
+
+
+def samples_path(key: str) -> str:
+    """Return the file of the per-coupler reference samples of ``reference_key`` ``key``."""
+    return os.path.join(SAMPLES_DIR, key + '.npz')
+
+
+def compute_reference(n: int, u: float) -> tuple[dict, dict]:
     """
     Compute the reference over [0, T_END] on the 10 ms grid.
 
-    Keeps the envelope max_j |F_j| (float32) up to the first sample at which a coach has
-    stopped (v <= 0), where it stops being valid.
+    Returns (cache entry, samples). The entry keeps the envelope max_j |F_j| (float32) up to
+    the first sample at which a coach has stopped (v <= 0), where it stops being valid; the
+    samples are every coupler's force F [N] and displacement y [m] on the same samples
+    (float32 arrays, samples x couplers).
     """
     import numpy as np
     from train_dynamics.physics.kernel import couplers
@@ -345,33 +537,67 @@ def compute_reference(n: int, u: float) -> dict:
     stopped = np.nonzero(v.min(axis=0) <= 0.0)[0]
     k_valid = int(stopped[0]) if stopped.size else grid.size     # samples [0, k_valid)
     ones = np.ones(n - 1)
-    env = np.empty(k_valid)
+    F = np.empty((k_valid, n - 1), np.float32)
+    Y = np.empty((k_valid, n - 1), np.float32)
     for k in range(k_valid):
-        F = couplers.coupler_force(x[:-1, k] - x[1:, k], v[:-1, k] - v[1:, k],
-                                   cfg.buffer_stiffness * ones, cfg.buffer_friction * ones,
-                                   cfg.draw_gear_stiffness * ones,
-                                   cfg.draw_gear_friction * ones, couplers.TANH, float(u))
-        env[k] = np.abs(F).max()
-    return {'n': n, 'u': u, 't_end': T_END, 'wall_s': wall, 'nfev': int(res.nfev),
-            'first_stop_s': float(grid[k_valid]) if k_valid < grid.size else None,
-            'valid_samples': k_valid, 'peak_N': float(env.max()),
-            't_peak_s': float(grid[int(env.argmax())]), 'envelope_f32_zlib_b64': _encode(env)}
+        y = x[:-1, k] - x[1:, k]
+        Y[k] = y
+        F[k] = couplers.coupler_force(y, v[:-1, k] - v[1:, k],
+                                      cfg.buffer_stiffness * ones, cfg.buffer_friction * ones,
+                                      cfg.draw_gear_stiffness * ones,
+                                      cfg.draw_gear_friction * ones, couplers.TANH, float(u))
+    env = np.abs(F.astype(float)).max(axis=1)
+    entry = {'n': n, 'u': u, 't_end': T_END, 'wall_s': wall, 'nfev': int(res.nfev),
+             'first_stop_s': float(grid[k_valid]) if k_valid < grid.size else None,
+             'valid_samples': k_valid, 'peak_N': float(env.max()),
+             't_peak_s': float(grid[int(env.argmax())]), 'envelope_f32_zlib_b64': _encode(env)}
+    return entry, {'F': F, 'y': Y}
 
 
-def get_reference(n: int, u: float, allow_compute: bool) -> dict | None:
-    """Return the cached reference (envelope decoded into 'envelope'), computed if allowed."""
+def save_samples(key: str, samples: dict) -> None:
+    """Write the per-coupler reference samples (outside the repository: SAMPLES_DIR)."""
+    import numpy as np
+    os.makedirs(SAMPLES_DIR, exist_ok=True)
+    tmp = samples_path(key) + f'.{os.getpid()}.tmp.npz'
+    np.savez_compressed(tmp, **samples)
+    os.replace(tmp, samples_path(key))
+
+
+def get_reference(n: int, u: float, allow_compute: bool,
+                  samples: bool = False) -> dict | None:
+    """
+    Return the cached reference (envelope decoded into 'envelope'), computed if allowed.
+
+    ``samples``: also the per-coupler samples 'F' and 'y' (:func:`compute_reference`); None
+    when they are not cached and computing is not allowed.
+    """
+    import numpy as np
     cfg = make_config(n, 'tanh', u)
     key = reference_key(cfg)
-    cache = load_cache()
-    entry = cache.get(key)
-    if entry is None:
+    entry = load_cache().get(key)
+    arrays = None
+    if samples and os.path.exists(samples_path(key)):
+        with np.load(samples_path(key)) as z:
+            arrays = {'F': z['F'], 'y': z['y']}        # float32
+    if entry is None or (samples and arrays is None):
         if not allow_compute:
             return None
-        entry = compute_reference(n, u)
-        save_cache_entry(key, entry)
+        new, arrays = compute_reference(n, u)
+        save_samples(key, arrays)
+        if entry is None:       # the committed cache keeps its first computation
+            entry = new
+            save_cache_entry(key, entry)
     entry = dict(entry)
     entry['envelope'] = _decode(entry['envelope_f32_zlib_b64'])
+    if samples:
+        entry.update(arrays)
     return entry
+
+
+def cached_reference(n: int, u: float) -> dict | None:
+    """Return the cached reference with its per-coupler samples, or without, or None."""
+    ref = get_reference(n, u, allow_compute=False, samples=True)
+    return ref if ref is not None else get_reference(n, u, allow_compute=False)
 
 
 def comparison_window(t_first_stop_sim: float | None, ref: dict | None) -> float:
@@ -464,10 +690,9 @@ def _summarise_case(res: dict, ref: dict | None, note: str) -> dict:
     window = comparison_window(res['t_first_stop'], ref)
     k = int(round(window / OUTPUT_DT))
     env = np.asarray(res['envelope'][:k + 1])
-    row = {key: res[key] for key in ('n', 'model', 'u', 'h', 'wall_s', 'wall_median_s',
-                                     'wall_min_run_s', 'repeats', 'walls_s', 'segments_s',
-                                     'calibration_s',
-                                     'rtf', 'steps', 'peak_N',
+    row = {key: res[key] for key in ('n', 'model', 'u', 'h', 'multirate', 'wall_s',
+                                     'wall_median_s', 'repeats', 'walls_s', 'span_s',
+                                     'calibration_s', 'rtf', 'steps', 'peak_N',
                                      'fault', 'tracemalloc_peak_kib', 'vmhwm_mib',
                                      'warmup_s', 't_first_stop', 'brake_mismatch')}
     row['window'] = window
@@ -475,15 +700,7 @@ def _summarise_case(res: dict, ref: dict | None, note: str) -> dict:
     row['t_peak_window'] = float(np.argmax(env) * OUTPUT_DT)
     row['ref_note'] = note
     if ref is not None:
-        renv = np.asarray(ref['envelope'][:k + 1])
-        rpk = float(renv.max())
-        row['ref_peak_N'] = rpk
-        row['ref_t_peak'] = float(np.argmax(renv) * OUTPUT_DT)
-        row['peak_err'] = (float(env.max()) - rpk) / rpk
-        dev = np.abs(env - renv) / rpk
-        row['env_err'] = float(dev.max())
-        above = np.nonzero(dev > 0.01)[0]
-        row['t_env_err_1pct'] = float(above[0] * OUTPUT_DT) if above.size else None
+        row.update(sample_errors(res, ref, window))
         row['ref_wall_s'] = ref['wall_s']
         row['ref_first_stop'] = ref.get('first_stop_s')
     return row
@@ -499,22 +716,72 @@ def want_reference(n: int, model: str, u: float, max_n: int) -> tuple[bool, str]
     return True, ''
 
 
+def target_settings(default_overrides: dict | None = None) -> list:
+    """
+    Return the settings of the target rows: [(label, overrides)].
+
+    The package's defaults (``default_overrides`` on top of them, e.g. to try a planned
+    default before it is one: the label says so), and the plain fixed step for comparison.
+    """
+    over = dict(default_overrides or {})
+    label = 'default settings'
+    if over:
+        label += ' + ' + ', '.join(f'{k} {v:g}' if isinstance(v, float) else f'{k} {v}'
+                                   for k, v in sorted(over.items()))
+    return [(label, over),
+            (f'fixed {DEFAULT_H * 1e3:g} ms step (multirate off)', dict(FIXED_STEP))]
+
+
+def run_targets(ref_max_n: int, default_overrides: dict | None = None, sizes=None,
+                log=print) -> list[dict]:
+    """
+    Measure the target rows (:func:`target_case`, fresh process per train).
+
+    References with per-coupler samples are computed first for trains up to ``ref_max_n``
+    coaches (cached outside the repository, SAMPLES_DIR); larger trains use what is cached.
+    """
+    settings = target_settings(default_overrides)
+    rows = []
+    for n, _ in SPEED_TARGETS if sizes is None else [(m, None) for m in sizes]:
+        if n <= ref_max_n:
+            log(f'core targets: reference with per-coupler samples, N={n}')
+            get_reference(n, 1000.0, allow_compute=True, samples=True)
+        repeats = TIMED_REPEATS if n <= 300 else 3
+        res = _run_sub(['--target', json.dumps([n, settings, repeats])])
+        for r in res:
+            acc = (f", force samples {100 * r['force_err']:.3f} %, displacements "
+                   f"{100 * r['disp_err']:.3f} %" if 'force_err' in r else
+                   ' (no per-coupler reference samples)')
+            log(f"  N={n} {r['label']}: {r['rtf']:.1f}x real time over 0-{r['span_s']:g} s"
+                + acc)
+        rows += res
+    return rows
+
+
 def run(ref_max_n: int = 100, sizes=SIZES, models=MODELS, steps=STEP_VARIANTS,
-        baseline_sizes=BASELINE_SIZES, log=print) -> dict:
-    """All core cases, the baseline and start-up; returns the raw results."""
+        baseline_sizes=BASELINE_SIZES, log=print, default_overrides: dict | None = None,
+        target_ref_max_n: int = 1000) -> dict:
+    """
+    All core cases, the targets, the baseline and start-up; returns the raw results.
+
+    ``ref_max_n``: references of the case table computed when missing up to this many
+    coaches; ``target_ref_max_n``: the same for the target rows' per-coupler references.
+    """
     import numpy as np
     results = {'cases': [], 'steps': [], 'baseline': [], 'startup': None}
     log('core: start-up (cold and warm numba cache)')
     results['startup'] = measure_startup()
+    log('core: targets at default settings (whole runs of the moving train)')
+    results['targets'] = run_targets(target_ref_max_n, default_overrides, log=log)
 
     def one(n, model, u, h):
-        res = _run_sub(['--case', json.dumps([n, model, u, h])])
         ok, note = want_reference(n, model, u, ref_max_n)
         ref = None
         if model == 'tanh' and not (u >= 1.0e4 and n >= 300):
-            ref = get_reference(n, u, allow_compute=ok)
+            ref = get_reference(n, u, allow_compute=ok)     # before the case, which reads it
             if ref is not None:
                 note = ''
+        res = _run_sub(['--case', json.dumps([n, model, u, h])])
         row = _summarise_case(res, ref, note)
         log(f'  N={n:5d} {model} u={u:g} h={h:g}: wall {row["wall_s"]:.3f} s, '
             f"{row['rtf']:.1f}x real time, peak {row['peak_N']:.4g} N"
@@ -558,7 +825,7 @@ def run(ref_max_n: int = 100, sizes=SIZES, models=MODELS, steps=STEP_VARIANTS,
         row = {'n': n, 'wall_s': b['wall_s'], 'rtf': b['rtf'], 'nfev': b['nfev'],
                'status': b['status'], 'extrapolated': False}
         if ours is not None:
-            row['speedup'] = b['wall_s'] / ours['wall_s']
+            row['speedup'] = ours['rtf'] / b['rtf']      # real-time factors
             k = int(round(ours['window'] / OUTPUT_DT))
             env = np.asarray(b['envelope'][:k + 1])
             row['peak_window_N'] = float(env.max())
@@ -584,7 +851,7 @@ def run(ref_max_n: int = 100, sizes=SIZES, models=MODELS, steps=STEP_VARIANTS,
             ours = next((r for r in results['cases'] if r['n'] == n and r['model'] == 'tanh'
                          and r['u'] == 1000.0), None)
             if ours is not None:
-                row['speedup'] = w / ours['wall_s']
+                row['speedup'] = ours['rtf'] / (T_END / w)
             results['baseline'].append(row)
     return results
 
@@ -654,8 +921,8 @@ def adaptive_table(rows) -> str:
     return '\n'.join(lines)
 
 
-def compute_references(sizes, us, max_n: int) -> None:
-    """Fill the reference cache."""
+def compute_references(sizes, us, max_n: int, samples: bool = False) -> None:
+    """Fill the reference cache (``samples``: the per-coupler samples as well)."""
     for n in sizes:
         for u in us:
             ok, note = want_reference(n, 'tanh', u, max_n)
@@ -663,7 +930,7 @@ def compute_references(sizes, us, max_n: int) -> None:
                 print(f'N={n} u={u:g}: {note}', flush=True)
                 continue
             t0 = time.perf_counter()
-            ref = get_reference(n, u, allow_compute=True)
+            ref = get_reference(n, u, allow_compute=True, samples=samples)
             print(f'N={n} u={u:g}: reference peak {ref["peak_N"]:.6g} N at {ref["t_peak_s"]:g} s, '
                   f'valid until {ref["first_stop_s"]} s ({ref["wall_s"]:.0f} s to compute; '
                   f'{time.perf_counter() - t0:.0f} s now)', flush=True)
@@ -674,10 +941,19 @@ def main(argv=None) -> int:
     ap.add_argument('--case', help='internal: JSON [n, model, u, h]; prints JSON')
     ap.add_argument('--baseline', type=int, help='internal: baseline for N coaches')
     ap.add_argument('--startup', action='store_true', help='internal: start-up probe')
+    ap.add_argument('--target', help='internal: JSON [n, settings, repeats]; prints JSON')
+    ap.add_argument('--targets', action='store_true',
+                    help='only the target rows (speed at default settings, sample accuracy)')
+    ap.add_argument('--sizes', help='with --targets: these trains (comma-separated N)')
+    ap.add_argument('--default-overrides', type=json.loads, default=None,
+                    help='JSON object of settings applied on top of the defaults in the '
+                         'target rows (to try a planned default; the rows say so)')
     ap.add_argument('--adaptive', action='store_true',
                     help='error-controlled cases (ADAPTIVE_CASES): markdown table')
     ap.add_argument('--refs', action='store_true',
                     help='compute missing reference solutions into the cache')
+    ap.add_argument('--samples', action='store_true',
+                    help='with --refs: the per-coupler samples too (SAMPLES_DIR)')
     ap.add_argument('--ref-sizes', default='3,30,100,300')
     ap.add_argument('--ref-us', default='100,1000,10000')
     ap.add_argument('--ref-max-n', type=int, default=300)
@@ -692,6 +968,16 @@ def main(argv=None) -> int:
     if args.startup:
         print(json.dumps(startup_probe()))
         return 0
+    if args.target:
+        n, settings, repeats = json.loads(args.target)
+        print(json.dumps(target_case(int(n), settings, int(repeats))))
+        return 0
+    if args.targets:
+        sizes = [int(m) for m in args.sizes.split(',')] if args.sizes else None
+        rows = run_targets(args.ref_max_n, args.default_overrides, sizes,
+                           log=lambda m: print(m, file=sys.stderr, flush=True))
+        print(json.dumps(rows, indent=1))
+        return 0
     if args.adaptive:
         rows = []
         for n, tol in ADAPTIVE_CASES:
@@ -701,9 +987,10 @@ def main(argv=None) -> int:
         return 0
     if args.refs:
         compute_references([int(s) for s in args.ref_sizes.split(',')],
-                           [float(s) for s in args.ref_us.split(',')], args.ref_max_n)
+                           [float(s) for s in args.ref_us.split(',')], args.ref_max_n,
+                           args.samples)
         return 0
-    res = run()
+    res = run(default_overrides=args.default_overrides)
     print(json.dumps(dict(res), indent=1, default=str)[:5000])
     return 0
 
