@@ -230,6 +230,11 @@ def _param(text: str) -> tuple[str, object]:
     return name, value
 
 
+def _triple(values) -> str:
+    """Return 'p50 / p99 / max ms', or 'n/a' for figures of a run that did not measure them."""
+    return 'n/a' if values is None else ' / '.join(f'{x:.3f}' for x in values) + ' ms'
+
+
 def table(res: dict) -> str:
     def ok(b):
         return 'PASS' if b else 'FAIL'
@@ -247,9 +252,9 @@ def table(res: dict) -> str:
         f"<= {TARGET_P99_MS} ms {ok(t['jitter_p99'])} |",
         f"| jitter max | {res['jitter_max_ms']:.3f} ms | |",
         "| jitter p50 / p99 / max of the node's DDS send times | "
-        + ' / '.join(f'{x:.3f}' for x in res['send_jitter_ms']) + ' ms | |',
+        + _triple(res.get('send_jitter_ms')) + ' | |',
         "| jitter p50 / p99 / max of the probe's callback times | "
-        + ' / '.join(f'{x:.3f}' for x in res['callback_jitter_ms']) + ' ms | |',
+        + _triple(res.get('callback_jitter_ms')) + ' | |',
         f"| arrival lag vs. ideal real time at the end | {res['lag_final_ms']:.1f} ms | |",
         f"| messages received / stamp gaps / non-monotonic | {res['messages']} / "
         f"{res['stamp_gaps']} / {res['stamp_non_monotonic']} | |",
