@@ -31,6 +31,7 @@ from train_dynamics.physics.chain_reference import ChainLaw, solve_chain
 from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.config.budgets import max_period_steps
 from train_dynamics.physics.kernel.layout import COUPLER
+from train_dynamics.physics.reference import HeadVentBraking
 from train_dynamics.physics.train import TrainSimulator
 
 #: the plain fixed step: no multirate refinement
@@ -55,7 +56,9 @@ SETTINGS = (
 ) + tuple(
     (f'multirate {tol:.0e}'.replace('e-0', 'e-') + f' + reversal weight {w:g}',
      {'multirate_tolerance': tol, 'multirate_reversal_weight': w})
-    for tol in (1e-2, 3e-3, 1e-3) for w in (10.0, 5.0, 3.0, 2.0, 1.0, 0.5, 0.3, 0.1, 0.03))
+    for tol in (1e-2, 3e-3, 1e-3) for w in (10.0, 5.0, 3.0, 2.0, 1.0, 0.5, 0.3, 0.1, 0.03)
+) + (('multirate 3e-4 + reversal weight 1',
+       {'multirate_tolerance': 3e-4, 'multirate_reversal_weight': 1.0}),)
 DT = 0.002      # [s] read-out
 
 
@@ -68,18 +71,8 @@ def _paper(n=3, t_end=20.0):
         return sim
 
     cfg = SimConfig.from_dict(base)
-    n = cfg.n_coaches
-    m = np.array(cfg.mass_array)
-    ft, ff = (np.array(a) for a in cfg.fill_table())
-    delays = np.arange(n) * cfg.coach_length / cfg.brake_propagation_speed
-    fmax = cfg.adhesion_coefficient * m * cfg.gravity
-
-    def brake(t):
-        return fmax * np.interp(t - 1.0 - delays, ft, ff, left=0.0)
-
-    kinks = np.unique(np.concatenate([1.0 + d + ft for d in delays]))
-    kinks = kinks[(kinks > 0.0) & (kinks < t_end)]
-    steps = (kinks, np.zeros((kinks.size, n)))
+    brake = HeadVentBraking(cfg, 1.0)
+    steps = brake.steps(t_end)
     return make, steps, brake, t_end, cfg.initial_speed
 
 

@@ -152,15 +152,9 @@ def make_config(n: int, model: str, u: float, h: float = DEFAULT_H, **extra):
 
 def brake_formula(cfg):
     """(Fb(t) -> (N,) [N], delays (N,) [s]) for the pipe_head emergency at T_EMERGENCY."""
-    import numpy as np
-    from train_dynamics.physics.kernel.brakes import pipe_delays
-    ft, ff = (np.asarray(a, float) for a in cfg.fill_table())
-    delays = pipe_delays(cfg.n_coaches, cfg.coach_length, cfg.brake_propagation_speed)
-    full = cfg.adhesion_coefficient * np.asarray(cfg.mass_array) * cfg.gravity
-
-    def fb(t):
-        return full * np.interp(t - T_EMERGENCY - delays, ft, ff, left=0.0)
-    return fb, delays
+    from train_dynamics.physics.reference import HeadVentBraking
+    fb = HeadVentBraking(cfg, T_EMERGENCY)
+    return fb, fb.delays
 
 
 def _grid(t_end: float):

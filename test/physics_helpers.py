@@ -3,7 +3,7 @@ import numpy as np
 
 from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel.couplers import coupler_force, TANH
-from train_dynamics.physics.reference import reference_solution
+from train_dynamics.physics.reference import HeadVentBraking, reference_solution
 from train_dynamics.physics.train import TrainSimulator
 
 T_EMERGENCY = 1.0   # the brake valve vents the pipe at t = 1 s
@@ -44,13 +44,7 @@ def paper_reference(t_eval, u=1000.0, **overrides):
     cfg = SimConfig.from_dict(overrides)
     n = cfg.n_coaches
     m = np.array(cfg.mass_array)
-    ft, ff = cfg.fill_table()
-    delays = np.arange(n) * cfg.coach_length / cfg.brake_propagation_speed
-    fmax = cfg.adhesion_coefficient * m * cfg.gravity
-
-    def brake(t):
-        return fmax * np.interp(t - T_EMERGENCY - delays, ft, ff, left=0.0)
-
+    brake = HeadVentBraking(cfg, T_EMERGENCY)
     sol = reference_solution(m, cfg.buffer_stiffness, cfg.buffer_friction,
                              cfg.draw_gear_stiffness, cfg.draw_gear_friction, u,
                              cfg.initial_speed, brake, float(t_eval[-1]), t_eval=t_eval)

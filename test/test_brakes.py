@@ -4,6 +4,7 @@ import pytest
 
 from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel import brakes
+from train_dynamics.physics.reference import HeadVentBraking
 from train_dynamics.physics.train import TrainSimulator
 
 P_MAX = 380000.0
@@ -45,6 +46,33 @@ def test_brake_wave_reaches_coach_i_after_i_minus_1_times_0p1_s():
     expected = 1.0 + np.arange(6) * 25.0 / 250.0
     np.testing.assert_allclose(first, expected + 1e-3, atol=1.5e-3)
     np.testing.assert_allclose(np.diff(first), 0.1, atol=1.5e-3)
+
+
+def test_references_closed_form_braking_is_the_simulators():
+    """
+    HeadVentBraking (what the independent references are fed) against the simulator.
+
+    Paper defaults (25 m coaches, wave at 250 m/s: 0.1 s per coach): before the wave nothing,
+    at the end of the filling table the adhesion limit mu_a m g, and in between the simulator's
+    own braking forces to rounding (it applies the mean over its step h, (Fb(t-h) + Fb(t)) / 2).
+    """
+    cfg = SimConfig.from_dict({'num_coaches': 4})
+    ref = HeadVentBraking(cfg, 1.0)
+    np.testing.assert_allclose(ref.delays, [0.0, 0.1, 0.2, 0.3])
+    full = cfg.adhesion_coefficient * np.array(cfg.mass_array) * cfg.gravity
+    t_full = cfg.fill_table()[0][-1]
+    np.testing.assert_array_equal(ref(1.0), 0.0)
+    np.testing.assert_allclose(ref(1.0 + 0.3 + t_full), full)
+    kinks = ref.kinks(3.0)
+    assert kinks[0] == 1.0 and kinks[-1] < 3.0 and np.all(np.diff(kinks) > 0)
+    sim = TrainSimulator(cfg)
+    sim.schedule(1.0, lambda: sim.set_head_pipe_pressure(0.0))
+    h = cfg.integration_step
+    worst = 0.0
+    for t in np.round(np.arange(1, 301) * 0.01, 10):
+        sim.advance_to(t)
+        worst = max(worst, np.abs(sim.brake_force - 0.5 * (ref(t - h) + ref(t))).max())
+    assert worst < 1e-9 * full.max(), worst
 
 
 def test_propagation_speed_sets_the_delay():

@@ -11,6 +11,7 @@ from train_dynamics.physics.kernel import multirate
 from train_dynamics.physics.kernel.coupler_rows import eval_couplers
 from train_dynamics.physics.kernel.layout import COUPLER, OPTION, PARAM, STATE, VEHICLE, WORK
 from train_dynamics.physics.kernel.ros2 import GAMMA, ros2_step
+from train_dynamics.physics.reference import HeadVentBraking
 from train_dynamics.physics.train import TrainSimulator
 
 N_IMPACT = 12
@@ -259,21 +260,14 @@ def test_paper_scenario_at_the_default_within_a_tenth_of_a_percent():
                         'paper_3coach.yaml')
     cfg = load_param_file(path)
     t_eval = np.round(np.arange(1, 2501) * 0.002, 10)
-    m = np.array(cfg.mass_array)
-    ft, ff = (np.array(a) for a in cfg.fill_table())
-    delays = np.arange(cfg.n_coaches) * cfg.coach_length / cfg.brake_propagation_speed
-    fmax = cfg.adhesion_coefficient * m * cfg.gravity
-    kinks = np.unique(np.concatenate([1.0 + d + ft for d in delays]))
-    kinks = kinks[(kinks > 0.0) & (kinks < t_eval[-1])]
+    brake = HeadVentBraking(cfg, 1.0)
     errors = {}
     for over in (PLAIN, {}):
         sim = TrainSimulator(cfg.replace(**over))
         sim.schedule(1.0, lambda s=sim: s.set_head_pipe_pressure(0.0))
         if not errors:
             ref = solve_chain(sim.inertia, ChainLaw.of_simulator(sim), cfg.initial_speed,
-                              (kinks, np.zeros((kinks.size, cfg.n_coaches))), t_eval,
-                              brake_of_t=lambda t: fmax * np.interp(t - 1.0 - delays, ft, ff,
-                                                                    left=0.0))
+                              brake.steps(t_eval[-1]), t_eval, brake_of_t=brake)
         F, Y = [], []
         for t in t_eval:
             sim.advance_to(t)

@@ -12,6 +12,42 @@ import numpy as np
 from train_dynamics.physics.kernel import couplers
 
 
+class HeadVentBraking:
+    """
+    Closed-form braking forces [N] after the brake pipe is vented at the head at ``t_vent`` [s].
+
+    The pipe's brake wave reaches coach i = 1..N after (i-1) L / c [s] (coach length L [m],
+    propagation speed c [m/s]); from then on its cylinder follows the filling table (paper
+    eq. 13) and its braking force is Fb_i(t) = mu_a m_i g fill(t - t_vent - (i-1) L / c)
+    (mu_a the adhesion coefficient, m_i [kg], g [m/s^2], fill in 0..1, zero before the wave).
+    The brake system does not depend on the motion, so the references take it as a known
+    function of time; its kinks (the table's knots, shifted to each coach) are where an
+    integrator must restart.
+    """
+
+    def __init__(self, cfg, t_vent: float):
+        self.t_vent = float(t_vent)
+        self.delays = (np.arange(cfg.n_coaches, dtype=float) * cfg.coach_length
+                       / cfg.brake_propagation_speed)
+        self.full = cfg.adhesion_coefficient * np.asarray(cfg.mass_array, float) * cfg.gravity
+        self._ft, self._ff = (np.asarray(a, float) for a in cfg.fill_table())
+
+    def __call__(self, t: float) -> np.ndarray:
+        """Braking forces [N] (N,) at time t [s], positive retarding."""
+        return self.full * np.interp(t - self.t_vent - self.delays, self._ft, self._ff,
+                                     left=0.0)
+
+    def kinks(self, t_end: float) -> np.ndarray:
+        """The instants in (0, t_end) [s] where a coach's force has a kink, ascending."""
+        k = np.unique(np.concatenate([self.t_vent + d + self._ft for d in self.delays]))
+        return k[(k > 0.0) & (k < t_end)]
+
+    def steps(self, t_end: float):
+        """The kinks as zero force steps, the ``brake_steps`` argument of a chain reference."""
+        k = self.kinks(t_end)
+        return k, np.zeros((k.size, self.delays.size))
+
+
 def reference_solution(masses, ke, kf, kec, kfc, u, v0, brake_of_t, t_end, *,
                        t_eval=None, rtol=1e-9, atol=1e-11, method='Radau', x0=None):
     """
