@@ -50,7 +50,7 @@ def test_brake_wave_reaches_coach_i_after_i_minus_1_times_0p1_s():
 
 def test_references_closed_form_braking_is_the_simulators():
     """
-    HeadVentBraking (what the independent references are fed) against the simulator.
+    The references' closed-form braking (HeadVentBraking) against the simulator.
 
     Paper defaults (25 m coaches, wave at 250 m/s: 0.1 s per coach): before the wave nothing,
     at the end of the filling table the adhesion limit mu_a m g, and in between the simulator's

@@ -38,12 +38,12 @@ class HeadVentBraking:
                                      left=0.0)
 
     def kinks(self, t_end: float) -> np.ndarray:
-        """The instants in (0, t_end) [s] where a coach's force has a kink, ascending."""
+        """Return the instants in (0, t_end) [s] where a coach's force has a kink, ascending."""
         k = np.unique(np.concatenate([self.t_vent + d + self._ft for d in self.delays]))
         return k[(k > 0.0) & (k < t_end)]
 
     def steps(self, t_end: float):
-        """The kinks as zero force steps, the ``brake_steps`` argument of a chain reference."""
+        """Return the kinks as zero force steps, for a chain reference's brake input."""
         k = self.kinks(t_end)
         return k, np.zeros((k.size, self.delays.size))
 
