@@ -10,7 +10,9 @@ workers), ``--no-lockstep`` (bench/lockstep.py: closed-loop periods/s over DDS),
 ``--ref-max-n N`` (compute missing reference solutions only up to N coaches; cached ones are
 always used), ``--target-ref-max-n N`` (the same for the per-coupler references of the target
 rows, default 1000), ``--default-overrides JSON`` (settings applied on top of the defaults in
-the target rows, to try a planned default; the rows name them), ``--no-write`` (print only).
+the target rows, to try a planned default; the rows name them), ``--core-sizes N,N`` and
+``--core-max-u U`` (a smaller core table: the target rows still run), ``--no-write`` (print
+only).
 
 The targets table gives the speed at DEFAULT settings of the paper's coaches (100 and 1000)
 and of the 750 m freight, in whole runs of a moving train, each with its sample accuracy
@@ -430,6 +432,12 @@ def main(argv=None) -> int:
     ap.add_argument('--default-overrides', type=json.loads, default=None,
                     help='JSON object of settings applied on top of the defaults in the '
                          'target rows, to try a planned default (the rows say so)')
+    ap.add_argument('--core-sizes', metavar='N,N,...',
+                    help='trains of the core table and its step variants (default: '
+                         'core.SIZES); the target rows always run 100 and 1000')
+    ap.add_argument('--core-max-u', type=float, metavar='U',
+                    help='only the core laws with u <= U (the tanh u = 1e4 cases of long '
+                         'trains take minutes each at the default multirate setting)')
     ap.add_argument('--no-write', action='store_true')
     ap.add_argument('--no-pneumatic', action='store_true', help='skip bench/pneumatic.py')
     ap.add_argument('--no-wheelsets', action='store_true',
@@ -454,7 +462,12 @@ def main(argv=None) -> int:
     t0 = time.monotonic()
     core_res = node_res = None
     if not args.no_core:
-        core_res = core.run(ref_max_n=args.ref_max_n, log=log,
+        sizes = (tuple(int(n) for n in args.core_sizes.split(',')) if args.core_sizes
+                 else core.SIZES)
+        models = (core.MODELS if args.core_max_u is None
+                  else tuple(m for m in core.MODELS if m[1] <= args.core_max_u))
+        core_res = core.run(ref_max_n=args.ref_max_n, log=log, sizes=sizes, models=models,
+                            steps=tuple(s for s in core.STEP_VARIANTS if s[0] in sizes),
                             target_ref_max_n=args.target_ref_max_n,
                             default_overrides=args.default_overrides)
     if not args.no_node:
