@@ -76,11 +76,11 @@ def test_impact_at_end_of_free_play_resolved_locally():
     Buffer impact after free play: resolved where it happens, the far couplers untouched.
 
     Against the independent reference (every 2 ms): the plain fixed 2 ms step is over 10 % of
-    the peak off on some sample; at the default (multirate_tolerance 3e-4, reversal weight 1)
+    the peak off on some sample; at the default (multirate_tolerance 1e-3, reversal weight 1)
     every sample within 1 % of the peak, the sampled peak within 1 %. Sub-steps per
     coupler: the impact coupler's group sub-steps, the three couplers at the front (no force
-    reaches them above 1e-4 of the peak) never do: they keep the 2 ms step. (The fourth, at
-    1.5e-4 of the peak, is sub-stepped at the default 3e-4; it was not at 1e-3.)
+    reaches them above 1e-4 of the peak) never do: they keep the 2 ms step (at 1e-3 the
+    fourth, at 1.5e-4 of the peak, does not either; at 3e-4 it does).
     """
     t_eval = np.round(np.arange(1, 201) * 0.002, 10)
     sim = _impact()
@@ -93,7 +93,7 @@ def test_impact_at_end_of_free_play_resolved_locally():
     fixed = _samples(_impact(**PLAIN), t_eval)
     assert np.abs(fixed - ref.F).max() > 0.1 * peak
     sim = _impact()
-    assert sim.cfg.multirate_tolerance == 3e-4 and sim.cfg.multirate_reversal_weight == 1.0
+    assert sim.cfg.multirate_tolerance == 1e-3 and sim.cfg.multirate_reversal_weight == 1.0
     F = _samples(sim, t_eval)
     assert np.abs(F - ref.F).max() < 0.01 * peak
     assert abs(np.abs(F).max() / peak - 1.0) < 0.01
@@ -203,7 +203,7 @@ def test_coupler_work_summed_over_sub_steps_closes_the_energy_balance():
 
     The couplers' work is the trapezoid of each step; the groups' sub-steps book theirs: the
     residual falls from 3.3e-3 of the energy lost (plain fixed 2 ms) to below 1e-3 at the
-    default (multirate 3e-4, reversal weight 1).
+    default (multirate 1e-3, reversal weight 1).
     """
     residuals = []
     for over in (PLAIN, {}):
@@ -255,7 +255,7 @@ def test_paper_scenario_at_the_default_within_a_tenth_of_a_percent():
     at rtol 1e-9, fed the closed-form brake forces: the filling table from 1 s plus each
     coach's pipe delay), 0-5 s sampled every 2 ms (the run-in and the largest forces, at
     ~1.4 s): every coupler-force and displacement sample within 0.1 % of the reference's peak
-    (measured 0.048 % and 0.035 % over 0-20 s; the plain fixed step 0.256 % and 0.078 %).
+    (measured 0.090 % and 0.053 % over 0-20 s; the plain fixed step 0.256 % and 0.078 %).
     """
     path = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config',
                         'paper_3coach.yaml')

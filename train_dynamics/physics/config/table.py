@@ -44,16 +44,16 @@ G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
 
 #: default integration_tolerance: 0 = fixed step
 INTEGRATION_TOLERANCE = 0.0
-#: default multirate_tolerance and multirate_reversal_weight: of the settings measured that
-#: keep every coupler-force and displacement sample within 2 % of the independent
-#: reference's peak on the four accuracy cases, on 100 and 1000 of the paper's coaches, and
-#: within 0.1 % on the paper's scenario (bench/accuracy_results.md: force 0.048 / 0.099 /
-#: 0.082 / 0.29 %, displacement 0.035 / 0.010 / 0.012 / 0.036 % on paper / khz_unequal /
-#: mixed_freeplay / paper30; 100 coaches 1.49 %, 1000 coaches 0.037 %; 1e-3 with the same
-#: weight met the four cases but not 100 coaches, 11.6 %; the fixed 2 ms step alone 0.256 /
-#: 50.1 / 14.8 / 6.57 %, 41 % on 100 coaches), the one with the most margin at the lowest
-#: cost (1e-3 with weight 3 cost the same on 100 coaches, 1.88 %)
-MULTIRATE_TOLERANCE = 3.0e-4
+#: default multirate_tolerance and multirate_reversal_weight: every coupler-force and
+#: displacement sample within 2 % of the independent reference's peak on the four accuracy
+#: cases and on 1000 of the paper's coaches, within 0.1 % on the paper's scenario
+#: (bench/accuracy_results.md: force 0.090 / 0.303 / 0.253 / 0.88 %, displacement 0.053 /
+#: 0.031 / 0.039 / 0.11 % on paper / khz_unequal / mixed_freeplay / paper30; 1000 coaches
+#: 0.086 %; the fixed 2 ms step alone 0.256 / 50.1 / 14.8 / 6.57 %), but not on 100 coaches
+#: (11.6 %, a few late friction reversals). 3e-4 meets that too (1.49 %) at about twice the
+#: cost, which put sim_node's p99 output jitter with 300 vehicles at 100 Hz over 2 ms
+#: (1.84-2.05 ms in three runs; 0.48 ms at 1e-3): the real-time node keeps 1e-3.
+MULTIRATE_TOLERANCE = 1.0e-3
 MULTIRATE_REVERSAL_WEIGHT = 1.0
 
 #: the most vehicles of a train, however given (num_coaches, masses, a consist file's counts)
