@@ -58,7 +58,9 @@ SETTINGS = (
 ) + tuple(
     (f'multirate {tol:.0e}'.replace('e-0', 'e-') + f' + reversal weight {w:g}',
      {'multirate_tolerance': tol, 'multirate_reversal_weight': w})
-    for tol in (1e-2, 3e-3, 1e-3) for w in (10.0, 5.0, 3.0, 2.0, 1.0, 0.5, 0.3, 0.1, 0.03))
+    for tol in (1e-2, 3e-3, 1e-3) for w in (10.0, 5.0, 3.0, 2.0, 1.0, 0.5, 0.3, 0.1, 0.03)
+) + (('multirate 3e-4 + reversal weight 1',
+      {'multirate_tolerance': 3e-4, 'multirate_reversal_weight': 1.0}),)
 DT = 0.002      # [s] read-out
 
 
