@@ -31,7 +31,9 @@ other processes would delay it by their time slice (priority inversion through t
 Threads these two start (the bag writer) return to normal scheduling. Where that priority is
 not permitted (no ``CAP_SYS_NICE``, ``ulimit -r`` 0) the thread stays at normal priority and
 says so once. On a quiet machine the remaining delay is an idle CPU's wake-up: the node's
-``cpu_wake_latency`` (:class:`train_dynamics.ros.scheduling.CpuWakeLatency`).
+``cpu_wake_latency`` (:class:`train_dynamics.ros.scheduling.CpuWakeLatency`). A full garbage
+collection holds the GIL for as long as it traverses every object: ``main`` freezes start-up's
+objects out of them (:func:`train_dynamics.ros.scheduling.freeze_startup_heap`).
 """
 from __future__ import annotations
 

@@ -82,7 +82,7 @@ from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
                                          open_bag, reset_bag_path)
 from train_dynamics.ros.run_control import RunControl
-from train_dynamics.ros.scheduling import CpuWakeLatency, normal_priority
+from train_dynamics.ros.scheduling import CpuWakeLatency, freeze_startup_heap, normal_priority
 
 __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
            'MAX_ABSOLUTE_PRESSURE', 'MAX_RECORD_BACKLOG', 'REJECT_REASONS']
@@ -489,6 +489,7 @@ def main(args: list[str] | None = None) -> int:
         node = SimNode()
         # this thread spins the executor: it follows the simulation thread's priority (pacing)
         node._pacer.executor_tid = threading.get_native_id()
+        freeze_startup_heap()       # no full garbage collection of start-up's objects later
         return node
 
     return run_node('sim_node', create, args, node_name=NODE_NAME, specs=SPECS, exits=(
