@@ -37,7 +37,8 @@ def freeze_startup_heap() -> None:
 
     Python's cyclic garbage collector traverses every tracked object in a full (generation 2)
     collection while it holds the interpreter lock (GIL). After the imports (numba, rclpy,
-    numpy) and the kernels' loading the node holds a few hundred thousand such objects: a full
+    numpy) and the kernels' loading there are over 100 000 such objects (136 000 after
+    importing sim_node and building the paper's simulator, before the node itself): a full
     collection then took 42-70 ms and, triggered by the run's own allocations some 6 s into
     the paper's run, held the simulation thread 70-108 ms behind real time (3 coaches, 100 Hz,
     ``make run``). ``gc.freeze()`` (Python >= 3.7, the ``gc`` module's documentation) moves
