@@ -151,10 +151,9 @@ def make_config(n: int, model: str, u: float, h: float = DEFAULT_H, **extra):
 
 
 def brake_formula(cfg):
-    """(Fb(t) -> (N,) [N], delays (N,) [s]) for the pipe_head emergency at T_EMERGENCY."""
+    """Return Fb(t) -> (N,) [N] for the pipe_head emergency at T_EMERGENCY."""
     from train_dynamics.physics.reference import HeadVentBraking
-    fb = HeadVentBraking(cfg, T_EMERGENCY)
-    return fb, fb.delays
+    return HeadVentBraking(cfg, T_EMERGENCY)
 
 
 def _grid(t_end: float):
@@ -240,7 +239,7 @@ def sampled_run(cfg, ref: dict | None, brakes: bool = True) -> dict:
     chunks = int(round(T_END / OUTPUT_DT))
     bufs = (ref or {}).get('_buffers') or sample_buffers()
     env, err_f, err_y = bufs['envelope'], bufs['sample_err_F'], bufs['sample_err_y']
-    fb_of_t, _ = brake_formula(cfg)
+    fb_of_t = brake_formula(cfg)
     fmax = np.max(cfg.adhesion_coefficient * np.asarray(cfg.mass_array) * cfg.gravity)
     h = float(cfg.integration_step)
     mismatch = 0.0
@@ -518,7 +517,7 @@ def compute_reference(n: int, u: float) -> tuple[dict, dict]:
     from train_dynamics.physics.kernel import couplers
     from train_dynamics.physics.reference import reference_solution
     cfg = make_config(n, 'tanh', u)
-    fb_of_t, _ = brake_formula(cfg)
+    fb_of_t = brake_formula(cfg)
     grid = _grid(T_END)
     t0 = time.perf_counter()
     res = reference_solution(cfg.mass_array, cfg.buffer_stiffness, cfg.buffer_friction,
@@ -615,7 +614,7 @@ def baseline_case(n: int, t_end: float = T_END, u: float = 1000.0) -> dict:
     import numpy as np
     from scipy.integrate import solve_ivp
     cfg = make_config(n, 'tanh', u)
-    fb_of_t, _ = brake_formula(cfg)
+    fb_of_t = brake_formula(cfg)
     m = np.asarray(cfg.mass_array, float)
     kt, ct = cfg.buffer_stiffness, cfg.buffer_friction        # compression (buffers)
     kc, cc = cfg.draw_gear_stiffness, cfg.draw_gear_friction  # extension (draw gear)
