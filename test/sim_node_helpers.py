@@ -73,6 +73,25 @@ class Harness:
                 return False
             self.executor.spin_once(timeout_sec=0.01)
 
+    @staticmethod
+    def every(period: float, action: Callable[[], Any]) -> Callable[[], None]:
+        """
+        Return a function that runs ``action`` when ``period`` [s wall] passed since it last did.
+
+        For a predicate that keeps a controller sending while :meth:`wait` polls: a publisher
+        at a controller's rate, not at the executor loop's. Publishing on every poll floods the
+        node with thousands of messages a second, which starves its simulation thread of CPU
+        on a 2-core machine.
+        """
+        last = [-math.inf]
+
+        def run() -> None:
+            now = time.monotonic()
+            if now - last[0] >= period:
+                last[0] = now
+                action()
+        return run
+
     # -- topics ----------------------------------------------------------------------------
     def collect(self, msg_type, topic: str, qos=None) -> list:
         """Every message received on ``topic`` (reliable, deep queue unless ``qos``)."""

@@ -71,14 +71,16 @@ def test_ecp_line_loss_is_published_recorded_and_diagnosed(harness, tmp_path):
     pub = _float64_publisher(harness)
     assert harness.wait_for_subscriber(pub)
 
-    def held():        # the head-end unit keeps sending 0.3: the line stays healthy
-        pub.publish(Float64(data=0.3))
+    send = harness.every(0.02, lambda: pub.publish(Float64(data=0.3)))
+
+    def held():        # the head-end unit keeps sending 0.3 at 50 Hz: the line stays healthy
+        send()
         return bool(states) and np.all(np.asarray(states[-1].position) == 0.3) and np.all(
             np.abs(node.simulator.cylinder_pressure - 0.3 * P_MAX) < 0.1e5)
     assert harness.wait(held, 20.0)
 
     def diagnosed():   # still sending: the line stays healthy until /diagnostics reports
-        pub.publish(Float64(data=0.3))
+        send()
         return (diag_values(diags, BRAKE_SYSTEM) or {}).get('command_vehicles') == '0.3'
     assert harness.wait(diagnosed, 5.0)
     ok = diag_values(diags, BRAKE_SYSTEM)

@@ -24,8 +24,10 @@ def test_ep_command_applied_validated_and_train_line_supervised(harness):
         harness.spin_for(0.05)
     assert harness.wait(lambda: node.simulator.pneu.ep_command_received == 0.5, 5.0)
 
-    def held(pub=pub):          # the controller keeps sending: the train line stays healthy
-        pub.publish(Float64(data=0.5))
+    send = harness.every(0.02, lambda: pub.publish(Float64(data=0.5)))
+
+    def held():          # the controller keeps sending at 50 Hz: the train line stays healthy
+        send()
         return np.all(np.abs(node.simulator.cylinder_pressure - 1.9e5) < 0.05e5)
     assert harness.wait(held, 20.0)
     assert node.simulator.pneu.train_line

@@ -69,6 +69,7 @@ from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
 from train_dynamics.ros.ep_inputs import EpInputs
 from train_dynamics.ros.publishers import stamp
+from train_dynamics.ros.throttle import Throttle
 from train_dynamics.ros.traction_inputs import TractionInputs
 from train_dynamics.ros.wsp_inputs import WspInputs
 
@@ -85,7 +86,6 @@ REJECT_REASONS = ('non_finite', 'negative', 'too_high', 'wrong_mode', 'unknown_c
 GRAPH_SCAN_PERIOD = 2.0  # [s wall] search for input topics of other modes / unknown coaches
 MAX_EXTRA_SUBSCRIPTIONS = 256   # cap on the subscriptions made by the graph scan
 INPUT_SETTLE = 0.3       # [s wall] wait_for_input: pause after the inputs are connected
-WARN_PERIOD = 5.0        # [s wall] throttle of repeated warnings
 
 INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                        reliability=ReliabilityPolicy.BEST_EFFORT,
@@ -117,24 +117,6 @@ def absolute_pressure(data: bytes) -> tuple[float, int]:
     if why is not None:
         raise Rejected(*why)
     return p, msg.header.stamp.sec * 1_000_000_000 + msg.header.stamp.nanosec
-
-
-class Throttle:
-    """At most one message per key and period; counts what it suppressed."""
-
-    def __init__(self, period: float = WARN_PERIOD) -> None:
-        self.period = period
-        self._last: dict[Any, float] = {}
-        self._suppressed: dict[Any, int] = {}
-
-    def __call__(self, key: Any, now: float) -> int | None:
-        """Return None to stay quiet, else the number suppressed since the last message."""
-        last = self._last.get(key)
-        if last is not None and now - last < self.period:
-            self._suppressed[key] = self._suppressed.get(key, 0) + 1
-            return None
-        self._last[key] = now
-        return self._suppressed.pop(key, 0)
 
 
 class InputBuffer:

@@ -49,13 +49,13 @@ from train_dynamics.ros.brake_inputs import BrakeInputs
 from train_dynamics.ros.publishers import Outputs
 from train_dynamics.ros.run_control import EXIT_LOCKSTEP_TIMEOUT, WAIT_POLL
 from train_dynamics.ros.scheduling import normal_priority, set_priority
+from train_dynamics.ros.throttle import Throttle
 from train_dynamics.simulation.runner import end_step
 
 MIN_SLEEP = 0.001        # [s wall] shortest pause between two pacing iterations
 CHUNK_BUDGET = 0.005     # [s wall] longest stretch the simulation thread integrates in one go
 BEHIND_WARN = 0.05       # [s wall] behind schedule by more: throttled warning
 MAX_LAG = 1.0            # [s wall] behind schedule by more: stop catching up (drop the lag)
-WARN_PERIOD = 5.0        # [s wall] throttle of repeated warnings
 IDLE = 0.1               # [s wall] pause of a finished or faulted run
 YIELD = 0.0002           # [s wall] pause that lets a waiting thread take the lock
 #: [s] the interpreter's GIL switch interval in the node (Python's default 0.005): a
@@ -149,6 +149,7 @@ class Pacer:
         self.control: Any = None
         self._held_records: list[tuple[str, str, int, bytes]] = []   # :meth:`_record_input`
         self._held = False              # the control held the run at the last iteration
+        self._throttle = Throttle()     # repeated warnings (simulation thread)
         #: SCHED_FIFO priority asked for while keeping up (0: normal scheduling)
         self.realtime_priority = 0
         self._priority_now = (0, 0)     # simulation thread only: (priority, executor_tid) set
@@ -364,18 +365,19 @@ class Pacer:
         if behind > MAX_LAG:
             self.lag_dropped += behind
             self.lag_events += 1
-            self._log.warning(
-                f'cannot keep up with real_time_factor {rtf:g}: {behind:.2f} s behind '
-                f'at t = {sim.t:.3f} s; dropping the lag (the simulation now runs '
-                f'{self.lag_dropped:.2f} s behind the wall clock in total; achieved rtf '
-                f'{self.achieved_rtf:.3g})', throttle_duration_sec=WARN_PERIOD)
+            if self._throttle('lag dropped', now) is not None:
+                self._log.warning(
+                    f'cannot keep up with real_time_factor {rtf:g}: {behind:.2f} s behind '
+                    f'at t = {sim.t:.3f} s; dropping the lag (the simulation now runs '
+                    f'{self.lag_dropped:.2f} s behind the wall clock in total; achieved rtf '
+                    f'{self.achieved_rtf:.3g})')
             self._anchor(now)
             target = sim.steps + 1
-        elif behind > BEHIND_WARN:
+        elif behind > BEHIND_WARN and self._throttle('behind', now) is not None:
             self._log.warning(
                 f'falling behind real time: {behind * 1000:.0f} ms behind schedule at '
                 f't = {sim.t:.3f} s (real_time_factor {rtf:g}, achieved '
-                f'{self.achieved_rtf:.3g}); catching up', throttle_duration_sec=WARN_PERIOD)
+                f'{self.achieved_rtf:.3g}); catching up')
         self.behind = max(behind, 0.0)
         return target
 
@@ -433,10 +435,12 @@ class Pacer:
         count = sim.integration_stats['fallback_periods']
         if count > self.fallback_periods:
             self.fallback_periods = count
+            if self._throttle('fallback', time.monotonic()) is None:
+                return
             self._log.warning(
                 f'integration_max_steps reached in {count} output period(s) so far (latest '
                 f'before t = {sim.t:.3f} s): the rest of such a period runs at the fixed '
-                f'integration_step', throttle_duration_sec=WARN_PERIOD)
+                f'integration_step')
 
     def _anchor(self, now: float) -> None:
         self._anchor_wall = now
