@@ -1,4 +1,4 @@
-# train_dynamics: make run | make test | make lint | make bench | make soak | make venv | make clean
+# train_dynamics: make run | make test | make lint | make bench | make soak | make venv | make bytecode | make clean
 #
 # Every target creates the virtual environment it needs (.venv, pinned by requirements.txt)
 # on first use; later runs skip the install (stamp file) unless requirements.txt, setup.py or
@@ -36,6 +36,7 @@ help:
 	@echo "make bench  - benchmarks (bench/run_all.py)"
 	@echo "make soak   - long run (bench/soak.py)"
 	@echo "make venv   - only create/update .venv"
+	@echo "make bytecode - byte-compile the package's modules (test, run, bench and soak do it)"
 	@echo "make clean  - remove build products and caches; make distclean also removes .venv"
 
 venv: $(STAMP)
