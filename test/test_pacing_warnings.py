@@ -4,8 +4,9 @@ The simulation thread's warnings while it is behind: decided before the logger i
 A pacing iteration that finds the simulation behind schedule warns at most once per
 :data:`train_dynamics.ros.throttle.WARN_PERIOD` per kind, and keeps suppressed warnings away
 from the logger: rclpy's own ``throttle_duration_sec`` inspects the caller's source on every
-call, and a node flooded with commands fell to 2 % of real time in those calls. The logger is
-replaced by a recorder; no timing is asserted (the wall clock is passed in).
+call, and those calls kept a node that had fallen behind from catching up
+(:mod:`train_dynamics.ros.throttle`). The logger is replaced by a recorder; no timing is
+asserted (the wall clock is passed in).
 """
 from __future__ import annotations
 

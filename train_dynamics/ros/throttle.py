@@ -7,7 +7,7 @@ the calling file's source and ``realpath``s it, on every call. That is about 0.5
 interpreter-lock time per suppressed message here (uncontended; more while the executor
 thread competes for the lock). The pacing loop warns because the simulation is behind, and
 those calls kept it behind: a 4-coach ECP node at ``real_time_factor`` 2, flooded in-process
-with ~15 000 commands a second, simulated 0.33 s in 8 s of wall time; with :class:`Throttle`,
+with 8 000-19 000 commands a second, simulated 0.33 s in 8 s of wall time; with :class:`Throttle`,
 which keeps such calls away from the logger until one is due, 1.25 s (the flood itself still
 takes the machine's two cores).
 """
