@@ -48,10 +48,9 @@ $(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml 
 	fi
 	$(VPY) -m pip install --no-compile -r requirements.txt
 	$(VPY) -m pip install --no-deps --no-build-isolation --use-pep517 -e .
-	# byte-compile every installed module, on both cores (~30 s). Where PYTHONDONTWRITEBYTECODE
-	# is set (many containers and CI images set it) Python never writes a .pyc itself, and every
-	# process then compiles numba's, scipy's and rclpy's sources again: sim_node took 7.3 s to
-	# its first step instead of 2.0-2.4 s on this 2-core machine
+	# byte-compile every installed module, on both cores (~30 s): where PYTHONDONTWRITEBYTECODE
+	# is set Python never writes a .pyc itself (why and what it costs: docs/development.md,
+	# "Python bytecode")
 	$(VPY) -m compileall -q -j 0 "$$($(VPY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')" >/dev/null \
 	  || echo "note: some installed modules did not byte-compile (their imports stay slower)"
 	# compile the numba kernels that `make run` needs now into the user cache
