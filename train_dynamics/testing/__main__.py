@@ -28,8 +28,10 @@ def _terminate(signum, frame):
 def parser() -> argparse.ArgumentParser:
     """Return the command's argument parser."""
     p = argparse.ArgumentParser(
-        prog=PROG, description='Run a brake controller against a scenario in lock-step and '
-        'check its criteria.', epilog='Everything after -- is the controller command.')
+        prog=PROG, usage=f'{PROG} SCENARIO --output DIR [options] [-- CONTROLLER...]',
+        description='Run a brake controller against a scenario in lock-step and check its '
+        'criteria.', epilog='Everything after -- is the controller command (none: a '
+        'controller started elsewhere).')
     p.add_argument('scenario', metavar='SCENARIO', help='scenario file (YAML)')
     p.add_argument('--output', required=True, metavar='DIR',
                    help='run folder (new or empty): bag, logs, report/')
@@ -42,20 +44,21 @@ def parser() -> argparse.ArgumentParser:
                    help='wall seconds the node waits for an answer (default 10)')
     p.add_argument('--real-time-factor', type=float, default=0.0, metavar='F',
                    help='0 = as fast as possible (default)')
-    p.add_argument('controller', nargs='*', metavar='CONTROLLER',
-                   help='controller command (after --); none: a controller started elsewhere')
     return p
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Run the command; return the exit status."""
-    args = parser().parse_args(argv)
+    argv = list(sys.argv[1:] if argv is None else argv)
+    split = argv.index('--') if '--' in argv else len(argv)
+    args = parser().parse_args(argv[:split])
+    controller = argv[split + 1:]          # none: a controller started elsewhere
     from train_dynamics.physics.config import ConfigError
     from train_dynamics.testing import run_scenario
 
     previous = signal.signal(signal.SIGTERM, _terminate)
     try:
-        result = run_scenario(args.scenario, args.controller or None, args.output,
+        result = run_scenario(args.scenario, controller or None, args.output,
                               namespace=args.namespace, figures=args.figures,
                               timeout=args.timeout, lockstep_timeout=args.lockstep_timeout,
                               real_time_factor=args.real_time_factor)

@@ -69,6 +69,8 @@ class RunResult:
     error: str = ''                    # why the run itself failed ('' if it did not)
     controller_returncode: int | None = None     # the controller command's exit status
     timings: dict[str, float] = field(default_factory=dict)    # [s wall] per phase
+    #: the process group ids, ``controller`` and ``sim_node`` (ended when the run returns)
+    process_groups: dict[str, int] = field(default_factory=dict)
 
     @property
     def passed(self) -> bool:
@@ -180,6 +182,7 @@ def run_scenario(scenario: Scenario | str | os.PathLike, controller: Sequence[st
         with _signals_deferred():
             end_all([g for g in (ctl, sim) if g is not None])
         timings['stop'] = time.monotonic() - t3
+    groups = {g.name: g.pid for g in (ctl, sim) if g is not None}
     if ctl is not None:
         ctl_code = ctl.returncode
     code = sim.returncode if sim is not None else None
@@ -189,7 +192,8 @@ def run_scenario(scenario: Scenario | str | os.PathLike, controller: Sequence[st
     else:
         results = [c.check(metrics) for c in scenario.criteria]
     timings['total'] = time.monotonic() - t0
-    return RunResult(run_dir, run_dir / BAG, code, metrics, results, error, ctl_code, timings)
+    return RunResult(run_dir, run_dir / BAG, code, metrics, results, error, ctl_code, timings,
+                     groups)
 
 
 def _check_options(lockstep_timeout: Any, real_time_factor: Any, timeout: Any
