@@ -1,5 +1,5 @@
 """
-The controller-test harness (train_dynamics.testing) against hostile input: what is refused, and how.
+The controller-test harness (train_dynamics.testing) against hostile input: what is refused.
 
 Read as a list:
 
@@ -205,8 +205,8 @@ def test_bad_harness_options_are_refused_before_anything_runs(tmp_path, options,
 
 
 @pytest.mark.parametrize('controller, message', [
-    (['no-such-controller-command'], "command not found or not executable: "
-     "'no-such-controller-command'"),
+    (['no-such-controller-command'],
+     "command not found or not executable: 'no-such-controller-command'"),
     ('python3 ctrl.py', 'expected a command as a list of strings'),
     ([], 'expected a command as a list of strings'),
 ])
@@ -258,7 +258,7 @@ def test_controller_that_exits_0_before_the_run_ends_is_reported(tmp_path):
 
 
 def _wrapped_echo(pid_file: Path) -> tuple[list[str], dict[str, str]]:
-    """A controller started through a shell that keeps running beside it (the grandchild)."""
+    """Return a controller started through a shell that stays beside it (the grandchild)."""
     script = ' '.join(ECHO) + ' & wait'
     return ['sh', '-c', script], {**os.environ, 'ECHO_PID_FILE': str(pid_file)}
 
