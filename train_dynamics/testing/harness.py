@@ -15,9 +15,9 @@ It waits (on process events, not polling) until the node ends, or the controller
 as the controller's failure; one that exits with status 0 leaves the node
 ``lockstep_timeout`` + :data:`CONTROLLER_EXIT_GRACE` seconds to finish by itself), or
 ``timeout`` passes. On every path (pass, fail, timeout, exception, Ctrl-C) both process
-groups are then ended as a whole (SIGINT, SIGKILL after a grace period). The run metrics are
-computed in this process (:mod:`~train_dynamics.testing.summary`; figures only when asked)
-and the criteria checked. Both processes inherit the environment (``ROS_DOMAIN_ID``, ...),
+groups are then ended as a whole (SIGINT; SIGTERM, then SIGKILL, to what is left). The run
+metrics are computed in this process (:mod:`~train_dynamics.testing.summary`; figures only
+when asked) and the criteria checked. Both processes inherit the environment (``ROS_DOMAIN_ID``, ...),
 with this ``train_dynamics`` first on ``PYTHONPATH``; the controller runs in the caller's
 working directory, the node in the run folder.
 """
@@ -314,7 +314,7 @@ def _controller_gone(ctl: ProcessGroup, sim: ProcessGroup, start: float) -> str:
 
 def end_all(groups: Sequence[ProcessGroup], grace: float = STOP_GRACE) -> None:
     """
-    End every process of ``groups``: SIGINT to all at once, SIGKILL after ``grace`` s.
+    End every process of ``groups``: SIGINT to all at once; SIGTERM after ``grace`` s, SIGKILL.
 
     A group already interrupted (the controller, while the metrics were computed) is not
     interrupted twice (a second SIGINT may cut a ROS 2 node's shutdown short).

@@ -6,8 +6,8 @@ tree of processes; signalling only the direct child leaves the others running, p
 init and still publishing on the ROS domain. :class:`ProcessGroup` starts a command with
 ``start_new_session`` (its process id is the id of its new process group) and
 :meth:`ProcessGroup.stop` signals the whole group: SIGINT (a ROS 2 node shuts down cleanly),
-then SIGKILL after a grace period, until no process of the group is left (a zombie waiting
-for a parent that does not reap it counts as gone: it runs nothing).
+then SIGTERM after a grace period, then SIGKILL, until no process of the group is left (a
+zombie waiting for a parent that does not reap it counts as gone: it runs nothing).
 
 Waiting is event-based where Linux allows it (a pidfd per process, :func:`wait_any`), with a
 polling fallback. Linux-only details (``/proc``) are looked up defensively; on other systems
@@ -25,6 +25,8 @@ from typing import Mapping, Sequence
 
 #: [s wall] a stopping process group gets this long after SIGINT before SIGKILL
 STOP_GRACE = 5.0
+#: [s wall] after SIGTERM (a group that did not end on SIGINT), the wait before SIGKILL
+TERM_WAIT = 2.0
 #: [s wall] after SIGKILL, the longest wait for the group's processes to disappear
 KILL_WAIT = 5.0
 #: [s wall] polling period where no event can be waited on (group members, no pidfd)
@@ -79,16 +81,21 @@ class ProcessGroup:
 
     def stop(self, grace: float = STOP_GRACE) -> None:
         """
-        End the whole group: SIGINT (unless sent before), SIGKILL after ``grace`` [s wall].
+        End the whole group: SIGINT (unless sent before), SIGTERM after ``grace`` [s wall].
 
-        Returns when no process of the group runs (or :data:`KILL_WAIT` after SIGKILL); the
-        command's own process is reaped.
+        Then SIGKILL after :data:`TERM_WAIT` more, as ``ros2 launch`` does (SIGTERM reaches a
+        process that ignores SIGINT: a child of a shell's background job). Returns when no
+        process of the group runs (or :data:`KILL_WAIT` after SIGKILL); the command's own
+        process is reaped.
         """
         if self.alive():
             if not self.interrupted:
                 self.signal(signal.SIGINT)
-            if not _wait_until(lambda: not self.alive(), grace, self):
-                self.signal(signal.SIGKILL)
+            for sig, wait in ((signal.SIGTERM, grace), (signal.SIGKILL, TERM_WAIT)):
+                if _wait_until(lambda: not self.alive(), wait, self):
+                    break
+                self.signal(sig)
+            else:
                 _wait_until(lambda: not self.alive(), KILL_WAIT, self)
         try:
             self.proc.wait(KILL_WAIT)
