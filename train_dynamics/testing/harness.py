@@ -18,8 +18,8 @@ as the controller's failure; one that exits with status 0 leaves the node
 groups are then ended as a whole (SIGINT; SIGTERM, then SIGKILL, to what is left). The run
 metrics are computed in this process (:mod:`~train_dynamics.testing.summary`; figures only
 when asked) and the criteria checked. Both processes inherit the environment
-(``ROS_DOMAIN_ID``, ...), with this ``train_dynamics`` first on ``PYTHONPATH``; the controller runs in the caller's
-working directory, the node in the run folder.
+(``ROS_DOMAIN_ID``, ...), with this ``train_dynamics`` first on ``PYTHONPATH``; the
+controller runs in the caller's working directory, the node in the run folder.
 """
 from __future__ import annotations
 
