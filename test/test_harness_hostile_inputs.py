@@ -150,20 +150,29 @@ def test_a_configuration_the_offline_command_refuses_is_refused(tmp_path):
         Scenario.load(path)
 
 
-def test_relative_consist_file_is_found_next_to_the_scenario_file(tmp_path):
+def test_relative_consist_file_is_found_next_to_the_scenario_file(tmp_path, monkeypatch):
     """The scenario file is where the path rule looks first (not the run folder)."""
     folder = tmp_path / 'scenarios'
     folder.mkdir()
     consist = folder / 'two_coaches.yaml'
     consist.write_text('vehicles:\n  - {type: paper_coach, count: 2}\n', encoding='utf-8')
     path = _scenario(folder, 'duration: 5.0\nparameters: {consist_file: two_coaches.yaml}\n')
-    cwd = os.getcwd()
-    os.chdir(tmp_path)          # neither the current folder nor config/ holds it
-    try:
-        scenario = Scenario.load(path)
-    finally:
-        os.chdir(cwd)
+    monkeypatch.chdir(tmp_path)          # neither the current folder nor config/ holds it
+    scenario = Scenario.load(path)
     assert scenario.parameters['consist_file'] == str(consist)
+
+
+def test_relative_paths_of_a_scenario_built_in_python_are_taken_from_the_current_folder(
+        tmp_path, monkeypatch):
+    (tmp_path / 'two.yaml').write_text('vehicles:\n  - {type: paper_coach, count: 2}\n')
+    (tmp_path / 'train.yaml').write_text('/**/train_dynamics:\n  ros__parameters: {}\n')
+    monkeypatch.chdir(tmp_path)
+    scenario = Scenario(duration=2, parameters={'consist_file': 'two.yaml'},
+                        parameters_file=Path('train.yaml'))
+    scenario.check()
+    assert scenario.parameters['consist_file'] == str(tmp_path / 'two.yaml')
+    assert scenario.parameters_file == tmp_path / 'train.yaml'
+    assert scenario.duration == 2.0 and isinstance(scenario.duration, float)
 
 
 def test_refused_scenario_starts_nothing_and_creates_no_folder(tmp_path):

@@ -120,12 +120,23 @@ class Scenario:
         """
         Check the scenario as a whole; normalise the parameters' values (ints of doubles).
 
+        Relative paths (``parameters_file``, a file input such as ``consist_file`` in
+        ``parameters``) are made absolute against the current folder: the path rule for
+        values given in Python (a scenario file's are absolute already, :meth:`load`).
+
         Raises :class:`ConfigError` (one line) naming the key; see the module.
         """
         self.duration = check_duration(self.duration)
-        if self.parameters_file is not None and not Path(self.parameters_file).is_file():
-            raise ConfigError(f'parameters_file: file not found: {self.parameters_file}')
-        self.parameters = check_parameters(self.parameters, self.parameters_file)
+        if self.parameters_file is not None:
+            # absolute: the node runs in the run folder
+            self.parameters_file = Path(self.parameters_file).absolute()
+            if not self.parameters_file.is_file():
+                raise ConfigError(f'parameters_file: file not found: {self.parameters_file}')
+        params = _mapping(self.parameters, 'parameters')
+        # a scenario built in Python: relative file inputs by the path rule (current folder);
+        # load() made those of a scenario file absolute already
+        params.update(resolve_file_inputs(params, os.getcwd()))
+        self.parameters = check_parameters(params, self.parameters_file)
         check_controller_parameters(self.controller_parameters)
         for c in self.criteria:
             if not isinstance(c, Criterion):
