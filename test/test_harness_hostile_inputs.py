@@ -162,6 +162,20 @@ def test_relative_consist_file_is_found_next_to_the_scenario_file(tmp_path, monk
     assert scenario.parameters['consist_file'] == str(consist)
 
 
+def test_run_uses_the_consist_file_next_to_the_scenario_file(tmp_path):
+    from train_dynamics.recording.bags import read_topics
+
+    folder = tmp_path / 'scenarios'
+    folder.mkdir()
+    (folder / 'four.yaml').write_text('vehicles:\n  - {type: paper_coach, count: 4}\n')
+    path = _scenario(folder, 'parameters: {consist_file: four.yaml, initial_speed: 10.0}\n'
+                     'duration: 0.5\n')
+    run = run_scenario(path, ECHO, tmp_path / 'run')
+    assert run.passed, run.report()
+    names = next(msg.name for topic, _, msg in read_topics(run.bag, ['coaches']))
+    assert list(names) == ['coach_1', 'coach_2', 'coach_3', 'coach_4']
+
+
 def test_relative_paths_of_a_scenario_built_in_python_are_taken_from_the_current_folder(
         tmp_path, monkeypatch):
     (tmp_path / 'two.yaml').write_text('vehicles:\n  - {type: paper_coach, count: 2}\n')
