@@ -162,7 +162,8 @@ def run_scenario(scenario: Scenario | str | os.PathLike, controller: Sequence[st
         sim = _start('sim_node', sim_node_command(scenario, params_file.absolute(), namespace,
                                                   real_time_factor, lockstep_timeout),
                      run_dir / 'sim_node.log', environ, run_dir)
-        threading.Thread(target=_preload, daemon=True, name='harness-preload').start()
+        threading.Thread(target=_preload, args=(scenario.config,), daemon=True,
+                         name='harness-preload').start()
         error = _supervise(sim, ctl, timeout, lockstep_timeout)
         timings['loop'] = time.monotonic() - t1
         if ctl is not None:
@@ -358,9 +359,9 @@ def _signals_deferred() -> Iterator[None]:
             held[caught[0]](caught[0], None)
 
 
-def _preload() -> None:
-    """Import the report's modules while the loop runs (errors surface later, in the report)."""
+def _preload(cfg: Any) -> None:
+    """Import and warm the report's code while the loop runs (errors surface in the report)."""
     try:
-        preload()
+        preload(cfg)
     except Exception:  # noqa: B902 - run_metrics imports them again and reports the error
         pass

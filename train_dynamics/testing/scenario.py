@@ -77,6 +77,8 @@ class Scenario:
     name: str = 'scenario'
     controller_parameters: dict[str, Any] = field(default_factory=dict)
     figures: bool = False
+    #: the simulator configuration :meth:`check` built (None before)
+    config: SimConfig | None = field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def load(cls, path: str | os.PathLike) -> Scenario:
@@ -136,7 +138,7 @@ class Scenario:
         # a scenario built in Python: relative file inputs by the path rule (current folder);
         # load() made those of a scenario file absolute already
         params.update(resolve_file_inputs(params, os.getcwd()))
-        self.parameters = check_parameters(params, self.parameters_file)
+        self.parameters, self.config = check_parameters(params, self.parameters_file)
         check_controller_parameters(self.controller_parameters)
         for c in self.criteria:
             if not isinstance(c, Criterion):
@@ -165,9 +167,9 @@ def check_duration(value: Any) -> float:
 
 
 def check_parameters(params: Mapping[str, Any], parameters_file: Path | None
-                     ) -> dict[str, Any]:
+                     ) -> tuple[dict[str, Any], SimConfig]:
     """
-    Return ``params`` (a scenario's sim_node parameters) checked and normalised.
+    Return ``params`` (a scenario's sim_node parameters) checked and normalised, and the config.
 
     Each name must be a simulator parameter (the offline command's table), a sim_node
     parameter or a ROS 2 one (``use_sim_time``), and not one of :data:`HARNESS_PARAMETERS`;
@@ -204,11 +206,11 @@ def check_parameters(params: Mapping[str, Any], parameters_file: Path | None
                               f'{", ".join(quote(k) for k in extra)}')
     merged = {k: v for k, v in {**base, **out}.items() if k in PARAMETERS}
     try:
-        SimConfig.from_dict(merged)
+        cfg = SimConfig.from_dict(merged)
     except ConfigError as exc:
         where = f'parameters (with {parameters_file})' if parameters_file else 'parameters'
         raise ConfigError(f'{where}: {exc}') from None
-    return out
+    return out, cfg
 
 
 def check_controller_parameters(params: Mapping[str, Any], prefix: str = '') -> None:

@@ -8,9 +8,9 @@ written into the report folder. The figures (``figures=True``) are the whole rep
 command, written by its own function; they are off by default: they cost more than the run
 metrics and a CI job rarely looks at them.
 
-:func:`preload` imports the report's modules (plotting library included) ahead of time: the
-harness calls it in a thread while the simulation runs, so that the report after the loop
-costs only the reading of the bag.
+:func:`preload` imports the report's modules (plotting library included) and warms the run
+metrics ahead of time: the harness calls it in a thread while the simulation runs, so that
+the report after the loop costs little more than the reading of the bag.
 """
 from __future__ import annotations
 
@@ -21,10 +21,28 @@ from pathlib import Path
 from typing import Any
 
 
-def preload() -> None:
-    """Import what :func:`run_metrics` needs (about a second; nothing else happens)."""
+def preload(cfg: Any = None) -> None:
+    """
+    Import what :func:`run_metrics` needs; with the run's configuration, warm its metrics.
+
+    The warm-up feeds two zero samples to the run's
+    :class:`~train_dynamics.physics.metrics.RunMetrics` and takes their result: the compiled
+    functions the report calls (the couplers' elastic energy) are loaded then, not after the
+    run (0.3 s of CPU measured with 13 vehicles). Nothing is written.
+    """
+    import numpy as np
+
     import train_dynamics.cli.report  # noqa: F401
+    from train_dynamics.physics.metrics import RunMetrics
     import train_dynamics.recording.metrics_report  # noqa: F401
+
+    if cfg is not None:
+        metrics = RunMetrics.for_run(cfg)
+        n = int(cfg.n_coaches)
+        couplers, vehicles = np.zeros((2, n - 1)), np.zeros((2, n))
+        metrics.add_block(np.array([0.0, 0.01]), couplers, couplers, couplers, vehicles,
+                          vehicles, vehicles)
+        metrics.result()
 
 
 def run_metrics(bag: Path, out: Path, namespace: str = '', figures: bool = False
