@@ -22,6 +22,7 @@ from __future__ import annotations
 import json
 import os
 from pathlib import Path
+import signal
 import subprocess
 import sys
 import time
@@ -282,8 +283,8 @@ def test_controller_that_exits_0_before_the_run_ends_is_reported(tmp_path):
 
 def _wrapped_echo(pid_file: Path) -> tuple[list[str], dict[str, str]]:
     """Return a controller started through a shell that stays beside it (the grandchild)."""
-    script = ' '.join(ECHO) + ' & wait'
-    return ['sh', '-c', script], {**os.environ, 'ECHO_PID_FILE': str(pid_file)}
+    script = ' '.join(ECHO) + f' & echo $! > {pid_file}; wait'     # its id, at once
+    return ['sh', '-c', script], {**os.environ, 'ECHO_PID_FILE': f'{pid_file}.ready'}
 
 
 def _gone(pid: int) -> bool:
@@ -310,13 +311,12 @@ def test_shell_wrapped_controller_is_ended_after_a_timeout(tmp_path):
     run = run_scenario(_scenario(tmp_path, SHORT), controller, tmp_path / 'run', env=env,
                        lockstep_timeout=0.0, timeout=20.0)
     assert run.error.startswith('sim_node did not finish within 20 s'), run.error
-    if pid_file.exists():                      # (under load it may not have got that far)
-        assert _gone(int(pid_file.read_text()))
+    assert _gone(int(pid_file.read_text()))
     assert not any(group_members(pgid) for pgid in run.process_groups.values())
 
 
 def test_ctrl_c_ends_the_controller_and_the_node(tmp_path, monkeypatch):
-    """A KeyboardInterrupt in the wait (Ctrl-C) ends both process groups, then propagates."""
+    """A Ctrl-C (SIGINT to the harness) in the wait ends both process groups, then propagates."""
     pid_file = tmp_path / 'pid'
     controller, env = _wrapped_echo(pid_file)
     env['ECHO_SILENT'] = '1'
@@ -325,15 +325,16 @@ def test_ctrl_c_ends_the_controller_and_the_node(tmp_path, monkeypatch):
     def interrupted(sim, ctl, timeout, lockstep_timeout):
         started.update(sim=sim.pid, ctl=ctl.pid)
         end = time.monotonic() + 120.0
-        while not pid_file.exists() and time.monotonic() < end:
+        while not Path(f'{pid_file}.ready').exists() and time.monotonic() < end:
             time.sleep(0.05)
-        raise KeyboardInterrupt
+        os.kill(os.getpid(), signal.SIGINT)          # Ctrl-C, as the terminal sends it
+        time.sleep(60.0)                             # (interrupted at once)
 
     monkeypatch.setattr(harness, '_supervise', interrupted)
     with pytest.raises(KeyboardInterrupt):
         run_scenario(_scenario(tmp_path, SHORT), controller, tmp_path / 'run', env=env,
                      lockstep_timeout=0.0)
-    assert pid_file.exists()
+    assert Path(f'{pid_file}.ready').exists()          # it was up and subscribed
     assert _gone(int(pid_file.read_text()))
     assert not group_members(started['ctl']) and not group_members(started['sim'])
 
