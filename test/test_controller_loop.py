@@ -38,8 +38,7 @@ def no_report(monkeypatch):
     For the tests of the lockstep bags themselves; the report of a harness run is tested
     with the PI controller and its harsh twin below.
     """
-    monkeypatch.setattr(harness, 'run_metrics',
-                        lambda bag, out, namespace, figures: {'report': 'skipped'})
+    monkeypatch.setattr(harness, '_metrics', lambda bag, out, namespace: {'report': 'skipped'})
 
 
 def test_lockstep_closed_loop_is_byte_identical_and_loses_no_command(tmp_path, no_report):
