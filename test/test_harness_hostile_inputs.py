@@ -213,6 +213,17 @@ def test_command_line_exits_2_with_one_line_for_a_refused_scenario(tmp_path):
     assert not out.exists()
 
 
+def test_command_line_exits_1_for_a_failed_criterion_and_prints_the_report(tmp_path):
+    # the brake stays released: the train does not stop
+    path = _scenario(tmp_path, SHORT + 'criteria: {stopped: {equals: true}}\n')
+    proc = subprocess.run([sys.executable, '-m', 'train_dynamics.testing', str(path),
+                           '--output', str(tmp_path / 'run'), '--'] + ECHO,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 1, proc.stdout + proc.stderr
+    assert proc.stdout.splitlines()[0] == 'FAIL stopped == True: False'
+    assert proc.stdout.splitlines()[-1].startswith('FAILED (1 criteria; bag ')
+
+
 # -- options and the output folder ------------------------------------------------------------
 
 @pytest.mark.parametrize('options, message', [
