@@ -62,6 +62,7 @@ def run_metrics(bag: Path, out: Path, namespace: str = '', figures: bool = False
     if figures:
         report.cmd_report(args)
         return json.loads((out / 'summary.json').read_text(encoding='utf-8'))['train']
+    # the steps of report.cmd_report up to its writing of the files: keep them the same
     hist, metrics, origin = report.read_run(args, {})
     if hist.couplers is None or hist.coaches is None or not len(hist.coaches) \
             or metrics is None:
