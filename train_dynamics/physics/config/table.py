@@ -18,6 +18,7 @@ from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, Config
                                                 SERIES, STRING, STRING_ARRAY)
 # the friction materials in the order of their codes in the kernel (the models and their
 # sources: physics/friction.py)
+from train_dynamics.physics.config.table_ends import END_AND_RESISTANCE_PARAMS
 from train_dynamics.physics.kernel.friction import MATERIALS as FRICTION_MATERIALS
 from train_dynamics.quoting import quote
 
@@ -489,6 +490,8 @@ _PARAMS = [
               'reversal [-] (outside the friction band the estimate does not see velocity '
               'errors that shift the reversal). 0 = off.', low=0.0, high=100.0),
 ]
+# side buffers, screw-coupling pretension, tabulated curves, resistance laws: table_ends.py
+_PARAMS += END_AND_RESISTANCE_PARAMS
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
 
