@@ -96,7 +96,7 @@ class SimConfig:
     brake_pipe_diameter: float = 0.032                # inner diameter [m]
     main_reservoir_pressure: float = 900000.0         # gauge [Pa]
     brake_system: str = 'pneumatic'                   # 'pneumatic', 'ep' or 'ecp'
-    emergency_accelerator: bool = False               # vehicle field: accelerator fitted
+    emergency_accelerator: bool = True                # vehicle field: accelerator fitted
     inshot_pressure: float = 0.0                      # vehicle field: first stage [Pa]
     cylinder_dead_volume: float = 0.008               # vehicle field: pistons in [m^3]
     piston_stroke: float = 0.0                        # vehicle field: [m]; 0 = fixed volume
