@@ -15,14 +15,18 @@ takes |v|, so a train backing up sees the same law):
   running-dynamics literature (Wende, Fahrdynamik des Schienenverkehrs, Teubner 2003,
   section on train resistance); not read in Strahl's paper itself: the constants 2.5 and the
   k values are to be checked there.
-- ``sauthoff`` (Sauthoff 1933, Dr.-Ing. thesis TH Berlin, VDI-Verlag: passenger coach trains
-  without the locomotive): w = 1.9 + c V [per mille] for running, with c = 0.007 / 0.004 /
-  0.0024 for two-, three-, four-axle coaches, plus the air term 0.0048 (n + 2.7) f (V + dV)^2
-  [kp] for n coaches of equivalent area f (1.45 m^2); the form and figures as de.wikipedia
-  "Sauthoff-Formel" quotes them (retrieved December 2026). The air term's 0.0048 is in kp
-  (0.0048 kp = rho / 2 / 3.6^2 for rho = 1.22 kg/m^3: a dynamic pressure), to N by
-  :data:`KP` = 9.80665 N. Per vehicle: each coach carries f (1 + 2.7 / n) of it, n the
-  vehicles of the train on the law, so n identical coaches sum to the published train law.
+- ``sauthoff`` (F. Sauthoff, "Die Bewegungswiderstände der Eisenbahnwagen", Dr.-Ing. thesis
+  TH Berlin, VDI-Verlag 1933: coach trains without the locomotive): w = 1.9 + c V [per mille]
+  for running, c = 0.007 / 0.004 / 0.0024 for two-, three-, four-axle coaches, plus the air
+  term 0.0048 (n + 2.7) f (V + dV)^2 [kp] for n coaches of equivalent area f (1.45 m^2),
+  dV = 15 km/h. The variables and figures (c, f, n + 2.7) as de.wikipedia "Sauthoff-Formel"
+  lists them (retrieved December 2026; its formula's rendering was not retrievable); the form
+  and the 0.0048 and dV = 15 km/h as public train-dynamics codes write it (a specific
+  resistance 1.9 + c V + 0.0048 (n + 2.7) f (V + 15)^2 / m [kp/t], m in t); not read in the
+  thesis. The 0.0048 is in kp: 0.0048 kp = rho / 2 / 3.6^2 with rho = 1.22 kg/m^3 (a dynamic
+  pressure per (km/h)^2), which is why it is taken in kp, to N by :data:`KP` = 9.80665 N.
+  Per vehicle: each coach carries f (1 + 2.7 / n) of it, n the vehicles of the train on the
+  law, so n identical coaches sum to the published train law.
 Inertia: a vehicle accelerates its rotating masses (wheelsets, gears, motors) too; the
 equivalent mass for inertia is m (1 + rotating_mass_factor). Gravity, the braking force (paper
 eq. 13) and the resistance use m. Typical factors (Wende, Fahrdynamik des Schienenverkehrs,
