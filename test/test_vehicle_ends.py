@@ -179,6 +179,26 @@ def test_a_tabulated_buffer_curve_is_one_buffers_with_two_per_end(tmp_path):
     assert -law(c, 0, [-0.07], -1e-3)[0] == pytest.approx(2 * 2.0e5, rel=1e-6)
 
 
+def test_a_curve_with_a_force_at_stroke_0_is_a_preload_held_rigid(tmp_path):
+    """
+    20 kN at stroke 0: each end rigid up to it (K_b 2e8 N/m per end over 0.1 mm), then linear.
+
+    Two such ends: 20 kN at 2 x 0.1 mm (to 1e-6: the table's first knot is the ramp's end);
+    100 kN loading / 50 kN unloading at 2 x 50 mm; 200 kN loading at 2 x 75 mm (hand:
+    halfway between the points).
+    """
+    c = consist_of(tmp_path, 'characteristics:\n  pre: {stroke: [0.0, 0.05, 0.1], '
+                   'loading: [2.0e4, 1.0e5, 3.0e5], unloading: [1.0e4, 5.0e4, 2.0e5]}\n'
+                   'vehicle_types:\n  w: {draw_gear_characteristic: pre}\n'
+                   'vehicles: [{type: w}, {type: w}]\n')
+    ramp = 2 * 2.0e4 / 2.0e8
+    assert law(c, 0, [0.5 * ramp, ramp], 1e-3) == pytest.approx([1.0e4, 2.0e4], rel=1e-6)
+    # the curve's kink at 2 x 50 mm falls between the table's knots (15 equal intervals
+    # after the ramp): linear between them, 0.12 % (loading) and 0.22 % (unloading) high there
+    assert law(c, 0, [0.1, 0.15], 1e-3) == pytest.approx([1.0e5, 2.0e5], rel=3e-3)
+    assert law(c, 0, [0.1], -1e-3)[0] == pytest.approx(5.0e4, rel=3e-3)
+
+
 def test_momentum_balance_with_pretension_and_tabulated_curves(tmp_path):
     path = tmp_path / 'train.yaml'
     path.write_text(CURVES + 'vehicle_types:\n  w: {mass: 40000.0, adhesion_coefficient: 0.3, '

@@ -136,12 +136,13 @@ def _end_curves(end: dict, device: str, curves=()):
     """
     Return (d [m], L [N], U [N]) of one end's device, dense, increasing.
 
-    ``curves``: the consist's tabulated curves (:func:`check_curve` arrays); the end's
-    ``{device}_characteristic`` is 1 + its index there (0: none, the datasheet figures).
+    ``curves``: the consist's tabulated curves ((d, L, U) of :func:`check_curve` and the
+    preload [N]); the end's ``{device}_characteristic`` is 1 + its index there (0: none, the
+    datasheet figures).
     """
     code = int(end.get(f'{device}_characteristic', 0.0))
     if code > 0:
-        d, load, unload = curves[code - 1]
+        d, load, unload = curves[code - 1][:3]
         dense = np.unique(np.concatenate((d, np.linspace(0.0, d[-1], _DENSE))))
         return dense, np.interp(dense, d, load), np.interp(dense, d, unload)
     stroke = end[f'{device}_stroke']
@@ -154,6 +155,14 @@ def _end_curves(end: dict, device: str, curves=()):
                        final_force=end[f'{device}_final_force'],
                        energy=end[f'{device}_energy'], kb=kb)
     return d, load, unloading_ratio(k, kfr) * load
+
+
+def _end_preload(end: dict, device: str, curves=()) -> float:
+    """Return one end's preload [N]: its curve's force at stroke 0, else its ``*_preload``."""
+    code = int(end.get(f'{device}_characteristic', 0.0))
+    if code > 0:
+        return float(curves[code - 1][3])
+    return end[f'{device}_preload']
 
 
 def series_curve(branches):
@@ -204,7 +213,7 @@ def coupling_table(rear: dict, front: dict, knots: int, curves=()) -> np.ndarray
         return pretension_table(series, pretension, knots)
     for device in ('draw_gear', 'buffer'):
         d_l, f_l, d_u, f_u, _ = series[device]
-        preloads = [e[f'{device}_preload'] for e in (rear, front) if e[f'{device}_preload'] > 0]
+        preloads = [p for p in (_end_preload(e, device, curves) for e in (rear, front)) if p > 0]
         d1 = float(np.interp(min(preloads), f_l, d_l)) if preloads else 0.0
         stroke = rear[f'{device}_stroke'] + front[f'{device}_stroke']
         grid = np.concatenate(([0.0], np.linspace(d1, stroke, knots - 1)))

@@ -36,7 +36,12 @@ PARALLEL_BUFFER_FIELDS = ('buffer_stiffness', 'buffer_friction', 'buffer_preload
 
 
 def curves_of(doc: Any, source: str) -> dict[str, dict]:
-    """Return a ``characteristics:`` mapping (name -> curve), each curve checked."""
+    """
+    Return a ``characteristics:`` mapping (name -> curve), each curve checked.
+
+    Its preload ramp is checked against the blocked stiffness of the end that names it
+    (:meth:`Curves.code`), the rest here.
+    """
     if doc is None:
         return {}
     if not isinstance(doc, dict):
@@ -44,7 +49,7 @@ def curves_of(doc: Any, source: str) -> dict[str, dict]:
                           'loading, unloading)')
     for name, curve in doc.items():
         try:
-            characteristics.check_curve(curve)
+            characteristics.check_curve(curve, np.inf)
         except ValueError as exc:
             raise ConfigError(f'{source}: characteristics: {quote(name)}: {exc}') from None
     return dict(doc)
@@ -61,7 +66,7 @@ class Curves:
 
     def __init__(self, known: Mapping[str, dict]):
         self.known = known
-        self.arrays: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []
+        self.arrays: list[tuple[np.ndarray, np.ndarray, np.ndarray, float]] = []
         self._codes: dict[tuple[str, float, float], int] = {}
 
     def code(self, name: str, factor: float, kb: float, where: str) -> float:
@@ -77,7 +82,8 @@ class Curves:
                 d, load, unload = characteristics.check_curve(self.known[name], kb)
             except ValueError as exc:
                 raise ConfigError(f'{where}: characteristic {quote(name)}: {exc}') from None
-            self.arrays.append((d, factor * load, factor * unload))
+            preload = factor * float(self.known[name]['loading'][0])
+            self.arrays.append((d, factor * load, factor * unload, preload))
             self._codes[key] = len(self.arrays)
         return float(self._codes[key])
 
