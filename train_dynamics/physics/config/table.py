@@ -18,6 +18,7 @@ from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, Config
                                                 SERIES, STRING, STRING_ARRAY)
 # the friction materials in the order of their codes in the kernel (the models and their
 # sources: physics/friction.py)
+from train_dynamics.physics.config.table_ends import END_AND_RESISTANCE_PARAMS
 from train_dynamics.physics.kernel.friction import MATERIALS as FRICTION_MATERIALS
 from train_dynamics.quoting import quote
 
@@ -196,11 +197,12 @@ _PARAMS = [
               'brakes through the pipe) or "ecp" (car control devices fill each cylinder to '
               'brake_ep/command x p_max; a lost train line or pipe is a full penalty '
               'application).', choices=('pneumatic', 'ep', 'ecp')),
-    ParamSpec('emergency_accelerator', False, BOOL,
+    ParamSpec('emergency_accelerator', True, BOOL,
               'Pneumatic: the vehicle has an emergency accelerator (a pipe falling more than '
               '1 bar below its control reservoir at over 1 bar/s opens a 32 mm local vent: '
-              'the emergency carries along the train at >= 250 m/s).',
-              vehicle='emergency_accelerator'),
+              'the emergency carries along the train at >= 250 m/s, as UIC 540 asks). On by '
+              'default: UIC passenger and freight distributors carry one in service; false '
+              'for a vehicle without.', vehicle='emergency_accelerator'),
     # Cylinders and distributor first stage of the pneumatic brake (physics/pneumatic.py).
     ParamSpec('inshot_pressure', 0.0, DOUBLE,
               'Pneumatic: distributor first stage (inshot; UIC 540 / EN 15355 "first stage" of '
@@ -489,6 +491,8 @@ _PARAMS = [
               'reversal [-] (outside the friction band the estimate does not see velocity '
               'errors that shift the reversal). 0 = off.', low=0.0, high=100.0),
 ]
+# side buffers, screw-coupling pretension, tabulated curves, resistance laws: table_ends.py
+_PARAMS += END_AND_RESISTANCE_PARAMS
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
 
