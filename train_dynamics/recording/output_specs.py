@@ -270,6 +270,9 @@ OUTPUTS: tuple[OutputSpec, ...] = (
                 'creep force [N, positive retarding]'),
                _wheelsets, lambda cfg: bool(cfg.has_wheelsets),
                'rotating wheelsets (`wheelsets`, `wsp`, low `track_adhesion`)'),
+    OutputSpec('train_brake_force', topics.JOINT_STATE, lambda cfg: ['train'], '`train`',
+               ('', '', "the train's braking force [N, >= 0]: the sum of every Fb_i"),
+               lambda sim, t_ns, run: (None, None, [sim.total_brake_force])),
     OutputSpec(topics.LEAD_ODOMETRY_TOPIC, topics.ODOMETRY, _lead, '`coach_1`',
                ("track position of vehicle 1's front [m] (y, z 0; orientation the identity: "
                 'facing forward along the track)', 'v_1 [m/s] (angular 0; covariances 0)'),
