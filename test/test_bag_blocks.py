@@ -15,6 +15,7 @@ import pytest
 
 from train_dynamics import topics
 from train_dynamics.physics.config import SimConfig
+from train_dynamics.physics.observables import TrainOutputs
 from train_dynamics.recording import cdr
 from train_dynamics.recording.bags import bag_info, BagRecorder, read_topics
 from train_dynamics.recording.outputs import OutputEncoder, OutputRows
@@ -36,6 +37,13 @@ class _State:
         self.ydot = self.v[:-1] - self.v[1:]
         self.coupler_force = rng.normal(size=n - 1) * 1e5
         self.cfg = SimConfig()          # the outputs' options (the exact wheel speed)
+
+    def __getattr__(self, name):
+        """A quantity derived from the ones above: the simulator's own property computes it."""
+        prop = getattr(TrainOutputs, name, None)
+        if not isinstance(prop, property):
+            raise AttributeError(name)
+        return prop.fget(self)
 
 
 def _raw(bag):

@@ -167,3 +167,17 @@ def test_the_disk_estimate_counts_every_message_of_a_sample_exactly(tmp_path):
     cfg = SimConfig.from_dict({'target_stop_position': [100.0], 'num_coaches': 12})
     sizes = [len(data) for data in OutputEncoder(cfg).encode(0, TrainSimulator(cfg))]
     assert output_bytes_per_sample(cfg) == sum(sizes) + 48 * len(sizes)
+
+
+def test_train_brake_force_is_the_sum_of_the_vehicles_braking_forces():
+    # emergency from t = 0: after 10 s every cylinder is at p_max, so each of the three
+    # 45 t coaches brakes with mu_a m g = 0.1 * 45000 * 9.81 = 44145 N (eq. 13): 132435 N
+    cfg = SimConfig.from_dict({})
+    sim = TrainSimulator(cfg)
+    sim.set_head_pipe_pressure(0.0)
+    sim.advance_to(10.0)
+    enc = OutputEncoder(cfg)
+    data = dict(zip(enc.topics, enc.encode(int(round(sim.t * 1e9)), sim)))
+    msg = deserialize(data['train_brake_force'], topics.JOINT_STATE)
+    assert list(msg.name) == ['train'] and len(msg.position) == len(msg.velocity) == 0
+    assert msg.effort[0] == pytest.approx(3 * 0.1 * 45000.0 * 9.81, rel=1e-12)
