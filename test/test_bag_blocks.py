@@ -39,7 +39,7 @@ class _State:
         self.cfg = SimConfig()          # the outputs' options (the exact wheel speed)
 
     def __getattr__(self, name):
-        """A quantity derived from the ones above: the simulator's own property computes it."""
+        """Return a quantity derived from the ones above, by the simulator's own property."""
         prop = getattr(TrainOutputs, name, None)
         if not isinstance(prop, property):
             raise AttributeError(name)

@@ -22,7 +22,7 @@ from train_dynamics.recording.bags import bag_info, read_topics
 from train_dynamics.recording.messages import deserialize, header, serialize, typestore
 from train_dynamics.recording.output_specs import (active, markdown_table, output_bytes_per_sample,
                                                    OUTPUTS)
-from train_dynamics.recording.outputs import OutputEncoder, output_topics
+from train_dynamics.recording.outputs import output_topics, OutputEncoder
 
 REPO = Path(__file__).resolve().parents[1]
 

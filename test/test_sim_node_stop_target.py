@@ -1,6 +1,8 @@
 """
-``sim_node``'s controller-facing outputs: the lead vehicle's odometry, the distance to go and
-the stopping target moved by its input topic (recorded where it took effect).
+``sim_node``'s controller-facing outputs: odometry, distance to go, a target moved live.
+
+The lead vehicle's odometry, the distance to go and the stopping target moved by its input
+topic (recorded where it took effect).
 """
 from __future__ import annotations
 
