@@ -115,10 +115,6 @@ class OutputSpec:
         """Return the byte layout of this topic's messages in a run of ``cfg`` (stamp 0)."""
         return FORMS[self.msgtype](self.names(cfg), self.fields)
 
-    def lengths(self, cfg: Any) -> tuple[int, ...]:
-        """Return the number of values of each non-empty field in a run of ``cfg``."""
-        return self.layout(cfg).lengths
-
     def content(self) -> str:
         """Return the docs' words for the message: names and each field's meaning."""
         if self.msgtype == topics.JOINT_STATE:
