@@ -21,12 +21,13 @@ from train_dynamics.cli import simulate as simulate_cmd
 from train_dynamics.physics.config import (ConfigError, MAX_SIMULATOR_MEMORY, PARAMETERS,
                                            SimConfig, validate_value)
 from train_dynamics.physics.config import consist, spec
-from train_dynamics.physics.config.budgets import (config_memory, output_disk, sample_topics,
-                                                   SIMULATOR_FIXED_BYTES)
+from train_dynamics.physics.config.budgets import config_memory, SIMULATOR_FIXED_BYTES
 from train_dynamics.physics.config.table import MAX_VEHICLES
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.quoting import QUOTE_CHARS
 from train_dynamics.recording.bags import bag_info, BagRecorder, read_topics
+from train_dynamics.recording.output_specs import output_disk
+from train_dynamics.recording.outputs import output_topics
 import yaml
 
 #: an alias bomb: a list whose last element holds 9 levels of 9 references (~387 million
@@ -255,7 +256,7 @@ def test_item8_disk_estimate_counts_forces_reservoirs_and_traction_inputs(tmp_pa
                                'brake_model': 'pneumatic',
                                'traction_schedule_times': [0.0, 0.5, 1.0, 1.5],
                                'traction_schedule_commands': [1.0, 0.5, 0.0, -0.5]})
-    assert set(sample_topics(cfg)) >= {'vehicle_forces', 'brake_reservoirs'}
+    assert set(output_topics(cfg)) >= {'vehicle_forces', 'brake_reservoirs'}
     estimate = output_disk(cfg, 2.0, traction_commands=4)
     assert 0.8 * real <= estimate <= 1.3 * real, (estimate, real)
 

@@ -31,7 +31,8 @@ from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
 from train_dynamics.quoting import clip
 from train_dynamics.recording.bags import bag_info, BagError
 from train_dynamics.recording.history import History, stream_history
-from train_dynamics.recording.metrics_report import MetricsFeed, write_report
+from train_dynamics.recording.metrics_report import (MetricsFeed, stop_error_from_bag,
+                                                     write_report)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -167,6 +168,10 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise CliError(f'{args.bag}: needs the couplers and coaches topics (JointState)')
     refuse_non_finite(args.bag, hist)
     result = metrics.result()
+    try:
+        stop_error_from_bag(result, args.bag, args.namespace)
+    except BagError as exc:
+        raise CliError(str(exc)) from None
     keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
     model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
     source = {'bag': str(args.bag), 'parameters': origin, 'model': model,

@@ -12,7 +12,7 @@ a complete bag (it writes a hidden sibling directory and renames it at the end),
 stopped by SIGINT / SIGTERM: then the bag holds the whole samples up to there (its
 ``custom_data`` ``interrupted`` says when) and the command exits 130 / 143 with one line; a
 second signal aborts at once, leaving nothing. The bag's size
-is estimated before the run (:func:`train_dynamics.physics.config.output_disk`): more
+is estimated before the run (:func:`train_dynamics.recording.output_specs.output_disk`): more
 than the free space is refused, more than :data:`LARGE_BAG` needs ``--allow-large``. Memory
 does not grow with the duration (the samples stream to the bag). A bag estimated larger than
 :data:`FILE_BYTES` is written as several MCAP files (rosbag2's splitting, whole samples per
@@ -32,8 +32,9 @@ from train_dynamics.cli.errors import (CliError, deferred_signals, error, EXIT_E
 from train_dynamics.cli.output import remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
-from train_dynamics.physics.config import fmt_bytes, output_disk, SimConfig
+from train_dynamics.physics.config import fmt_bytes, SimConfig
 from train_dynamics.recording.bags import BagError, BagRecorder
+from train_dynamics.recording.output_specs import output_disk
 from train_dynamics.recording.outputs import run_metadata
 from train_dynamics.recording.sinks import BagSink
 from train_dynamics.simulation.runner import InputSchedule, run_simulation

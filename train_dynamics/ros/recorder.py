@@ -25,9 +25,9 @@ import threading
 import time
 from typing import Any, Callable, Mapping
 
-from train_dynamics import topics
 from train_dynamics.physics.config import SimConfig
 from train_dynamics.recording.bags import BagRecorder
+from train_dynamics.recording.output_specs import output_type
 from train_dynamics.recording.outputs import output_topics, parameters_json, run_metadata
 from train_dynamics.ros.scheduling import normal_priority
 
@@ -74,7 +74,7 @@ def open_bag(path: Path, cfg: SimConfig, node_name: str, logger: Any,
         for key, value in info.items():
             rec.set_custom_data(key, value)
         for topic in output_topics(cfg):
-            rec.add_topic(resolve(topic), topics.JOINT_STATE, offered.get(topic))
+            rec.add_topic(resolve(topic), output_type(topic), offered.get(topic))
     except Exception:
         rec.abort()
         raise

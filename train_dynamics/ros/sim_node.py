@@ -9,8 +9,9 @@ behaviour and owns its state:
   rejection counts, staleness and the fail-safe, the graph scan, ``wait_for_input``;
 - :mod:`train_dynamics.ros.pacing`: the simulation thread (pacing at ``real_time_factor``,
   the lag policy, chunking), ``duration``, numerical faults;
-- :mod:`train_dynamics.ros.publishers`: ``couplers``, ``coaches``, ``brake_cylinders`` and
-  ``/clock`` at ``publish_rate`` in simulation time;
+- :mod:`train_dynamics.ros.publishers`: the output topics of the run (the table
+  :data:`train_dynamics.recording.output_specs.OUTPUTS`) and ``/clock`` at ``publish_rate``
+  in simulation time; :mod:`train_dynamics.ros.stop_target`: the stopping target's input;
 - :mod:`train_dynamics.ros.recorder`: ``record_bag`` (inputs and outputs, a rosbag2 MCAP
   written on its own thread);
 - :mod:`train_dynamics.ros.diagnostics`: ``/diagnostics`` (~1 Hz wall);
@@ -70,6 +71,7 @@ from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.quoting import quote
 from train_dynamics.recording.bags import BagError, offered_qos
+from train_dynamics.recording.output_specs import OUTPUTS, target_of
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
 from train_dynamics.ros import parameters as ros_parameters
 from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INPUT_QOS,
@@ -83,6 +85,7 @@ from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_B
                                          open_bag, reset_bag_path)
 from train_dynamics.ros.run_control import RunControl
 from train_dynamics.ros.scheduling import CpuWakeLatency, freeze_startup_heap, normal_priority
+from train_dynamics.ros.stop_target import StopTargetInput
 
 __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
            'MAX_ABSOLUTE_PRESSURE', 'MAX_RECORD_BACKLOG', 'REJECT_REASONS']
@@ -139,6 +142,8 @@ class SimNode(Node):
         self._inputs = BrakeInputs(self)
         self._outputs = Outputs(self)
         self._outputs.on_output = self._inputs.output_published    # lock-step: Float64 answers
+        self._stop_target = StopTargetInput(self, INPUT_QOS, self._lock, self._target_run,
+                                            self._outputs.record)
         self._pacer = Pacer(self._lock, self.get_logger(), self.context, self._inputs,
                             self._outputs)
         self._pacer.duration = float(self.get_parameter('duration').value)
@@ -276,9 +281,9 @@ class SimNode(Node):
         sim = TrainSimulator(cfg)
         self._cfg = cfg
         self._outputs.start(OutputEncoder.for_config(cfg), cfg.publish_rate, sim.h,
-                            cfg.publish_clock, writer, forces=cfg.external_forces,
-                            metrics=RunMetrics.for_run(cfg, sim), wheelsets=sim.wheelsets)
+                            cfg.publish_clock, writer, metrics=RunMetrics.for_run(cfg, sim))
         self._inputs.start(cfg, sim.n, recording=writer is not None)
+        self._stop_target.start(target_of(cfg) is not None)
         self._control.start(sim)
         self._pacer.start(sim, cfg.real_time_factor)
         rtf, duration = cfg.real_time_factor, self._pacer.duration
@@ -289,6 +294,11 @@ class SimNode(Node):
             f's/m), step {sim.h:g} s, outputs at {self._outputs.rate:g} Hz, real_time_factor '
             f'{rtf:g}{" (as fast as possible)" if rtf == 0 else ""}'
             f'{f", duration {duration:g} s" if duration > 0 else ""}{where}')
+
+    def _target_run(self) -> tuple[Any, float] | None:
+        """Return the outputs' run state and the time [s] (simulation lock held)."""
+        run = self._outputs.run
+        return None if run is None else (run, self._pacer.sim.t)
 
     def _open_bag(self, cfg: SimConfig, first: bool) -> BagWriter | None:
         """
@@ -308,11 +318,8 @@ class SimNode(Node):
     def _offered() -> dict[str, Any]:
         """Return topic -> the QoS the node offers on it (what a bag records)."""
         qos = offered_qos(OUTPUT_QOS.reliability == ReliabilityPolicy.RELIABLE, OUTPUT_QOS.depth)
-        return dict.fromkeys(topics.OUTPUT_TOPICS + (
-            topics.BRAKE_RESERVOIRS_TOPIC, topics.BRAKE_EP_STATE_TOPIC,
-            topics.RADIO_STATE_TOPIC, topics.VEHICLE_FORCES_TOPIC,
-            topics.VEHICLE_MOTION_TOPIC, topics.CLOCK_TOPIC,
-            topics.DIAGNOSTICS_TOPIC), qos)
+        return dict.fromkeys(tuple(spec.topic for spec in OUTPUTS) + (
+            topics.CLOCK_TOPIC, topics.DIAGNOSTICS_TOPIC), qos)
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response):
         """``reset``: restart from t = 0 with the current (incl. pending) parameter values."""

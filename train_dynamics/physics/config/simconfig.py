@@ -148,6 +148,7 @@ class SimConfig:
     load_empty_ratio: float = 1.0                     # empty / loaded pressure [-]
     # the line
     initial_position: float = 0.0                     # front of vehicle 1 at t = 0 [m]
+    target_stop_position: list[float] = field(default_factory=list)   # [] or [x] [m]
     track_gradient_positions: list[float] = field(default_factory=list)   # [m], increasing
     track_gradients: list[float] = field(default_factory=list)            # [per mille]
     track_curve_starts: list[float] = field(default_factory=list)         # [m]

@@ -393,6 +393,11 @@ _PARAMS = [
     ParamSpec('initial_position', 0.0, DOUBLE,
               'Position along the track [m] of the front of vehicle 1 at t = 0.',
               low=-1.0e7, high=1.0e7),
+    ParamSpec('target_stop_position', [], DOUBLE_ARRAY,
+              'Target stopping point [m, track position] of the front of vehicle 1: [] none, '
+              'or [x]. Sets the distance_to_go output and the stop_error metric; the '
+              'target_stop_position topic (std_msgs/Float64) moves it while running.',
+              low=-1.0e7, high=1.0e7, max_items=1),
     ParamSpec('track_gradient_positions', [], DOUBLE_ARRAY,
               'Track positions [m] (increasing) where a gradient starts; 0 before the first.',
               low=-1.0e7, high=1.0e7),
