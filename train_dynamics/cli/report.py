@@ -151,17 +151,15 @@ def write_whole_report(result: dict[str, Any], hist: History, out: Path,
     return paths
 
 
-def cmd_report(args: argparse.Namespace) -> int:
-    """Run ``report``; return the exit status."""
-    if not Path(args.bag).exists():
-        raise CliError(f'bag not found: {args.bag}')
-    overrides = {}
-    for name in ('coupler_force_limit', 'jerk_limit'):
-        value = getattr(args, name)
-        if value is not None:
-            if not value >= 0.0:
-                raise CliError(f'--{name.replace("_", "-")} must be >= 0, got {value:g}')
-            overrides[name] = value
+def run_result(args: argparse.Namespace, overrides: dict) -> tuple[dict, Any, dict]:
+    """
+    Return the run metrics of ``args.bag``, its history and the report's ``source`` entry.
+
+    The steps every report of a bag takes (``train-dynamics report`` and the harness): read
+    it block by block, refuse a bag without ``couplers``/``coaches`` or with a non-finite or
+    ragged sample (:class:`CliError`, one line), take the metrics, fill the stop error from
+    the bag's last ``distance_to_go``.
+    """
     hist, metrics, origin = read_run(args, overrides)
     if hist.couplers is None or hist.coaches is None or not len(hist.coaches) \
             or metrics is None:
@@ -176,6 +174,21 @@ def cmd_report(args: argparse.Namespace) -> int:
     model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
     source = {'bag': str(args.bag), 'parameters': origin, 'model': model,
               'notes': list(hist.notes)}
+    return result, hist, source
+
+
+def cmd_report(args: argparse.Namespace) -> int:
+    """Run ``report``; return the exit status."""
+    if not Path(args.bag).exists():
+        raise CliError(f'bag not found: {args.bag}')
+    overrides = {}
+    for name in ('coupler_force_limit', 'jerk_limit'):
+        value = getattr(args, name)
+        if value is not None:
+            if not value >= 0.0:
+                raise CliError(f'--{name.replace("_", "-")} must be >= 0, got {value:g}')
+            overrides[name] = value
+    result, hist, source = run_result(args, overrides)
     paths = write_whole_report(result, hist, Path(args.output), source)
     if not args.quiet:
         tr = result['train']

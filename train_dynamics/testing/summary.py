@@ -54,7 +54,6 @@ def run_metrics(bag: Path, out: Path, namespace: str = '', figures: bool = False
     report`` would refuse the bag.
     """
     from train_dynamics.cli import report
-    from train_dynamics.cli.errors import CliError
     from train_dynamics.recording.metrics_report import summary_markdown
 
     args = argparse.Namespace(bag=str(bag), output=str(out), params=None, namespace=namespace,
@@ -62,17 +61,8 @@ def run_metrics(bag: Path, out: Path, namespace: str = '', figures: bool = False
     if figures:
         report.cmd_report(args)
         return json.loads((out / 'summary.json').read_text(encoding='utf-8'))['train']
-    # the steps of report.cmd_report up to its writing of the files: keep them the same
-    hist, metrics, origin = report.read_run(args, {})
-    if hist.couplers is None or hist.coaches is None or not len(hist.coaches) \
-            or metrics is None:
-        raise CliError(f'{bag}: needs the couplers and coaches topics (JointState)')
-    report.refuse_non_finite(str(bag), hist)
-    result = metrics.result()
-    keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
-    model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
-    doc = {'source': {'bag': str(bag), 'parameters': origin, 'model': model,
-                      'notes': list(hist.notes),
+    result, _, source = report.run_result(args, {})
+    doc = {'source': {**source,
                       'figures': 'off (figures: true in the scenario to draw them)'},
            **result}
     out.mkdir(parents=True, exist_ok=True)
