@@ -45,11 +45,13 @@ from std_srvs.srv import Trigger
 
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.ros.brake_inputs import BrakeInputs
+from train_dynamics.ros.lockstep_inputs import CHEAP_TOPICS
 from train_dynamics.ros.publishers import Outputs
 
 CONNECT_SETTLE = 0.3       # [s wall] lock-step start: pause after both directions matched
 EXIT_LOCKSTEP_TIMEOUT = 4  # sim_node's exit status after a lock-step timeout with ``stop``
 WAIT_POLL = 0.05           # [s wall] longest sleep of a waiting simulation thread
+CLOCK_REPEAT = 0.5         # [s wall] lockstep_answer clock: /clock again while a period waits
 
 
 class RunControl:
@@ -71,6 +73,10 @@ class RunControl:
         self.step_to: int | None = None     # paused: run until this many outputs are out
         self.sim: TrainSimulator | None = None
         self.stop_requested = False     # lock-step timeout with ``stop``: end the run
+        self.stop_reason = ''           # why (the run's last log line)
+        self.clock = False              # lockstep_answer clock
+        self.every = 0.0                # [s] lockstep_period, 0 = every output period
+        self._clock_sent = 0.0          # [s wall] /clock last repeated
         self._connected_since: float | None = None
         self._waiting_since: float | None = None
         self._timed_out = False
@@ -89,12 +95,14 @@ class RunControl:
         return self.sync_mode == 'lockstep'
 
     def configure(self, sync_mode: str, timeout: float, on_timeout: str,
-                  step_periods: int, waits_for: tuple[str, ...] = ('brake',)) -> None:
+                  step_periods: int, waits_for: tuple[str, ...] = ('brake',),
+                  answer: str = 'echo', every: float = 0.0) -> None:
         """Take the parameters (lock held)."""
         self.sync_mode = sync_mode
         self.waits_for = tuple(waits_for)
-        if self.sim is not None:
-            self._report_missing()
+        self.clock = answer == 'clock'
+        self.every = float(every)
+        self._inputs.configure_lockstep(self.waits_for if self.lockstep else (), self.clock)
         self.timeout = float(timeout)
         self.on_timeout = on_timeout
         self.step_periods = int(step_periods)
@@ -105,6 +113,7 @@ class RunControl:
         self.sim = sim
         self.step_to = None
         self.stop_requested = False
+        self.stop_reason = ''
         self._connected_since = None
         self._waiting_since = None
         self._timed_out = False
@@ -113,46 +122,77 @@ class RunControl:
         self.periods = 0
         self.round_trip_sum = 0.0
         self.round_trip_max = 0.0
-        self._report_missing()
-
-    def _report_missing(self) -> None:
-        """Log the declared lock-step inputs this run does not have (they are skipped)."""
-        missing = self._inputs.missing_inputs(self.waits_for) if self.lockstep else []
-        if missing:
-            self._log.warning(f'lockstep_inputs {", ".join(missing)}: the train takes no such '
-                              'input (no locomotive taking commands / no EP or ECP brake); '
-                              'the lock-step does not wait for it')
 
     # -- the simulation thread (lock held) --------------------------------------------------
+    def _unconnected(self) -> list[str]:
+        """Return what the lock-step start still misses: input publishers, an output reader."""
+        missing = [f'a publisher on {name}'
+                   for name in self._inputs.unconnected(self.waits_for)]
+        if self.clock and not self._outputs.clock_subscribed():
+            missing.append('a subscriber on /clock')
+        elif not self.clock and not self._outputs.subscribed():
+            missing.append('a subscriber on the outputs')
+        return missing
+
     def hold_start(self, now: float) -> bool:
         """Lock-step: return True while t = 0 waits for the controller (both directions)."""
         if not self.lockstep:
             return False
-        if not (self._inputs.connected(self.waits_for) and self._outputs.subscribed()):
-            if self._connected_since is None and self._waiting_since is None:
-                self._waiting_since = now
-                self._log.info(f'lockstep: waiting for the controller (a publisher on every '
-                               f'{"/".join(self.waits_for)} input, a subscriber on the '
-                               'outputs) before t = 0')
+        if self._waiting_since is None:
+            self._waiting_since = now
+            self._timed_out = False
+        missing = self._unconnected()
+        if missing:
+            if self._connected_since is None and now == self._waiting_since:
+                self._log.info(f'lockstep: waiting for the controller ({", ".join(missing[:5])})'
+                               ' before t = 0')
             self._connected_since = None
+            self._check_timeout(now, 'the controller to connect: ' + ', '.join(missing[:5]))
             return True
         if self._connected_since is None:
             self._connected_since = now
         if now - self._connected_since < CONNECT_SETTLE:
             return True
+        problems = self._inputs.publisher_problems(self.waits_for, qos=True)
+        if problems:
+            self._fail('before t = 0: ' + '; '.join(problems))
+            return True
         self._waiting_since = None
         self._log.info('lockstep: controller connected; starting')
         return False
+
+    def _fail(self, what: str) -> None:
+        """End the run: the lock-step cannot be deterministic (exit status 4)."""
+        if not self.stop_requested:
+            self._log.error(f'lockstep: {what}: their answers would mix and the run would '
+                            'differ from run to run; ending the run')
+            self.stop_requested = True
+            self.stop_reason = 'lockstep refused'
+
+    def _waits_at(self, out: Outputs) -> bool:
+        """Return True if the last output published is one the controller must answer."""
+        if not self.clock:
+            return True
+        if out.last_t_ns <= 0:
+            return False            # a timer fires one period after it starts: none at t = 0
+        every = max(1, round(self.every * out.rate)) if self.every > 0 else 1
+        return (out.published - 1) % every == 0
 
     def limit(self, now: float) -> int | None:
         """Return the integration step the run may reach now (None: no limit)."""
         sim, out = self.sim, self._outputs
         lim = None
-        if self.lockstep and out.published and sim.steps == out.last_step:
+        if self.lockstep and out.published and sim.steps == out.last_step \
+                and self._waits_at(out):
             if not self._inputs.answered(out.last_t_ns, self.waits_for):
                 self._wait(now)
                 return sim.steps
             if self._counted != out.published:
+                if self._inputs.lockstep_topics(self.waits_for) <= CHEAP_TOPICS:
+                    problems = self._inputs.publisher_problems(self.waits_for)
+                    if problems:
+                        self._fail(f'at t = {sim.t:.6f} s: ' + '; '.join(problems))
+                        return sim.steps
                 self._counted = out.published
                 self._answered(now)
             lim = out.next_step
@@ -166,20 +206,29 @@ class RunControl:
     def _wait(self, now: float) -> None:
         if self._waiting_since is None:
             self._waiting_since = now
+            self._clock_sent = now
             self._timed_out = False
             return
+        if self.clock and now - self._clock_sent > CLOCK_REPEAT:
+            self._clock_sent = now      # /clock is best-effort at the controller: once more
+            self._outputs.repeat_clock()
+        missing = self._inputs.unanswered(self._outputs.last_t_ns, self.waits_for)
+        self._check_timeout(now, f'the answer to the output of t = {self.sim.t:.6f} s on '
+                            + ', '.join(missing[:5])
+                            + (f' (and {len(missing) - 5} more)' if len(missing) > 5 else '')
+                            + (' (stamped at or after it)' if self.clock else ''))
+
+    def _check_timeout(self, now: float, what: str) -> None:
+        """After ``lockstep_timeout`` of waiting for ``what``: warn once, then wait or stop."""
         if self.timeout > 0 and not self._timed_out and now - self._waiting_since > self.timeout:
             self._timed_out = True
             self.timeouts += 1
             stop = self.on_timeout == 'stop'
-            missing = self._inputs.unanswered(self._outputs.last_t_ns, self.waits_for)
-            self._log.warning(
-                f'lockstep: no answer to the output of t = {self.sim.t:.6f} s for '
-                f'{self.timeout:g} s on {", ".join(missing[:5])}'
-                f'{f" (and {len(missing) - 5} more)" if len(missing) > 5 else ""}; '
-                + ('stopping the run' if stop else 'still waiting'))
+            self._log.warning(f'lockstep: no {what} after {self.timeout:g} s; '
+                              + ('stopping the run' if stop else 'still waiting'))
             if stop:
                 self.stop_requested = True
+                self.stop_reason = 'lockstep timeout'
 
     def _answered(self, now: float) -> None:
         """Count an answered period and its round trip (output published -> answer seen)."""
@@ -194,7 +243,7 @@ class RunControl:
         if not self.lockstep or self._waiting_since is None:
             return ''
         if not self._outputs.published:
-            what = 'the controller to connect'
+            what = 'the controller to connect: ' + ', '.join(self._unconnected()[:5])
         else:
             missing = self._inputs.unanswered(self._outputs.last_t_ns, self.waits_for)
             what = (f'the answer to the output of t = {self.sim.t:.6f} s'
@@ -207,7 +256,8 @@ class RunControl:
             return ''
         mean = self.round_trip_sum / self.periods if self.periods else 0.0
         return (f'lockstep: {self.periods} periods answered, round trip mean '
-                f'{mean * 1e3:.3f} ms, max {self.round_trip_max * 1e3:.3f} ms')
+                f'{mean * 1e3:.3f} ms, max {self.round_trip_max * 1e3:.3f} ms, '
+                f'{self._inputs.duplicates} duplicate answers not used')
 
     def report(self) -> dict[str, str]:
         """Return the ``/diagnostics`` values of the run control."""
@@ -216,6 +266,8 @@ class RunControl:
                 'paused': str(self.paused).lower(),
                 'lockstep_periods': str(self.periods),
                 'lockstep_timeouts': str(self.timeouts),
+                'lockstep_answer': 'clock' if self.clock else 'echo',
+                'lockstep_duplicate_answers': str(self._inputs.duplicates),
                 'lockstep_round_trip_mean_ms': f'{mean * 1e3:.3f}',
                 'lockstep_round_trip_max_ms': f'{self.round_trip_max * 1e3:.3f}'}
 
