@@ -188,16 +188,20 @@ class LockstepInputs:
         """
         out = []
         for sub in self._lockstep_subscriptions(families):
-            count = sub.get_publisher_count()
-            if count > 1:
-                out.append(f'{count} publishers on {sub.topic_name}')
-            if qos and count:
-                infos = self._node.get_publishers_info_by_topic(sub.topic_name)
-                weak = sum(1 for info in infos if info.qos_profile.reliability
-                           == ReliabilityPolicy.BEST_EFFORT)
-                if weak:
-                    out.append(f'{weak} best-effort publisher(s) on {sub.topic_name} (a '
-                               'lock-step input is subscribed reliable: publish reliable)')
+            if not qos:
+                count = sub.get_publisher_count()     # matched ones: cheap
+                if count > 1:
+                    out.append(f'{count} publishers on {sub.topic_name}')
+                continue
+            infos = self._node.get_publishers_info_by_topic(sub.topic_name)   # the graph's
+            if len(infos) > 1:
+                out.append(f'{len(infos)} publishers on {sub.topic_name}')
+            weak = sum(1 for info in infos
+                       if info.qos_profile.reliability == ReliabilityPolicy.BEST_EFFORT)
+            if weak:
+                out.append(f'{weak} best-effort publisher(s) on {sub.topic_name} (a lock-step '
+                           'input is subscribed reliable: a lost command would stall the '
+                           'loop; publish reliable)')
         return out
 
     def missing_inputs(self, families: tuple[str, ...]) -> list[str]:

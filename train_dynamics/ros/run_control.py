@@ -52,6 +52,7 @@ CONNECT_SETTLE = 0.3       # [s wall] lock-step start: pause after both directio
 EXIT_LOCKSTEP_TIMEOUT = 4  # sim_node's exit status after a lock-step timeout with ``stop``
 WAIT_POLL = 0.05           # [s wall] longest sleep of a waiting simulation thread
 CLOCK_REPEAT = 0.5         # [s wall] lockstep_answer clock: /clock again while a period waits
+PROBE_PERIOD = 0.5         # [s wall] lock-step start: the input publishers' QoS looked at
 
 
 class RunControl:
@@ -77,6 +78,7 @@ class RunControl:
         self.clock = False              # lockstep_answer clock
         self.every = 0.0                # [s] lockstep_period, 0 = every output period
         self._clock_sent = 0.0          # [s wall] /clock last repeated
+        self._probed = -PROBE_PERIOD    # [s wall] publishers' QoS last looked at
         self._connected_since: float | None = None
         self._waiting_since: float | None = None
         self._timed_out = False
@@ -114,6 +116,7 @@ class RunControl:
         self.step_to = None
         self.stop_requested = False
         self.stop_reason = ''
+        self._probed = -PROBE_PERIOD
         self._connected_since = None
         self._waiting_since = None
         self._timed_out = False
@@ -147,6 +150,12 @@ class RunControl:
                 self._log.info(f'lockstep: waiting for the controller ({", ".join(missing[:5])})'
                                ' before t = 0')
             self._connected_since = None
+            if now - self._probed >= PROBE_PERIOD:      # an unmatched (best-effort) publisher?
+                self._probed = now
+                problems = self._inputs.publisher_problems(self.waits_for, qos=True)
+                if problems:
+                    self._fail('before t = 0: ' + '; '.join(problems))
+                    return True
             self._check_timeout(now, 'the controller to connect: ' + ', '.join(missing[:5]))
             return True
         if self._connected_since is None:
@@ -224,7 +233,7 @@ class RunControl:
             self._timed_out = True
             self.timeouts += 1
             stop = self.on_timeout == 'stop'
-            self._log.warning(f'lockstep: no {what} after {self.timeout:g} s; '
+            self._log.warning(f'lockstep: {self.timeout:g} s without {what}; '
                               + ('stopping the run' if stop else 'still waiting'))
             if stop:
                 self.stop_requested = True
