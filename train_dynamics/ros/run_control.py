@@ -178,19 +178,25 @@ class RunControl:
             self.stop_requested = True
             self.stop_reason = 'lockstep refused'
 
+    def _every(self, out: Outputs) -> int:
+        """Return the output periods between two waits (``lockstep_period``)."""
+        return max(1, round(self.every * out.rate)) if self.every > 0 else 1
+
     def _waits_at(self, out: Outputs) -> bool:
         """Return True if the last output published is one the controller must answer."""
         if not self.clock:
             return True
         if out.last_t_ns <= 0:
             return False            # a timer fires one period after it starts: none at t = 0
-        every = max(1, round(self.every * out.rate)) if self.every > 0 else 1
-        return (out.published - 1) % every == 0
+        return (out.published - 1) % self._every(out) == 0
 
     def limit(self, now: float) -> int | None:
         """Return the integration step the run may reach now (None: no limit)."""
         sim, out = self.sim, self._outputs
         lim = None
+        if self.lockstep and self.clock and out.published == 1 and sim.steps == out.last_step \
+                and now - out.last_wall < CONNECT_SETTLE:
+            return sim.steps    # t = 0: the controller takes its first outputs before t_1's
         if self.lockstep and out.published and sim.steps == out.last_step \
                 and self._waits_at(out):
             if not self._inputs.answered(out.last_t_ns, self.waits_for):
