@@ -3,9 +3,8 @@ A timer-driven brake controller on ``use_sim_time`` (test support, run as a proc
 
 The ordinary ROS 2 way, nothing lock-step specific in it: it keeps the latest ``coaches``
 message and, from a timer of ``period`` seconds on the node's clock (``use_sim_time``: the
-simulator's ``/clock``), publishes the head brake-pipe pressure stamped with its clock's now:
-a stopping law on the lead vehicle's speed, ``p = clip(release - gain * (v_target - v), ...)``
-... here simply proportional to the speed: ``p = release - gain * v`` [Pa gauge], bounded to
+simulator's ``/clock``), publishes the head brake-pipe pressure stamped with its clock's now,
+proportional to the lead vehicle's speed: ``p = release - gain * v`` [Pa gauge], bounded to
 0..release. ``sim_node`` with ``lockstep_answer: clock`` waits for it at every period.
 """
 import sys

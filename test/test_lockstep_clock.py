@@ -33,8 +33,8 @@ def _files(bag: Path) -> dict[str, bytes]:
     return {p.name: p.read_bytes() for p in sorted(bag.iterdir())}
 
 
-def test_timer_driven_controller_on_sim_time_runs_in_lockstep_byte_identical(tmp_path,
-                                                                           no_report):
+def test_timer_driven_controller_on_sim_time_runs_in_lockstep_byte_identical(
+        tmp_path, no_report):
     from lockstep_timer_controller import pipe_pressure
 
     scenario = tmp_path / 'clock.yaml'

@@ -11,27 +11,35 @@ Services (``std_srvs/srv/Trigger``, beside ``~/reset``):
 
 ``sync_mode`` ``lockstep``: the node holds t = 0 until the controller is connected both ways
 (a publisher on every input topic ``lockstep_inputs`` declares, and a subscriber on one of the
-JointState outputs, then :data:`CONNECT_SETTLE` s for the other direction's discovery),
-publishes the outputs of t = 0, and advances to the next output only once every declared input
-has answered the last output (:meth:`BrakeInputs.unanswered
-<train_dynamics.ros.brake_inputs.BrakeInputs.unanswered>`):
+JointState outputs, on ``/clock`` with ``lockstep_answer`` clock; then :data:`CONNECT_SETTLE`
+s for the other direction's discovery), publishes the outputs of t = 0, and advances to the
+next output only once every declared input has answered the last output
+(:meth:`LockstepInputs.unanswered
+<train_dynamics.ros.lockstep_inputs.LockstepInputs.unanswered>`):
 
 - ``brake`` (default): every active brake-input topic has delivered a message whose
   ``header.stamp`` equals the stamp of the last output (a controller with nothing new to say
-  answers with its last command re-stamped: that is "ready");
+  answers with its last command re-stamped: that is "ready"); with ``lockstep_answer``
+  ``clock``: stamped at or after it (the node publishes ``/clock`` at every output; a
+  controller on ``use_sim_time`` answers from its timer; no wait at t = 0, whose outputs get
+  :data:`CONNECT_SETTLE` s to reach it; ``lockstep_period``: wait only every that many
+  seconds);
 - ``traction``: every locomotive that takes a command (``coach_<i>/traction/command``), and
   ``ep``: ``brake_ep/command`` (``brake_system`` ep or ecp), has delivered one command after
   that output was published (``std_msgs/Float64`` has no stamp; the controller sends one per
   output, its last one again for "ready").
 
-A declared input the train does not have (no locomotive, no EP brake) is skipped with a log
-line. Answers take effect at that output's instant, so the closed loop does not depend on the
-wall clock: its outputs, inputs and bag are the same on every run, at any ``real_time_factor``
-(0: as fast as both sides can go; > 0: at most that fast). Without an answer for
-``lockstep_timeout`` wall seconds the node says so (a warning naming the inputs that did not
-answer, ``/diagnostics`` WARN and the count ``lockstep_timeouts``), then keeps waiting
-(``lockstep_on_timeout`` ``wait``) or ends the run (``stop``: ``sim_node`` exits with status
-:data:`EXIT_LOCKSTEP_TIMEOUT`).
+A declared input the train does not have is a configuration error (the node refuses it). Answers
+take effect at that output's instant, so the closed loop does not depend on the wall clock: its
+outputs, inputs and bag are the same on every run, at any ``real_time_factor`` (0: as fast as
+both sides can go; > 0: at most that fast). Every wait has a bound: without the controller's
+connection at t = 0, or without an answer, for ``lockstep_timeout`` wall seconds the node says
+so (a warning naming what is missing, ``/diagnostics`` WARN and the count
+``lockstep_timeouts``), then keeps waiting (``lockstep_on_timeout`` ``wait``) or ends the run
+(``stop``: ``sim_node`` exits with status :data:`EXIT_LOCKSTEP_TIMEOUT`). A second publisher or
+a best-effort one on a declared input (found before t = 0, and before each release while the
+declared topics are at most :data:`~train_dynamics.ros.lockstep_inputs.CHEAP_TOPICS`) ends
+the run with an error and the same status; a second answer to one output is not used, counted.
 
 Threads: the services run on the executor thread and take the simulation lock; :meth:`limit`
 and :meth:`hold_start` run on the simulation thread under it. Every attribute is guarded by

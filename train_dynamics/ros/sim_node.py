@@ -17,7 +17,8 @@ behaviour and owns its state:
 - :mod:`train_dynamics.ros.parameters`: descriptors and the set callbacks;
 - :mod:`train_dynamics.ros.run_control`: the ``~/pause``, ``~/resume`` and ``~/step``
   services and the lock-step with a controller (``sync_mode``, ``lockstep_inputs``,
-  ``lockstep_timeout``); ``input_timing`` is the brake inputs'.
+  ``lockstep_answer``, ``lockstep_timeout``; what answers and what is refused:
+  :mod:`train_dynamics.ros.lockstep_inputs`); ``input_timing`` is the brake inputs'.
 
 Threads and locks: the executor thread runs the subscription callbacks, the timers, the
 parameter callbacks and the ``reset`` service; the simulation thread (:class:`Pacer`) runs the
