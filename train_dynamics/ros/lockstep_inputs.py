@@ -179,13 +179,19 @@ class LockstepInputs:
         """Return the number of input topics of ``families`` (the cost of a publisher count)."""
         return len(self._lockstep_subscriptions(families))
 
-    def publisher_problems(self, families: tuple[str, ...], qos: bool = False) -> list[str]:
+    def publisher_problems(self, families: tuple[str, ...], qos: bool = False,
+                           scanned: bool = False) -> list[str]:
         """
         Return what makes the lock-step on ``families`` undeterministic ([]: nothing).
 
         A second publisher on an input topic (their answers mix); with ``qos`` also a
-        best-effort publisher (it cannot reach the reliable subscription).
+        best-effort publisher (it cannot reach the reliable subscription). ``scanned``: only
+        what the last graph scan found on the brake inputs (no graph query: many topics).
         """
+        if scanned:
+            return ([f'{count} publishers on {name}'
+                     for name, count in sorted(self.multiple_publishers.items())]
+                    if BRAKE in families else [])
         out = []
         for sub in self._lockstep_subscriptions(families):
             if not qos:

@@ -211,11 +211,11 @@ class RunControl:
                 self._wait(now)
                 return sim.steps
             if self._counted != out.published:
-                if self._inputs.lockstep_topics(self.waits_for) <= CHEAP_TOPICS:
-                    problems = self._inputs.publisher_problems(self.waits_for)
-                    if problems:
-                        self._fail(f'at t = {sim.t:.6f} s: ' + '; '.join(problems))
-                        return sim.steps
+                cheap = self._inputs.lockstep_topics(self.waits_for) <= CHEAP_TOPICS
+                problems = self._inputs.publisher_problems(self.waits_for, scanned=not cheap)
+                if problems:
+                    self._fail(f'at t = {sim.t:.6f} s: ' + '; '.join(problems))
+                    return sim.steps
                 self._counted = out.published
                 self._answered(now)
             lim = out.next_step
