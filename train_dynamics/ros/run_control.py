@@ -164,7 +164,8 @@ class RunControl:
                 if problems:
                     self._fail('before t = 0: ' + '; '.join(problems))
                     return True
-            self._check_timeout(now, 'the controller to connect: ' + ', '.join(missing[:5]))
+            self._check_timeout(now, lambda: 'the controller to connect: '
+                                + ', '.join(missing[:5]))
             return True
         if self._connected_since is None:
             self._connected_since = now
@@ -181,8 +182,8 @@ class RunControl:
     def _fail(self, what: str) -> None:
         """End the run: the lock-step cannot be deterministic (exit status 4)."""
         if not self.stop_requested:
-            self._log.error(f'lockstep: {what}: their answers would mix and the run would '
-                            'differ from run to run; ending the run')
+            self._log.error(f'lockstep refused {what}; ending the run (its loop would not be '
+                            'the same on every run)')
             self.stop_requested = True
             self.stop_reason = 'lockstep refused'
 
@@ -235,19 +236,22 @@ class RunControl:
         if self.clock and now - self._clock_sent > CLOCK_REPEAT:
             self._clock_sent = now      # /clock is best-effort at the controller: once more
             self._outputs.repeat_clock()
-        missing = self._inputs.unanswered(self._outputs.last_t_ns, self.waits_for)
-        self._check_timeout(now, f'the answer to the output of t = {self.sim.t:.6f} s on '
-                            + ', '.join(missing[:5])
-                            + (f' (and {len(missing) - 5} more)' if len(missing) > 5 else '')
-                            + (' (stamped at or after it)' if self.clock else ''))
+        self._check_timeout(now, self._unanswered)
 
-    def _check_timeout(self, now: float, what: str) -> None:
-        """After ``lockstep_timeout`` of waiting for ``what``: warn once, then wait or stop."""
+    def _unanswered(self) -> str:
+        """Return what the period waits for: the output and its inputs that did not answer."""
+        missing = self._inputs.unanswered(self._outputs.last_t_ns, self.waits_for)
+        return (f'the answer to the output of t = {self.sim.t:.6f} s on ' + ', '.join(missing[:5])
+                + (f' (and {len(missing) - 5} more)' if len(missing) > 5 else '')
+                + (' (stamped at or after it)' if self.clock else ''))
+
+    def _check_timeout(self, now: float, what: Callable[[], str]) -> None:
+        """After ``lockstep_timeout`` of waiting for ``what()``: warn once, then wait or stop."""
         if self.timeout > 0 and not self._timed_out and now - self._waiting_since > self.timeout:
             self._timed_out = True
             self.timeouts += 1
             stop = self.on_timeout == 'stop'
-            self._log.warning(f'lockstep: {self.timeout:g} s without {what}; '
+            self._log.warning(f'lockstep: {self.timeout:g} s without {what()}; '
                               + ('stopping the run' if stop else 'still waiting'))
             if stop:
                 self.stop_requested = True
