@@ -72,3 +72,34 @@ def test_timer_driven_controller_on_sim_time_runs_in_lockstep_byte_identical(
     for t, _, p in commands:
         assert p == pipe_pressure(speeds[t], 1.0e4) + ATM, t
     assert speeds[max(speeds)] < speeds[0] - 1.0    # the controller's brake acted
+
+
+def test_lockstep_period_waits_only_at_its_multiples_of_the_clock(harness):
+    """
+    ``lockstep_period`` 0.05 s at 100 Hz outputs: a wait every fifth output, none at t = 0.
+
+    The probe answers a ``/clock`` at a multiple of 0.05 s with a command stamped there; the
+    run reaches its end (0.3 s) on those six answers alone, every output published.
+    """
+    from rosgraph_msgs.msg import Clock
+    from sensor_msgs.msg import JointState
+    from sim_node_helpers import fluid
+
+    pub = harness.publisher('brake_pipe/pressure')
+    answered = []
+
+    def on_clock(msg):
+        t_ns = msg.clock.sec * 1_000_000_000 + msg.clock.nanosec
+        if t_ns > 0 and t_ns % 50_000_000 == 0 and t_ns not in answered:
+            answered.append(t_ns)
+            out = fluid(4.5e5 + ATM)
+            out.header.stamp = msg.clock
+            pub.publish(out)
+    harness.probe.create_subscription(Clock, '/clock', on_clock, 10)
+    coaches = harness.collect(JointState, 'coaches')
+    node = harness.start(sync_mode='lockstep', lockstep_answer='clock', lockstep_period=0.05,
+                         real_time_factor=0.0, duration=0.3)
+    assert harness.wait(lambda: node.finished, 60.0)
+    assert node.exit_code == 0 and node._control.periods == 6
+    assert answered == [k * 50_000_000 for k in range(1, 7)]
+    assert harness.wait(lambda: len(coaches) == 31, 60.0)
