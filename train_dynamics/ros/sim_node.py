@@ -45,7 +45,8 @@ response (and the log) what changed; a recording continues in a new bag
 ``<record_bag>_reset<k>``.
 
 Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``duration``);
-4 lock-step timeout (``lockstep_on_timeout`` stop);
+4 lock-step timeout (``lockstep_on_timeout`` stop) or refused (a second or best-effort
+publisher on a lock-step input);
 1 other errors (e.g. the bag cannot be created, or writing it failed: a full disk).
 """
 from __future__ import annotations
@@ -509,7 +510,8 @@ def main(args: list[str] | None = None) -> int:
     Run ``ros2 run train_dynamics sim_node``; SIGINT/SIGTERM stop it with the bag closed.
 
     Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 4 lock-step
-    timeout (``lockstep_on_timeout`` stop), 1 other errors (a recording that failed included).
+    timeout (``lockstep_on_timeout`` stop) or refused, 1 other errors (a recording that failed
+    included).
     """
     def create() -> SimNode:
         node = SimNode()
