@@ -122,6 +122,15 @@ class Outputs:
         """Return True if a subscriber is matched on one of the outputs (not ``/clock``)."""
         return any(pub.get_subscription_count() > 0 for pub in self._pubs.values())
 
+    def clock_subscribed(self) -> bool:
+        """Return True if a subscriber is matched on ``/clock`` (lock-step on the clock)."""
+        return self._pub_clock.get_subscription_count() > 0
+
+    def repeat_clock(self) -> None:
+        """Publish ``/clock`` of the last output again, unrecorded (a lost one stalls a timer)."""
+        if self.last_t_ns >= 0:
+            self._pub_clock.publish(Clock(clock=stamp(self.last_t_ns)))
+
     def take_writer(self) -> BagWriter | None:
         """Return the run's writer and stop recording (to close it, or at a reset)."""
         writer, self.writer = self.writer, None

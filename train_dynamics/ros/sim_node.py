@@ -18,7 +18,8 @@ behaviour and owns its state:
 - :mod:`train_dynamics.ros.parameters`: descriptors and the set callbacks;
 - :mod:`train_dynamics.ros.run_control`: the ``~/pause``, ``~/resume`` and ``~/step``
   services and the lock-step with a controller (``sync_mode``, ``lockstep_inputs``,
-  ``lockstep_timeout``); ``input_timing`` is the brake inputs'.
+  ``lockstep_answer``, ``lockstep_timeout``; what answers and what is refused:
+  :mod:`train_dynamics.ros.lockstep_inputs`); ``input_timing`` is the brake inputs'.
 
 Threads and locks: the executor thread runs the subscription callbacks, the timers, the
 parameter callbacks and the ``reset`` service; the simulation thread (:class:`Pacer`) runs the
@@ -45,7 +46,8 @@ response (and the log) what changed; a recording continues in a new bag
 ``<record_bag>_reset<k>``.
 
 Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``duration``);
-4 lock-step timeout (``lockstep_on_timeout`` stop);
+4 lock-step timeout (``lockstep_on_timeout`` stop) or refused (a second or best-effort
+publisher on a lock-step input);
 1 other errors (e.g. the bag cannot be created, or writing it failed: a full disk).
 """
 from __future__ import annotations
@@ -79,6 +81,7 @@ from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INP
 from train_dynamics.ros.diagnostics import (BrakeSystemReport, diagnostic_array, InputReport,
                                             SimulationReport)
 from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
+from train_dynamics.ros.lockstep_inputs import lockstep_input_error
 from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
 from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
@@ -98,7 +101,8 @@ EXIT_RECORD_FAILED = 1
 SPECS = {**PARAMETERS, **SIM_NODE_PARAMETERS}
 #: the node parameters of the run control (pause/step, lock-step, input timing)
 CONTROL_PARAMETERS = frozenset({'sync_mode', 'input_timing', 'lockstep_timeout',
-                                'lockstep_on_timeout', 'step_periods', 'lockstep_inputs'})
+                                'lockstep_on_timeout', 'step_periods', 'lockstep_inputs',
+                                'lockstep_answer', 'lockstep_period'})
 
 
 #: the most values of an array a log line, the reset reply or /diagnostics shows
@@ -129,6 +133,7 @@ class SimNode(Node):
         self.parameter_file_warnings: list[str] = []
         ros_parameters.declare_parameters(self, SPECS)
         cfg = SimConfig.from_dict(self._parameter_values())   # raises ConfigError (main: 2)
+        self._check_lockstep(cfg)
         #: the configuration of the node's current parameter values (the running one plus
         #: the pending changes); sets derive it from the last one (a consist is read only
         #: when a value it is built from changes), the reset service builds it anew
@@ -184,11 +189,30 @@ class SimNode(Node):
         sync_mode = value('sync_mode').value
         self._control.configure(sync_mode, value('lockstep_timeout').value,
                                 value('lockstep_on_timeout').value, value('step_periods').value,
-                                tuple(value('lockstep_inputs').value))
+                                tuple(value('lockstep_inputs').value),
+                                value('lockstep_answer').value, value('lockstep_period').value)
+        self._outputs.publish_clock = self._publish_clock()
         self._inputs.by_stamp = value('input_timing').value == 'stamp'
         # wake the simulation thread on each input only where it waits for them
         self._inputs.on_input = (self._pacer.wake if sync_mode == 'lockstep'
                                  or self._inputs.by_stamp else None)
+
+    def _publish_clock(self) -> bool:
+        """Return True if /clock goes out: publish_clock, or lock-step on the clock."""
+        cfg = getattr(self, '_cfg', None)
+        return bool(cfg is not None and cfg.publish_clock) or (
+            self.get_parameter('sync_mode').value == 'lockstep'
+            and self.get_parameter('lockstep_answer').value == 'clock')
+
+    def _check_lockstep(self, cfg: SimConfig, changes: dict[str, Any] | None = None) -> None:
+        """Raise ConfigError if the lock-step declares an input the train of ``cfg`` lacks."""
+        changes = changes or {}
+        value = {name: changes.get(name, self.get_parameter(name).value)
+                 for name in ('sync_mode', 'lockstep_inputs')}
+        why = (lockstep_input_error(cfg, tuple(value['lockstep_inputs']))
+               if value['sync_mode'] == 'lockstep' else None)
+        if why is not None:
+            raise ConfigError(why)
 
     def _request_wake_latency(self, limit_us: int) -> None:
         """Hold a CPU wake-up latency request of ``limit_us`` (-1: none) instead of the last."""
@@ -211,6 +235,8 @@ class SimNode(Node):
         bag = changes.get('record_bag')
         if bag and bag != self._cfg.record_bag:
             check_bag_path(bag)
+        if {'sync_mode', 'lockstep_inputs'} & set(changes):
+            self._check_lockstep(self._cfg, changes)
         self._checked = (self._params_cfg, sim_changes, cfg)   # what post-set adopts
 
     def _apply_parameters(self, changes: dict[str, Any]) -> None:
@@ -241,7 +267,7 @@ class SimNode(Node):
                                                    cfg.track_adhesion)
             if 'real_time_factor' in changes:
                 self._pacer.set_real_time_factor(cfg.real_time_factor)
-            self._outputs.publish_clock = cfg.publish_clock
+            self._outputs.publish_clock = self._publish_clock()
             self._inputs.set_policy(cfg.input_timeout, cfg.on_input_timeout)
             if 'duration' in changes:
                 self._pacer.set_duration(changes['duration'])
@@ -281,7 +307,7 @@ class SimNode(Node):
         sim = TrainSimulator(cfg)
         self._cfg = cfg
         self._outputs.start(OutputEncoder.for_config(cfg), cfg.publish_rate, sim.h,
-                            cfg.publish_clock, writer, metrics=RunMetrics.for_run(cfg, sim))
+                            self._publish_clock(), writer, metrics=RunMetrics.for_run(cfg, sim))
         self._inputs.start(cfg, sim.n, recording=writer is not None)
         self._stop_target.start(target_of(cfg) is not None)
         self._control.start(sim)
@@ -330,6 +356,7 @@ class SimNode(Node):
         log = self.get_logger()
         try:
             cfg = SimConfig.from_dict(self._parameter_values())
+            self._check_lockstep(cfg)
             TrainSimulator(cfg).advance(1)     # what cannot run fails before anything changed
             self._resets += 1
             writer = self._open_bag(cfg, first=False)
@@ -490,7 +517,8 @@ def main(args: list[str] | None = None) -> int:
     Run ``ros2 run train_dynamics sim_node``; SIGINT/SIGTERM stop it with the bag closed.
 
     Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 4 lock-step
-    timeout (``lockstep_on_timeout`` stop), 1 other errors (a recording that failed included).
+    timeout (``lockstep_on_timeout`` stop) or refused, 1 other errors (a recording that failed
+    included).
     """
     def create() -> SimNode:
         node = SimNode()

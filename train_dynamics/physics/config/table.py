@@ -525,8 +525,19 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'takes one, ep: brake_ep/command (brake_system ep or ecp), wsp: every '
               "vehicle's coach_<i>/wsp/valve (wsp external), each answered by one "
               'command received after the output was published (std_msgs/Float64 and Int8 '
-              'have no stamp). A listed input the train does not have is skipped (logged).',
+              'have no stamp). A listed input the train does not have is a configuration '
+              'error in lockstep.',
               choices=('brake', 'traction', 'ep', 'wsp'), dynamic=True, min_items=1),
+    ParamSpec('lockstep_answer', 'echo', STRING,
+              "lockstep: what answers a period. echo: a brake input stamped with the output's "
+              'stamp; clock: the node publishes /clock at every output (whatever publish_clock '
+              'says) and a period waits for inputs stamped at or after its time, from a '
+              'controller on use_sim_time with its own timer (no wait at t = 0).',
+              choices=('echo', 'clock'), dynamic=True),
+    ParamSpec('lockstep_period', 0.0, DOUBLE,
+              'lockstep_answer clock: simulation seconds between two waits for the controller '
+              '(its timer period), rounded to whole output periods; 0 = every output period.',
+              low=0.0, high=3600.0, dynamic=True),
     ParamSpec('input_timing', 'arrival', STRING,
               'arrival: a brake input takes effect at the next integration step after it '
               'arrives; stamp: at its header stamp (simulation time), exactly with '
