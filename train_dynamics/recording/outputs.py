@@ -213,7 +213,7 @@ class OutputRows:
 
     def _build(self, fields: tuple[Any, ...]) -> Any:
         """Make the block for samples shaped like ``fields`` (array lengths, empty arrays)."""
-        from train_dynamics.recording.bags import RecordBlock     # here: the node needs no bags
+        from train_dynamics.recording.mcap_rows import RecordBlock  # here: the node needs no bags
         layouts = []
         joints = self.encoder.joints
         for (names, frame), f in zip(joints[:len(self.encoder.topics) + 1]
