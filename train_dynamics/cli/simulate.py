@@ -33,7 +33,7 @@ from train_dynamics.cli.output import remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
 from train_dynamics.physics.config import fmt_bytes, output_disk, SimConfig
-from train_dynamics.recording.bags import BagError, BagRecorder
+from train_dynamics.recording.bags import BagError, BagRecorder, recording_failed
 from train_dynamics.recording.outputs import run_metadata
 from train_dynamics.recording.sinks import BagSink
 from train_dynamics.simulation.runner import InputSchedule, run_simulation
@@ -150,9 +150,9 @@ def _keep_disk_full(rec: BagRecorder, out: Path, created: list[Path], exc: OSErr
         remove_created(created)
         raise CliError(f'{what} at t = {t:.3f} s: nothing could be kept of {out}',
                        EXIT_ERROR) from None
-    raise CliError(f'{what} at t = {t:.3f} s: {out} holds the run up to t = '
-                   f'{rec.saved_until_ns * 1e-9:.3f} s ({rec.saved} messages); free some space '
-                   'or shorten the run', EXIT_ERROR)
+    raise CliError(recording_failed(out, f'{what} at t = {t:.3f} s', rec.saved, rec.given,
+                                    rec.saved_until_ns) + '; free some space or shorten the run',
+                   EXIT_ERROR)
 
 
 def _check_disk(cfg: SimConfig, duration: float, inputs: InputSchedule, parent: Path,

@@ -44,14 +44,14 @@ import numpy as np
 from rosbags.interfaces import Qos
 from rosbags.rosbag2 import StoragePlugin
 
-from train_dynamics.recording.bag_metadata import (finished_segment, offered_qos, ROS_DISTRO,
-                                                   Segment, write_metadata)
+from train_dynamics.recording.bag_metadata import (BagMetadata, finished_segment, offered_qos,
+                                                   ROS_DISTRO)
 from train_dynamics.recording.bag_read import bag_info, BagError, BagInfo, read_topics
 from train_dynamics.recording.mcap_rows import BlockWriter, RecordBlock
 from train_dynamics.recording.messages import time_to_ns, typestore
 
 __all__ = ['bag_info', 'BagError', 'BagInfo', 'BagRecorder', 'offered_qos', 'read_topics',
-           'RecordBlock', 'ROS_DISTRO']
+           'RecordBlock', 'recording_failed', 'ROS_DISTRO']
 
 
 def _remove_stale_partials(parent: Path, name: str) -> None:
@@ -71,6 +71,20 @@ def _remove_stale_partials(parent: Path, name: str) -> None:
             shutil.rmtree(cand, ignore_errors=True)
         except (PermissionError, OverflowError, OSError):
             continue
+
+
+def recording_failed(path: str | os.PathLike, error: str, held: int, given: int,
+                     until_ns: int = 0) -> str:
+    """
+    Return the line that reports a recording that failed: what the bag holds, of what it got.
+
+    One wording for the node's ``record_bag`` and the offline command: ``held`` messages in
+    the bag (finished files, what a reader sees) of the ``given`` recorded, up to bag time
+    ``until_ns`` [ns].
+    """
+    upto = f', up to t = {until_ns * 1e-9:.3f} s' if held else ''
+    return (f'recording to {path} failed ({error}): the bag holds {held} of the {given} '
+            f'messages recorded{upto}')
 
 
 @dataclass
@@ -108,11 +122,10 @@ class BagRecorder:
         self._lock = threading.RLock()
         self._topics: dict[str, str] = {}          # topic -> msgtype, in order of addition
         self._qos: dict[str, Qos] = {}             # topic -> offered QoS (when known)
-        self._segments: list[Segment] = []
-        self._custom: dict[str, str] = {}
         self._open: _Open | None = None
         self._block: RecordBlock | None = None
         self._closed = False
+        self.given = 0                             # messages given to be written
         if atomic:
             parent = self.path.parent if str(self.path.parent) else Path('.')
             _remove_stale_partials(parent, self.path.name)
@@ -121,9 +134,10 @@ class BagRecorder:
                 shutil.rmtree(self._dir)
         else:
             self._dir = self.path
+        self._meta = BagMetadata(self._dir)
+        self._staging = self._dir / '.staging'
         try:
             self._dir.mkdir(parents=True)
-            self._staging = self._dir / '.staging'
             self._write_metadata()
         except OSError as exc:
             shutil.rmtree(self._dir, ignore_errors=True)
@@ -141,9 +155,12 @@ class BagRecorder:
 
     @property
     def saved(self) -> int:
-        """Return the messages in finished MCAP files: what the bag holds if it stops now."""
-        with self._lock:
-            return sum(s.count for s in self._segments)
+        """
+        Return the messages in finished MCAP files: what the bag holds if it stops now.
+
+        Read without the lock (never waits for a write in progress).
+        """
+        return self._meta.count
 
     def add_topic(self, topic: str, msgtype: str, qos: Qos | None = None) -> None:
         """
@@ -205,6 +222,7 @@ class BagRecorder:
                         self._finish_segment()
             if block.full:
                 self._write_rows()
+            self.given += len(block.topics)
             return block.next_row(t_ns)
 
     def write(self, topic: str, t_ns: int, data: bytes | bytearray | memoryview) -> None:
@@ -226,6 +244,7 @@ class BagRecorder:
                 seg = self._start_segment()
             if seg.first_ns is None:
                 seg.first_ns = t_ns
+            self.given += 1
             seg.writer.write(seg.connections[topic], t_ns, bytes(data))
 
     def _write_rows(self) -> None:
@@ -275,7 +294,7 @@ class BagRecorder:
             raise TypeError('custom data keys and values must be strings')
         with self._lock:
             self._check_open()
-            self._custom.update(items)
+            self._meta.custom.update(items)
             self._write_metadata()
 
     def flush(self) -> None:
@@ -293,7 +312,7 @@ class BagRecorder:
                 return
             try:
                 self._write_rows()
-                if self._open is not None or not self._segments:
+                if self._open is not None or not self._meta.segments:
                     if self._open is None:
                         self._start_segment()      # an empty bag still records its topics
                     self._finish_segment()
@@ -312,10 +331,14 @@ class BagRecorder:
             os.rename(self._dir, self.path)
 
     @property
+    def finished_files(self) -> int:
+        """Return the number of finished MCAP files (read without the lock)."""
+        return len(self._meta.segments)
+
+    @property
     def saved_until_ns(self) -> int:
         """Return the bag time [ns] of the last message in finished MCAP files (0: none)."""
-        with self._lock:
-            return max((s.end_ns for s in self._segments if s.count), default=0)
+        return max((s.end_ns for s in list(self._meta.segments) if s.count), default=0)
 
     def keep(self, note: str = '') -> None:
         """
@@ -340,7 +363,7 @@ class BagRecorder:
             try:
                 shutil.rmtree(self._staging, ignore_errors=True)
                 if note:
-                    self._custom['incomplete'] = note
+                    self._meta.custom['incomplete'] = note
                 self._write_metadata()
                 self._move_into_place()
             except BaseException:
@@ -349,7 +372,12 @@ class BagRecorder:
             self._closed = True
 
     def abort(self) -> None:
-        """Stop without finishing the current file. With ``atomic``, remove everything."""
+        """
+        Stop without finishing the current file.
+
+        With ``atomic``, remove everything; otherwise the finished files stay, listed in
+        ``metadata.yaml`` (a readable bag), and the unfinished one (``.staging``) is removed.
+        """
         with self._lock:
             if self._closed:
                 return
@@ -362,6 +390,8 @@ class BagRecorder:
                     pass
             if self._atomic:
                 shutil.rmtree(self._dir, ignore_errors=True)
+            else:           # the finished files and their metadata.yaml stay: a readable bag
+                shutil.rmtree(self._staging, ignore_errors=True)
 
     def __enter__(self) -> 'BagRecorder':
         return self
@@ -384,7 +414,7 @@ class BagRecorder:
             topic, msgtype, typestore=typestore(), offered_qos_profiles=[qos] if qos else ())
 
     def _start_segment(self) -> _Open:
-        name = f'{self._stem}_{len(self._segments)}'
+        name = f'{self._stem}_{len(self._meta.segments)}'
         self._staging.mkdir(exist_ok=True)
         seg_dir = self._staging / name
         if seg_dir.exists():
@@ -404,11 +434,18 @@ class BagRecorder:
         writer.close()
         seg_dir = writer.path
         segment = finished_segment(seg.name, seg_dir)
-        os.replace(seg_dir / f'{seg.name}.mcap', self._dir / f'{seg.name}.mcap')
+        mcap = self._dir / f'{seg.name}.mcap'
+        os.replace(seg_dir / f'{seg.name}.mcap', mcap)
         shutil.rmtree(seg_dir, ignore_errors=True)
-        self._segments.append(segment)
-        self._write_metadata()
+        self._meta.add(segment)
+        try:
+            self._write_metadata()
+        except BaseException:
+            # not listed, not held: the bag holds what its metadata.yaml lists, no more
+            self._meta.drop_last()
+            mcap.unlink(missing_ok=True)
+            raise
 
     def _write_metadata(self) -> None:
         """Write ``metadata.yaml`` for the finished files (atomically)."""
-        write_metadata(self._dir, self._segments, self._custom)
+        self._meta.write()
