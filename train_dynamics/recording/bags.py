@@ -34,6 +34,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+import errno
 import os
 from pathlib import Path
 import shutil
@@ -49,6 +50,9 @@ from train_dynamics.recording.bag_metadata import (BagMetadata, finished_segment
 from train_dynamics.recording.bag_read import bag_info, BagError, BagInfo, read_topics
 from train_dynamics.recording.mcap_rows import BlockWriter, RecordBlock
 from train_dynamics.recording.messages import time_to_ns, typestore
+
+#: errors of a write that found no room
+DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 __all__ = ['bag_info', 'BagError', 'BagInfo', 'BagRecorder', 'offered_qos', 'read_topics',
            'RecordBlock', 'recording_failed', 'ROS_DISTRO']
@@ -306,7 +310,12 @@ class BagRecorder:
                 self._finish_segment()
 
     def close(self) -> None:
-        """Finish the bag (idempotent). With ``atomic``, the bag appears at ``path`` now."""
+        """
+        Finish the bag (idempotent). With ``atomic``, the bag appears at ``path`` now.
+
+        A full disk (:data:`DISK_FULL`) while finishing keeps the finished files as a closed,
+        incomplete bag (:meth:`keep`); any other failure aborts (:meth:`abort`); both raise.
+        """
         with self._lock:
             if self._closed:
                 return
@@ -318,6 +327,12 @@ class BagRecorder:
                     self._finish_segment()
                 shutil.rmtree(self._staging, ignore_errors=True)
                 self._move_into_place()
+            except OSError as exc:
+                if exc.errno in DISK_FULL:
+                    self.keep(f'{exc.strerror or exc} while finishing the bag')
+                else:
+                    self.abort()
+                raise
             except BaseException:
                 self.abort()
                 raise
