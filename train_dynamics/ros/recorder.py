@@ -143,13 +143,13 @@ class BagWriter:
         """
         size = len(data)
         with self._cond:
-            if self._stop:
-                self.late += 1
-                return
             while self._items and not self._stop and self._thread.is_alive() and (
                     self._bytes + size > MAX_RECORD_BACKLOG_BYTES
                     or len(self._items) >= MAX_RECORD_BACKLOG):
                 self._cond.wait(0.5)
+            if self._stop:          # also when close() began while this call waited
+                self.late += 1
+                return
             self._items.append((topic, msgtype, t_ns, data))
             self._bytes += size
             self.given += 1
