@@ -15,7 +15,8 @@ A list a reviewer can read (``record_bag`` of ``sim_node``: :class:`BagWriter` o
 - a full disk leaves a readable bag of the finished files and no ``.staging`` folder, on
   every path (failed write, failed close, abort);
 - a ``metadata.yaml`` that cannot be written never counts the file it would have listed;
-- the node's and the offline command's failure lines say the same thing (one wording).
+- the node's and the offline command's failure lines say the same thing (one wording);
+- a file finished the fast way (libyaml) carries the metadata rosbags' own writer writes.
 """
 from __future__ import annotations
 
@@ -251,3 +252,41 @@ def test_metadata_lists_every_file_as_rosbag2_reads_it(tmp_path):
     assert counts == {'a': 5, 'b: odd name': 5}
     assert info['custom_data'] == {'note': 'a value: with "quotes"\nand a second line'}
     assert bag_info(bag).message_count == on_disk(bag) == 10
+
+
+def test_a_file_closed_fast_carries_the_metadata_rosbags_writes(tmp_path):
+    from rosbags.highlevel import AnyReader
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from train_dynamics.recording.bag_metadata import offered_qos
+    from train_dynamics.recording.mcap_rows import BlockWriter
+
+    meta = {}
+    for cls in (Writer, BlockWriter):
+        path = tmp_path / cls.__name__
+        writer = cls(path, version=9, storage_plugin=StoragePlugin.MCAP)
+        writer.open()
+        conns = [writer.add_connection(topic, FLOAT64, typestore=typestore(),
+                                       offered_qos_profiles=qos)
+                 for topic, qos in (('a', [offered_qos(True, 10)]), ('/ns/long_topic', []))]
+        for k in range(5):
+            writer.write(conns[k % 2], 1_000_000_000 + k, cdr(k))
+        writer.close()
+        meta[cls] = YAML(typ='safe').load((path / 'metadata.yaml').read_text())
+        with AnyReader([path]) as reader:            # the MCAP file's own metadata record
+            assert [(c.topic, t) for c, t, _ in reader.messages()] == [
+                ('a', 1_000_000_000), ('/ns/long_topic', 1_000_000_001),
+                ('a', 1_000_000_002), ('/ns/long_topic', 1_000_000_003),
+                ('a', 1_000_000_004)]
+        mcap = (path / f'{cls.__name__}.mcap').read_bytes()
+        at = mcap.index(b'serialized_metadata') + len('serialized_metadata') + 4
+        end = mcap.index(b'version: 9', at) + len('version: 9')    # the keys are sorted
+        meta[cls, 'record'] = YAML(typ='safe').load(mcap[at:end].decode())
+        assert set(meta[cls, 'record']) == set(meta[cls]['rosbag2_bagfile_information'])
+    for key in (Writer, (Writer, 'record')):
+        fast = BlockWriter if key is Writer else (BlockWriter, 'record')
+        expect = meta[key]
+        info = expect.get('rosbag2_bagfile_information', expect)
+        info['relative_file_paths'] = ['BlockWriter.mcap']
+        info['files'][0]['path'] = 'BlockWriter.mcap'
+        assert meta[fast] == expect

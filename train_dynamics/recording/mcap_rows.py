@@ -21,10 +21,13 @@ import struct
 from typing import Any
 
 import numpy as np
-from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.interfaces import ConnectionExtRosbag2
+from rosbags.rosbag2 import CompressionMode, StoragePlugin, Writer
+from rosbags.rosbag2.metadata import dump_qos_v9
 from rosbags.rosbag2.storage_mcap import McapWriter
 
 from train_dynamics.recording.cdr import STAMP_OFFSET
+import yaml
 
 #: MCAP message record (opcode 0x05): opcode u8, record length u64, channel id u16,
 #: sequence u32, log time u64, publish time u64, then the message's CDR bytes (MCAP spec,
@@ -213,3 +216,61 @@ class BlockWriter(Writer):
             self.counts[c.id] += len(times)
         self.min_timestamp = min(int(times.min()), self.min_timestamp)
         self.max_timestamp = max(int(times.max()), self.max_timestamp)
+
+    def close(self) -> None:
+        """
+        Close the file and write its ``metadata.yaml``: rosbags' ``Writer.close``, faster.
+
+        rosbags 0.11.9's ``close`` for this writer's case (format version 9, MCAP, no
+        compression) with the metadata (``metadata.yaml`` and the MCAP metadata record
+        ``rosbag2``) emitted by libyaml instead of ruamel.yaml: the same data, keys sorted
+        alike (libyaml keeps a long value on its key's line where ruamel.yaml folds it;
+        test/test_recorder_hostile_inputs.py compares the two), in a few milliseconds
+        instead of about 0.05 s: most of a flush when a file is finished every 0.1 s.
+        """
+        assert self.storage
+        if (self.version, self.storage_plugin, self.compression_mode) != (
+                9, StoragePlugin.MCAP, CompressionMode.NONE):
+            super().close()
+            return
+        duration = max(0, self.max_timestamp - self.min_timestamp)
+        start = self.min_timestamp
+        count = sum(self.counts.values())
+        name = self.storage.path.name
+        info = {
+            'version': self.version,
+            'storage_identifier': 'mcap',
+            'relative_file_paths': [name],
+            'duration': {'nanoseconds': duration},
+            'starting_time': {'nanoseconds_since_epoch': start},
+            'message_count': count,
+            'topics_with_message_count': [
+                {'topic_metadata': {
+                    'name': x.topic, 'type': x.msgtype,
+                    'serialization_format': x.ext.serialization_format,
+                    'offered_qos_profiles': dump_qos_v9(x.ext.offered_qos_profiles),
+                    'type_description_hash': x.digest},
+                 'message_count': self.counts[x.id]}
+                for x in self.connections if isinstance(x.ext, ConnectionExtRosbag2)],
+            'compression_format': '',
+            'compression_mode': '',
+            'files': [{'path': name, 'starting_time': {'nanoseconds_since_epoch': start},
+                       'duration': {'nanoseconds': duration}, 'message_count': count}],
+            'custom_data': self.custom_data or None,
+            'ros_distro': 'rosbags',
+        }
+        text = _yaml({'rosbag2_bagfile_information': info})
+        self.storage.close(self.version, _yaml(info).strip())
+        self.storage = None
+        tmp = self.metapath.with_suffix('.yaml.tmp')
+        tmp.write_text(text, 'utf8')
+        tmp.replace(self.metapath)
+
+
+#: libyaml's emitter when PyYAML was built with it (else PyYAML's own)
+_DUMPER = getattr(yaml, 'CSafeDumper', yaml.SafeDumper)
+
+
+def _yaml(value: Any) -> str:
+    """Return ``value`` as block YAML, keys sorted: ruamel.yaml's safe dump, as rosbags uses it."""
+    return yaml.dump(value, Dumper=_DUMPER, default_flow_style=False)
