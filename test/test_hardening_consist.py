@@ -267,7 +267,7 @@ def test_item8_simulate_on_a_full_disk_keeps_the_finished_files_closed_and_reada
     finish = BagRecorder._finish_segment
 
     def full_after_three(self):
-        if len(self._segments) >= 3:
+        if self.finished_files >= 3:
             raise OSError(errno.ENOSPC, 'No space left on device')
         finish(self)
     monkeypatch.setattr(BagRecorder, '_finish_segment', full_after_three)
@@ -278,7 +278,7 @@ def test_item8_simulate_on_a_full_disk_keeps_the_finished_files_closed_and_reada
     assert code == 1 and len(err) == 1 and 'No space left' in err[0], err
     info = bag_info(out)
     held = sum(1 for _ in read_topics(out))
-    assert held == info.message_count > 0 and f'({held} messages)' in err[0]
+    assert held == info.message_count > 0 and f'the bag holds {held} of the ' in err[0]
     assert 0.0 < info.duration < 5.0
     assert 'No space left' in info.custom_data['incomplete']
     assert not list(tmp_path.glob('.bag.partial-*'))

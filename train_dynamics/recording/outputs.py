@@ -110,7 +110,7 @@ class OutputRows:
 
     def _build(self) -> Any:
         """Make the block of the run's layouts (and the head pipe's)."""
-        from train_dynamics.recording.bags import RecordBlock     # here: the node needs no bags
+        from train_dynamics.recording.mcap_rows import RecordBlock  # here: the node needs no bags
         layouts = list(self.encoder.layouts)
         if self.head_pipe:
             layouts.append(fluid_pressure_layout())
