@@ -36,12 +36,12 @@ field. Never imports rclpy.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field as _field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
-from train_dynamics.physics import characteristics
+from train_dynamics.physics import characteristics, friction, friction_laws
 from train_dynamics.physics.config import spec
 from train_dynamics.physics.config.budgets import fmt_bytes
 from train_dynamics.physics.config.files import config_dirs, FastRosParamLoader, resolve_path
@@ -208,6 +208,13 @@ def library_types() -> dict[str, dict[str, Any]]:
     return _types_of(doc.get('vehicle_types'), str(path))
 
 
+def library_materials() -> dict[str, Any]:
+    """Return the friction laws of the vehicle library (physics/friction_laws.py), checked."""
+    path = resolve_path(LIBRARY, str(config_dirs()[0]))
+    doc = _read_yaml(path) or {}
+    return friction_laws.laws_of(doc.get('friction_materials'), str(path))
+
+
 def end_of_coupling(field: str, value: float) -> float:
     """
     Return the end value whose coupling with an identical end is ``value`` (a coupling constant).
@@ -297,6 +304,8 @@ class Consist:
     regimes: list[str]                 # brake_regime per vehicle
     couplings: dict[str, np.ndarray]   # coupling constants, arrays of N-1
     tables: np.ndarray                 # (len(TABLE_ROWS), N-1)
+    #: the friction laws the field friction_material indexes (0: paper, eq. 13)
+    materials: list = _field(default_factory=lambda: [friction_laws.paper_law()])
 
     @property
     def n(self) -> int:
@@ -311,6 +320,8 @@ class Consist:
         """Return a choice field of every vehicle by name (stored as its index, _number)."""
         if field == 'brake_regime':
             return list(self.regimes)
+        if field == 'friction_material':
+            return [self.materials[int(code)].name for code in self.fields[field]]
         names = VEHICLE_PARAMETERS[field].choices
         return [names[int(code)] for code in self.fields[field]]
 
@@ -347,14 +358,17 @@ def _end(row: dict[str, Any], key: str) -> dict[str, float]:
     return {f: float(own.get(f, row[f])) for f in END_FIELDS}
 
 
-def _number(field: str, value: Any) -> float:
-    """Return a field's value as a number: a choice (friction_material) as its index."""
+def _number(field: str, value: Any, codes: Mapping[str, int] | None = None) -> float:
+    """Return a field's value as a number: a choice as its index, a material its code."""
+    if field == 'friction_material':
+        return float((codes or {'paper': 0})[value])
     choices = VEHICLE_PARAMETERS[field].choices
     return float(choices.index(value)) if choices else float(value)
 
 
 def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
-          whole: Mapping[str, float] | None = None) -> Consist:
+          whole: Mapping[str, float] | None = None,
+          laws: Mapping[str, Any] | None = None) -> Consist:
     """
     Build a Consist from (type, complete field dict, count) entries of a file.
 
@@ -363,11 +377,14 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
     fields repeated ``count`` times (the caller bounded the sum of the counts). Coupling j
     joins the rear end of vehicle j to the front end of vehicle j + 1
     (:func:`coupling_of_ends`); ``whole``: whole-coupling constants that replace the ends'
-    series values in every coupling.
+    series values in every coupling; ``laws``: the friction laws by name (library and file).
     """
     counts = np.array([c for _, _, c in entries], dtype=np.int64)
     numeric = [f for f in VEHICLE_FIELDS if f != 'brake_regime']
-    per_entry = {f: np.array([_number(f, e[1][f]) for e in entries], dtype=float)
+    materials = friction_laws.resolve([e[1]['friction_material'] for e in entries],
+                                      laws or {}, f'{source}: ')
+    codes = {law.name: k for k, law in enumerate(materials)}
+    per_entry = {f: np.array([_number(f, e[1][f], codes) for e in entries], dtype=float)
                  for f in numeric}
     firsts = np.concatenate(([1], 1 + np.cumsum(counts[:-1])))
     labels = [f'{first} ({name})' for first, (name, _, _) in zip(firsts, entries)]
@@ -379,6 +396,7 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
         for i, end in enumerate(own):
             _check_characteristic(end, f'{source}: vehicle {labels[i]}: {key} end: ')
     check_traction_power(per_entry, f'{source}: ', labels)
+    friction.check_load_weighing(per_entry, materials, f'{source}: ', labels)
     n = int(counts.sum())
     if n < 2:
         raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {n}')
@@ -395,7 +413,7 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
         tables = np.zeros((len(layout.TABLE_ROWS), n - 1))
     else:
         tables = coupling_tables(ends['rear'], ends['front'], entry_of[:-1], entry_of[1:])
-    return Consist(types, fields, regimes, couplings, tables)
+    return Consist(types, fields, regimes, couplings, tables, materials)
 
 
 def _check_characteristic(end: Mapping[str, float], where: str) -> None:
@@ -480,11 +498,12 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
     if not isinstance(doc, dict):
         raise ConfigError(f'{source}: a consist file is a mapping with vehicles: (and '
                           'optionally vehicle_types:)')
-    unknown = set(doc) - {'vehicle_types', 'vehicles', 'couplings'}
+    unknown = set(doc) - {'vehicle_types', 'vehicles', 'couplings', 'friction_materials'}
     if unknown:
         raise ConfigError(clip(f'{source}: unknown key(s) '
                                f'{", ".join(sorted(quote(k) for k in unknown))} '
-                               '(expected vehicle_types, vehicles, couplings)'))
+                               '(expected vehicle_types, vehicles, couplings, '
+                               'friction_materials)'))
     types = library_types()
     types.update(_types_of(doc.get('vehicle_types'), source))
     vehicles = doc.get('vehicles')
@@ -515,7 +534,9 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
         for key in END_KEYS:     # an end's own fields: the type's, then the entry's
             merged[key] = {**(types[name].get(key) or {}), **(overrides.get(key) or {})}
         entries.append((name, merged, count))
-    return _make(entries, source, _whole_couplings(doc.get('couplings'), source))
+    laws = library_materials()
+    laws.update(friction_laws.laws_of(doc.get('friction_materials'), source))
+    return _make(entries, source, _whole_couplings(doc.get('couplings'), source), laws)
 
 
 def uniform_consist(values: dict[str, Any]) -> Consist:
@@ -531,14 +552,21 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
     n = len(masses)
     if n < 2:
         raise ConfigError(f'parameters: a train needs at least 2 vehicles, got {n}')
-    fields = {f: np.full(n, _number(f, v)) for f, v in defaults.items() if f != 'brake_regime'}
+    name = defaults['friction_material']
+    materials = friction_laws.resolve(
+        [name], library_materials() if name != friction_laws.PAPER else {}, 'parameters: ')
+    fields = {f: np.full(n, _number(f, v, {name: len(materials) - 1}))
+              for f, v in defaults.items() if f != 'brake_regime'}
     fields['mass'] = np.array([float(m) for m in masses])
+    friction.check_load_weighing({f: v[:1] for f, v in fields.items()}, materials,
+                                 'parameters: ')
     ends = {f: fields[f][1:] for f in COUPLER_FIELDS}
     one = {f: fields[f][:1] for f in END_FIELDS}
     _check_characteristic({f: float(v[0]) for f, v in one.items()}, 'parameters: ')
     return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n,
                    coupling_of_ends(ends, ends),
-                   coupling_tables(one, one, np.zeros(n - 1, int), np.zeros(n - 1, int)))
+                   coupling_tables(one, one, np.zeros(n - 1, int), np.zeros(n - 1, int)),
+                   materials)
 
 
 def consist_of(values: dict[str, Any], base_dir: str | None = None) -> Consist:
