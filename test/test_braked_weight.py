@@ -105,7 +105,7 @@ def test_braked_mass_of_picks_the_label():
                                           ('load_empty_mass', 20000.0),
                                           ('load_changeover_mass', 50000.0)])
 def test_load_fields_on_paper_are_refused(field, value):
-    with pytest.raises(ConfigError, match=rf'parameters: vehicle 1: {field} set with '
+    with pytest.raises(ConfigError, match=rf'parameters: vehicle 1 \(coach\): {field} set with '
                                           r'friction_material paper'):
         SimConfig.from_dict({field: value}).consist
 
@@ -134,3 +134,17 @@ def test_load_ratio_acts_on_a_friction_material(tmp_path):
     loaded = TrainSimulator(SimConfig.from_dict(values))
     assert empty.coach[VEHICLE.BRAKE_GAIN][0] == pytest.approx(
         0.5 * loaded.coach[VEHICLE.BRAKE_GAIN][0], rel=1e-12)
+
+
+@pytest.mark.parametrize('fields, message', [
+    ({'braked_mass_p': 0.0}, 'needs its force level'),
+    ({'braked_mass_p': 1.0e6}, r'braked weight 1e\+06 kg of a 46000 kg vehicle \(lambda 2174 %\)'),
+    ({'mass': 1000.0}, r'braked weight 59000 kg of a 1000 kg vehicle')])
+def test_unreachable_force_level_is_refused_with_the_configuration(tmp_path, fields, message):
+    """Refused when the file is read (exit 2 everywhere), not when the simulator starts."""
+    path = tmp_path / 'train.yaml'
+    entry = ', '.join(f'{k}: {v!r}' for k, v in fields.items())
+    path.write_text(f'vehicles:\n  - {{type: passenger_coach, {entry}}}\n'
+                    '  - {type: passenger_coach}\n')
+    with pytest.raises(ConfigError, match=r'vehicle 1 \(passenger_coach\): .*' + message):
+        SimConfig.from_dict({'consist_file': str(path)})

@@ -210,7 +210,8 @@ def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
     if field == 'friction_material':      # a material other than paper needs a force level
         extra += ', braked_mass_p: 40000.0'
     if field.startswith('load_'):         # a load valve acts on a friction material
-        extra += ', friction_material: disc, braked_mass_p: 40000.0, load_changeover_mass: 3e4'
+        extra += (', friction_material: disc, brake_cylinder_area: 0.05, rigging_ratio: 5.0'
+                  ', load_changeover_mass: 3e4')
         extra += ', load_empty_mass: 20000.0' if field != 'load_empty_mass' else ''
         extra = extra.replace(', load_changeover_mass: 3e4', '') \
             if field == 'load_changeover_mass' else extra

@@ -139,3 +139,41 @@ def test_uniform_train_takes_a_library_law():
     cfg = SimConfig.from_dict({'friction_material': 'disc', 'braked_mass_p': 40000.0})
     assert cfg.consist.choices('friction_material') == ['disc'] * 3
     assert consist.library_materials()['disc'].mu(0.0, 1.0) == pytest.approx(0.37)
+
+
+def test_library_types_brake_on_real_materials_with_a_braked_weight():
+    """Every library type but the paper's coach: a friction law, a label, wagons load-weighed."""
+    from train_dynamics.physics.train import TrainSimulator
+    from train_dynamics.physics.kernel.layout import VEHICLE
+    laws = consist.library_materials()
+    for name, fields in consist.library_types().items():
+        material = fields.get('friction_material', 'paper')
+        if name == 'paper_coach':
+            assert material == 'paper'
+            continue
+        assert material in laws, name
+        lam = 100.0 * fields['braked_mass_p'] / fields['mass']
+        if fields.get('load_empty_mass', 0.0) > 0.0:       # the label is the loaded one
+            lam = 100.0 * fields['braked_mass_p'] / fields['load_full_mass']
+            assert 'wagon' in name
+        assert 60.0 <= lam <= 150.0, (name, lam)
+        if 'wagon' in name:
+            assert fields['load_empty_mass'] > 0.0 and fields['load_empty_ratio'] < 1.0
+    # an empty and a loaded wagon of one label: the valve's empty setting below 40 t
+    path_values = {'initial_speed': 10.0, 'brake_input': 'cylinder_per_coach'}
+    import tempfile
+    from pathlib import Path
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / 'train.yaml'
+        path.write_text('vehicles: [{type: freight_wagon_loaded}, {type: freight_wagon_empty}]\n')
+        sim = TrainSimulator(SimConfig.from_dict({'consist_file': str(path), **path_values}))
+    gain = sim.coach[VEHICLE.BRAKE_GAIN]
+    # the label's force at 90 t, the empty wagon with its own rotating masses (2.2 t, not
+    # 3.6 t: the allowance of the stop the label is fitted on), then the valve's 0.365
+    law = sim.consist.materials[1]
+    loaded = fr.braked_mass_normal_force(61000.0, 90000.0, law, 16, fr.P_RESPONSE_TIME,
+                                         inertia=0.04 * 90000.0)
+    empty = fr.braked_mass_normal_force(61000.0, 90000.0, law, 16, fr.P_RESPONSE_TIME,
+                                        inertia=0.10 * 22000.0)
+    assert gain[0] * 380000.0 == pytest.approx(loaded, rel=1e-9)
+    assert gain[1] * 380000.0 == pytest.approx(0.365 * empty, rel=1e-9)

@@ -192,15 +192,16 @@ def braked_mass_of(regime: str, braked_p: float, braked_g: float) -> float:
     return braked_p if braked_p > 0.0 else braked_g
 
 
-def check_load_weighing(fields, materials, where: str = '', labels=None) -> None:
+def check_brake_fields(fields, materials, where: str = '', labels=None) -> None:
     """
-    Raise ConfigError where a load-weighing field is set but cannot act.
+    Raise ConfigError where a load-weighing field cannot act or a force level is missing.
 
     ``fields``: field -> array per vehicle (or entry; ``labels`` name them); ``materials``
     the consist's laws (the field friction_material indexes them). On ``paper`` (eq. 13: the
     force is adhesion_coefficient m g p / p_max, proportional to the vehicle's mass already)
     every load field must keep its default; on a friction material the fields other than
-    load_empty_mass need load_empty_mass > 0 (else they would be ignored).
+    load_empty_mass need load_empty_mass > 0 (else they would be ignored); a friction
+    material needs a force level it can reach (:func:`_check_force_level`).
     """
     from train_dynamics.physics.config.table import PARAMETERS
     load = ('load_empty_mass', 'load_full_mass', 'load_changeover_mass', 'load_empty_ratio')
@@ -216,6 +217,34 @@ def check_load_weighing(fields, materials, where: str = '', labels=None) -> None
         if set_ and float(fields['load_empty_mass'][i]) <= 0.0:
             raise ConfigError(f'{where}vehicle {name}: {", ".join(set_)} set without '
                               'load_empty_mass: load-weighing needs the empty mass (> 0)')
+        if not materials[int(code)].paper:
+            _check_force_level({f: float(v[i]) for f, v in fields.items()},
+                               materials[int(code)].name, f'{where}vehicle {name}: ')
+
+
+def _check_force_level(f, material: str, where: str, v_ref: float = 120.0 / 3.6) -> None:
+    """
+    Raise ConfigError unless a vehicle of a friction law has a force level it can reach.
+
+    The force chain (brake_cylinder_area and rigging_ratio > 0) or a braked weight whose
+    Minden stop from v_ref is longer than the free run of the P response time (else no
+    force gives it: :func:`braked_mass_normal_force`); at configuration time, so a run is
+    refused before it starts.
+    """
+    if f['brake_cylinder_area'] > 0.0 and f['rigging_ratio'] > 0.0:
+        return
+    braked = max(f['braked_mass_p'], f['braked_mass_g'])
+    if braked <= 0.0:
+        raise ConfigError(f'{where}friction_material {material} needs its force level: '
+                          'brake_cylinder_area and rigging_ratio (EN 14531-1 force chain) or '
+                          'braked_mass_p (braked weight, UIC 544-1)')
+    mass = f['load_full_mass'] if f['load_empty_mass'] > 0.0 and f['load_full_mass'] > 0.0 \
+        else f['mass']
+    lam = 100.0 * braked / mass
+    if minden_distance(v_ref, lam) <= v_ref * P_RESPONSE_TIME:
+        raise ConfigError(f'{where}braked weight {braked:g} kg of a {mass:g} kg vehicle '
+                          f'(lambda {lam:.0f} %) asks a stop from 120 km/h shorter than the '
+                          'response time of the brake allows')
 
 
 def force_rows(consist, inertia: np.ndarray, fill, g: float) -> np.ndarray:

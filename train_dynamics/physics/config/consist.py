@@ -396,7 +396,7 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
         for i, end in enumerate(own):
             _check_characteristic(end, f'{source}: vehicle {labels[i]}: {key} end: ')
     check_traction_power(per_entry, f'{source}: ', labels)
-    friction.check_load_weighing(per_entry, materials, f'{source}: ', labels)
+    friction.check_brake_fields(per_entry, materials, f'{source}: ', labels)
     n = int(counts.sum())
     if n < 2:
         raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {n}')
@@ -558,8 +558,8 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
     fields = {f: np.full(n, _number(f, v, {name: len(materials) - 1}))
               for f, v in defaults.items() if f != 'brake_regime'}
     fields['mass'] = np.array([float(m) for m in masses])
-    friction.check_load_weighing({f: v[:1] for f, v in fields.items()}, materials,
-                                 'parameters: ')
+    friction.check_brake_fields({f: v[:1] for f, v in fields.items()}, materials,
+                                'parameters: ', ['1 (coach)'])
     ends = {f: fields[f][1:] for f in COUPLER_FIELDS}
     one = {f: fields[f][:1] for f in END_FIELDS}
     _check_characteristic({f: float(v[0]) for f, v in one.items()}, 'parameters: ')
