@@ -76,8 +76,7 @@ MINDEN_D = 6.1
 @functools.lru_cache(maxsize=1)
 def _library() -> dict:
     """Return the vehicle library's friction laws (read once per process)."""
-    from train_dynamics.physics.config.consist import library_materials
-    return library_materials()
+    return friction_laws.library_laws()
 
 
 def law_of(material) -> FrictionLaw:

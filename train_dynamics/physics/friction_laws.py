@@ -219,10 +219,23 @@ def laws_of(doc: Any, source: str) -> dict[str, FrictionLaw]:
             raise ConfigError(f'{source}: friction_materials: name {quote(name)} is not a '
                               'string')
         if name == PAPER:
-            raise ConfigError(f'{source}: friction_materials: {PAPER} is the paper\'s eq. 13, '
+            raise ConfigError(f'{source}: friction_materials: {PAPER} is eq. 13 of the paper, '
                               'built in; give the law another name')
         out[name] = law_of_entry(name, entry, source)
     return out
+
+
+def library_laws() -> dict[str, FrictionLaw]:
+    """Return the laws of the vehicle library's ``friction_materials:`` (config/vehicles.yaml)."""
+    from train_dynamics.physics.config.files import config_dirs, FastRosParamLoader, resolve_path
+    import yaml
+    path = resolve_path('vehicles.yaml', str(config_dirs()[0]))
+    try:
+        with open(path, encoding='utf-8') as fh:
+            doc = yaml.load(fh, Loader=FastRosParamLoader) or {}
+    except (OSError, UnicodeDecodeError, yaml.YAMLError) as exc:
+        raise ConfigError(f'cannot read {path}: {exc}'.splitlines()[0]) from None
+    return laws_of(doc.get('friction_materials') if isinstance(doc, dict) else None, str(path))
 
 
 def resolve(names, laws: Mapping[str, FrictionLaw], where: str = '') -> list[FrictionLaw]:

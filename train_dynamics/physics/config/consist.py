@@ -210,9 +210,7 @@ def library_types() -> dict[str, dict[str, Any]]:
 
 def library_materials() -> dict[str, Any]:
     """Return the friction laws of the vehicle library (physics/friction_laws.py), checked."""
-    path = resolve_path(LIBRARY, str(config_dirs()[0]))
-    doc = _read_yaml(path) or {}
-    return friction_laws.laws_of(doc.get('friction_materials'), str(path))
+    return friction_laws.library_laws()
 
 
 def end_of_coupling(field: str, value: float) -> float:
