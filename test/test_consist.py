@@ -177,6 +177,8 @@ _CURVE = ('characteristics: {c: {stroke: [0.0, 0.1], loading: [0.0, 1.0e5], '
 
 def _distinctive(spec):
     """Return a valid value of the field ``spec`` declares that is not its default."""
+    if spec.name == 'friction_material':      # a friction law of the vehicle library
+        return 'disc'
     if spec.choices:
         return next(c for c in spec.choices if c != spec.default)
     if isinstance(spec.default, bool):
@@ -215,6 +217,12 @@ def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
     extra = f', {power}: 1.0e6' if power else ''
     if field == 'friction_material':      # a material other than paper needs a force level
         extra += ', braked_mass_p: 40000.0'
+    if field.startswith('load_'):         # a load valve acts on a friction material
+        extra += (', friction_material: disc, brake_cylinder_area: 0.05, rigging_ratio: 5.0'
+                  ', load_changeover_mass: 3e4')
+        extra += ', load_empty_mass: 20000.0' if field != 'load_empty_mass' else ''
+        extra = extra.replace(', load_changeover_mass: 3e4', '') \
+            if field == 'load_changeover_mass' else extra
     if field == 'piston_stroke':          # a stroke needs the pistons' area
         extra += ', brake_cylinder_area: 0.0507'
     curve = _CURVE if field in consist.CURVE_FIELDS else ''
@@ -222,7 +230,10 @@ def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
                            'vehicles: [{type: w, count: 3}]\n')
     cfg = SimConfig.from_dict({'consist_file': path, **_CONTEXT.get(field, {})})
     kernel_value = value
-    if spec.choices:            # a choice reaches the kernel as its index in the choices
+    if field == 'friction_material':    # a law's code: its index in the consist's laws
+        assert cfg.consist.choices(field) == [value] * 3
+        kernel_value = 1.0              # paper is 0, the first law used 1
+    elif spec.choices:          # a choice reaches the kernel as its index in the choices
         assert cfg.consist.choices(field) == [value] * 3
         kernel_value = float(spec.choices.index(value))
     elif field in consist.CURVE_FIELDS:     # the curve's number: the first of the consist

@@ -91,20 +91,24 @@ def test_item5_momentum_balance_with_resistance_gradient_and_brakes(tmp_path, k,
     p0 = sim.momentum
     weight = sim.masses * G
     dt = 0.002
-    res, t_prev, f_prev = 0.0, 0.0, None
+    # the library's wagons brake on a friction law (their force follows the speed): the
+    # brakes' impulse is integrated like the resistance's
+    res, brakes, t_prev, f_prev, b_prev = 0.0, 0.0, 0.0, None, None
     while sim.t < 3.0 - 1e-9:
         sim.advance_to(sim.t + dt)
         f = float(np.sum(sim.resistance_force))
+        b = float(np.sum(sim.brake_force))
         if f_prev is None:
-            f_prev = f
+            f_prev, b_prev = f, b
         res += 0.5 * (f + f_prev) * (sim.t - t_prev)
-        t_prev, f_prev = sim.t, f
+        brakes += 0.5 * (b + b_prev) * (sim.t - t_prev)
+        t_prev, f_prev, b_prev = sim.t, f, b
         assert np.all(sim.v > 0.0)       # every vehicle moving forward: brakes retard
     brake = sim.brake_force
     assert brake.min() > 0.0 and sim.fault is None
     t = sim.t
     expected = (traction_impulse(t) - np.sum(weight) * gradient * 1e-3 * t
-                - np.sum(brake) * t + res)
+                - brakes + res)
     assert sim.momentum - p0 == pytest.approx(expected, rel=1e-5, abs=1e-6 * p0)
     assert sim.momentum - p0 > 0.5 * traction_impulse(t)    # the train still gains speed
     assert np.max(sim.coupler_force_envelope[0]) > 1e5      # the slack ran out: blocked

@@ -197,6 +197,7 @@ def test_wheelset_solve_against_bisection(material):
     from train_dynamics.physics import friction
     from train_dynamics.physics.kernel import wheelset as kw
     code = friction.MATERIAL_CODES[material]
+    law = friction.law_of(material).vector
     h, jr, load, g, blocks, rho = 0.002, 2079.0, 441450.0, 9.81, 8.0, 0.55
     for v in (0.3, 5.0, 44.4):
         mu = wsl.available_adhesion(v, 0.05 if v < 10.0 else wsl.DRY_ADHESION)
@@ -206,12 +207,12 @@ def test_wheelset_solve_against_bisection(material):
                 if code != friction.PAPER else 0.0
 
             def brake(u, fb_paper=fb_paper, normal=normal):
-                return kw.wheel_brake(u, fb_paper, code, normal, blocks, rho, g)
+                return kw.wheel_brake(u, fb_paper, law, normal, blocks, rho, g)
 
             for u0 in (v, 0.999 * v, 0.5 * v, 0.0):
                 ref = wsl.wheelset_step(u0, v, h, jr, load, mu, brake)
                 for guess in (ref[0], u0, v + 1.0):
-                    u1, fc, fb = kw.wheelset_solve(u0, v, h, jr, load, mu, fb_paper, code,
+                    u1, fc, fb = kw.wheelset_solve(u0, v, h, jr, load, mu, fb_paper, law,
                                                    normal, blocks, rho, g, guess)
                     tol = kw.U_TOL * (1.0 + v)
                     f, slope = kw.creep_and_slope(v - u1, v, mu)

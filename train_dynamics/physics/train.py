@@ -189,6 +189,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         c[VEHICLE.WEIGHT] = self.masses * float(cfg.gravity)
         c[[VEHICLE.BRAKE_GAIN, VEHICLE.BRAKE_OFF]] = friction.force_rows(
             consist, self.inertia, self.fill, float(cfg.gravity))
+        laws = friction.law_rows(consist)
+        c[VEHICLE.LAW0:VEHICLE.LAW0 + laws.shape[0]] = laws
         for name, row in self._VEHICLE_ROWS.items():
             c[row] = consist[name]
         c[VEHICLE.FRONT0] = self.track.fronts(consist['length'])

@@ -36,12 +36,12 @@ field. Never imports rclpy.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field as _field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
 
 import numpy as np
-from train_dynamics.physics import characteristics
+from train_dynamics.physics import characteristics, friction, friction_laws
 from train_dynamics.physics.config import spec
 from train_dynamics.physics.config.budgets import fmt_bytes
 from train_dynamics.physics.config.ends import (CURVE_FIELDS, Curves, curves_of, END_KEYS,
@@ -306,6 +306,8 @@ class Consist:
     regimes: list[str]                 # brake_regime per vehicle
     couplings: dict[str, np.ndarray]   # coupling constants, arrays of N-1
     tables: np.ndarray                 # (len(TABLE_ROWS), N-1)
+    #: the friction laws the field friction_material indexes (0: paper, eq. 13)
+    materials: list = _field(default_factory=lambda: [friction_laws.paper_law()])
 
     @property
     def n(self) -> int:
@@ -320,6 +322,8 @@ class Consist:
         """Return a choice field of every vehicle by name (stored as its index, _number)."""
         if field == 'brake_regime':
             return list(self.regimes)
+        if field == 'friction_material':
+            return [self.materials[int(code)].name for code in self.fields[field]]
         names = VEHICLE_PARAMETERS[field].choices
         return [names[int(code)] for code in self.fields[field]]
 
@@ -356,14 +360,17 @@ def _end(row: dict[str, Any], key: str) -> dict[str, float]:
     return {f: float(own.get(f, row[f])) for f in END_FIELDS}
 
 
-def _number(field: str, value: Any) -> float:
-    """Return a field's value as a number: a choice (friction_material) as its index."""
+def _number(field: str, value: Any, codes: Mapping[str, int] | None = None) -> float:
+    """Return a field's value as a number: a choice as its index, a material its code."""
+    if field == 'friction_material':
+        return float((codes or {'paper': 0})[value])
     choices = VEHICLE_PARAMETERS[field].choices
     return float(choices.index(value)) if choices else float(value)
 
 
 def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
-          whole: Mapping[str, float] | None = None, curves=(), gravity: float = 9.81) -> Consist:
+          whole: Mapping[str, float] | None = None, curves=(), gravity: float = 9.81,
+          laws: Mapping[str, Any] | None = None) -> Consist:
     """
     Build a Consist from (type, complete field dict, count) entries of a file.
 
@@ -372,11 +379,14 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
     fields repeated ``count`` times (the caller bounded the sum of the counts). Coupling j
     joins the rear end of vehicle j to the front end of vehicle j + 1
     (:func:`coupling_of_ends`); ``whole``: whole-coupling constants that replace the ends'
-    series values in every coupling.
+    series values in every coupling; ``laws``: the friction laws by name (library and file).
     """
     counts = np.array([c for _, _, c in entries], dtype=np.int64)
     numeric = [f for f in VEHICLE_FIELDS if f != 'brake_regime']
-    per_entry = {f: np.array([_number(f, e[1][f]) for e in entries], dtype=float)
+    materials = friction_laws.resolve([e[1]['friction_material'] for e in entries],
+                                      laws or {}, f'{source}: ')
+    codes = {law.name: k for k, law in enumerate(materials)}
+    per_entry = {f: np.array([_number(f, e[1][f], codes) for e in entries], dtype=float)
                  for f in numeric}
     firsts = np.concatenate(([1], 1 + np.cumsum(counts[:-1])))
     labels = [f'{first} ({name})' for first, (name, _, _) in zip(firsts, entries)]
@@ -388,6 +398,7 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
         for i, end in enumerate(own):
             _check_characteristic(end, f'{source}: vehicle {labels[i]}: {key} end: ')
     check_traction_power(per_entry, f'{source}: ', labels)
+    friction.check_brake_fields(per_entry, materials, f'{source}: ', labels)
     n = int(counts.sum())
     if n < 2:
         raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {n}')
@@ -408,7 +419,7 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
                                  curves, source)
         pretension_strokes(couplings, tables, ends['rear'], ends['front'], entry_of[:-1],
                            entry_of[1:], source)
-    return Consist(types, fields, regimes, couplings, tables)
+    return Consist(types, fields, regimes, couplings, tables, materials)
 
 
 def _check_characteristic(end: Mapping[str, float], where: str) -> None:
@@ -500,12 +511,13 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
     if not isinstance(doc, dict):
         raise ConfigError(f'{source}: a consist file is a mapping with vehicles: (and '
                           'optionally vehicle_types:)')
-    unknown = set(doc) - {'vehicle_types', 'vehicles', 'couplings', 'characteristics'}
+    unknown = set(doc) - {'vehicle_types', 'vehicles', 'couplings', 'characteristics',
+                          'friction_materials'}
     if unknown:
         raise ConfigError(clip(f'{source}: unknown key(s) '
                                f'{", ".join(sorted(quote(k) for k in unknown))} '
                                '(expected vehicle_types, vehicles, couplings, '
-                               'characteristics)'))
+                               'characteristics, friction_materials)'))
     types = library_types()
     types.update(_types_of(doc.get('vehicle_types'), source))
     curves = Curves({**library_curves(), **curves_of(doc.get('characteristics'), source)})
@@ -539,8 +551,10 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
         own = {**types[name], **overrides, **{k: merged[k] for k in END_KEYS}}
         merged = ends_resolved(merged, own, curves, f'{where} ({name})')
         entries.append((name, merged, count))
+    laws = friction_laws.library_laws()
+    laws.update(friction_laws.laws_of(doc.get('friction_materials'), source))
     return _make(entries, source, _whole_couplings(doc.get('couplings'), source),
-                 curves.arrays, float(values.get('gravity', 9.81)))
+                 curves.arrays, float(values.get('gravity', 9.81)), laws)
 
 
 def uniform_consist(values: dict[str, Any]) -> Consist:
@@ -558,8 +572,14 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
         raise ConfigError(f'parameters: a train needs at least 2 vehicles, got {n}')
     curves = Curves(library_curves() if any(defaults[f] for f in CURVE_FIELDS) else {})
     defaults = ends_resolved({**defaults, 'buffers_per_end': 1}, {}, curves, 'parameters')
-    fields = {f: np.full(n, _number(f, v)) for f, v in defaults.items() if f != 'brake_regime'}
+    name = defaults['friction_material']
+    materials = friction_laws.resolve(
+        [name], friction_laws.library_laws() if name != friction_laws.PAPER else {}, 'parameters: ')
+    fields = {f: np.full(n, _number(f, v, {name: len(materials) - 1}))
+              for f, v in defaults.items() if f != 'brake_regime'}
     fields['mass'] = np.array([float(m) for m in masses])
+    friction.check_brake_fields({f: v[:1] for f, v in fields.items()}, materials,
+                                'parameters: ', ['1 (coach)'])
     resistance_laws(fields, np.ones(n, int), float(values.get('gravity', 9.81)))
     ends = {f: fields[f][1:] for f in COUPLER_FIELDS}
     one = {f: fields[f][:1] for f in END_FIELDS}
@@ -568,7 +588,8 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
     couplings = coupling_of_ends(ends, ends)
     tables = coupling_tables(one, one, zeros, zeros, curves.arrays)
     pretension_strokes(couplings, tables, one, one, zeros, zeros, 'parameters')
-    return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n, couplings, tables)
+    return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n, couplings, tables,
+                   materials)
 
 
 def consist_of(values: dict[str, Any], base_dir: str | None = None) -> Consist:

@@ -16,10 +16,7 @@ from typing import Any, Mapping
 from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
                                                 DOUBLE_ARRAY, EQUAL_FORCE, INTEGER, ParamSpec,
                                                 SERIES, STRING, STRING_ARRAY)
-# the friction materials in the order of their codes in the kernel (the models and their
-# sources: physics/friction.py)
 from train_dynamics.physics.config.table_ends import END_AND_RESISTANCE_PARAMS
-from train_dynamics.physics.kernel.friction import MATERIALS as FRICTION_MATERIALS
 from train_dynamics.quoting import quote
 
 # Pressure defaults, written once (used by the simulator and the brake valve).
@@ -335,9 +332,11 @@ _PARAMS = [
     # of the vehicle's regime (UIC 544-1). Ignored for paper (eq. 13).
     ParamSpec('friction_material', 'paper', STRING,
               'Friction material of the brakes: paper (eq. 13 with the adhesion coefficient, '
-              'as in the paper), cast_iron (Karwatzki: falls with speed and block force), '
-              'composite_k, composite_ll (composition blocks), disc (pads on discs).',
-              choices=FRICTION_MATERIALS, vehicle='friction_material', row='MATERIAL'),
+              'as in the paper) or a friction law of the friction_materials: of the vehicle '
+              'library or a consist file (physics/friction_laws.py): shipped cast_iron '
+              '(Karwatzki: falls with speed and block force), composite_k, composite_ll '
+              '(composition blocks), disc (pads on discs).',
+              vehicle='friction_material', row='MATERIAL'),
     ParamSpec('brake_cylinder_area', 0.0, DOUBLE,
               'Force chain: piston area of one brake cylinder [m^2] (a 10 inch cylinder: '
               '0.0507); 0 = no force chain (braked mass instead).', low=0.0, high=1.0,

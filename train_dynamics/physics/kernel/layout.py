@@ -71,6 +71,7 @@ from __future__ import annotations
 from collections import namedtuple
 
 from train_dynamics.physics.config.table import KERNEL_ROWS
+from train_dynamics.physics.kernel.friction import LAW_LEN
 
 
 def _group(name: str, fields: list, after=()):
@@ -90,7 +91,7 @@ DERIVED_VEHICLE_ROWS = [
     'BRAKE_GAIN',   # friction brakes: normal force per cylinder pressure K1 [N/Pa]
     'BRAKE_OFF',    # friction brakes: normal force lost to the return springs K0 [N]
     'WHEEL_MASS',   # wheelsets: reduced mass of the wheelset J / r^2 [kg]
-]
+] + [f'LAW{k}' for k in range(LAW_LEN)]     # friction law (kernel/friction.py), LAW0 its kind
 #: then one row per per-vehicle field that the kernel reads as is, in table order: the
 #: ``row`` of its ParamSpec (config/table.py, :data:`KERNEL_ROWS`: name, unit, range there)
 VEHICLE = _group('VehicleRows', DERIVED_VEHICLE_ROWS + list(KERNEL_ROWS.values()))

@@ -100,10 +100,11 @@ def available_braking_force(coach, sc, out):
     brakes.braking_force(coach[STATE.PCYL], sc[PARAM.PMAX], sc[PARAM.MU],
                          coach[VEHICLE.BMASS], sc[PARAM.G], out)
     if sc[PARAM.FRICTION] != 0.0:
-        friction.friction_braking_force(coach[VEHICLE.MATERIAL], coach[STATE.PCYL],
-                                        coach[STATE.V], coach[VEHICLE.BRAKE_GAIN],
-                                        coach[VEHICLE.BRAKE_OFF], coach[VEHICLE.BLOCKS],
-                                        coach[VEHICLE.RHO], sc[PARAM.G], out)
+        friction.friction_braking_force(coach[VEHICLE.MATERIAL],
+                                        coach[VEHICLE.LAW0:VEHICLE.LAW0 + friction.LAW_LEN],
+                                        coach[STATE.PCYL], coach[STATE.V],
+                                        coach[VEHICLE.BRAKE_GAIN], coach[VEHICLE.BRAKE_OFF],
+                                        coach[VEHICLE.BLOCKS], coach[VEHICLE.RHO], out)
 
 
 @jit(inline=True)

@@ -125,14 +125,18 @@ def builtin_valve(v_ref: float, u: float, decel: float) -> int:
 
 
 @jit(inline=True)
-def wheel_brake(u: float, fb_paper: float, material: int, normal: float, blocks: float,
+def wheel_brake(u: float, fb_paper: float, material, normal: float, blocks: float,
                 rho: float, g: float) -> float:
-    """Return the brake's force at the wheel [N] at wheel speed u [m/s] (paper: fb_paper)."""
-    if material == friction.PAPER:
+    """
+    Return the brake's force at the wheel [N] at wheel speed u [m/s] (paper: fb_paper).
+
+    ``material`` the vehicle's friction law (kernel/friction.py: LAW_LEN numbers, kind first).
+    """
+    if material[0] == friction.PAPER_LAW:
         return fb_paper
     if normal <= 0.0:
         return 0.0
-    return friction.material_friction(material, u, normal / blocks, g) * normal * rho
+    return friction.law_friction(material, u, normal / blocks) * normal * rho
 
 
 @jit(inline=True)
@@ -294,7 +298,7 @@ def wheelset_substep(coach, sc, ws):
             coach[OUTPUT.F_CREEP, i] = fb[i] if s > 0.0 else 0.0
             coach[OUTPUT.ADH_USED, i] = coach[OUTPUT.F_CREEP, i] / load
             continue
-        material = int(coach[VEHICLE.MATERIAL, i])
+        material = coach[VEHICLE.LAW0:VEHICLE.LAW0 + friction.LAW_LEN, i]
         normal = max(coach[STATE.PCYL, i] * coach[VEHICLE.BRAKE_GAIN, i]
                      - coach[VEHICLE.BRAKE_OFF, i], 0.0)
         # the first guess: the wheel's last deceleration carried on over the step
