@@ -162,8 +162,8 @@ def _floor(name: str, t_eval: np.ndarray, ref_F: np.ndarray) -> dict:
     inertia[sim.n // 2] *= 1.0 + FLOOR_PERTURBATION
     law = ChainLaw.of_simulator(sim)
     perturbed = solve_chain(inertia, law, v0, steps, t_eval, brake_of_t=brake)
-    return {'case': name, 'setting': f'reference, coach {sim.n // 2 + 1} mass '
-                                      f'x (1 + {FLOOR_PERTURBATION:g})',
+    label = f'reference, coach {sim.n // 2 + 1} mass x (1 + {FLOOR_PERTURBATION:g})'
+    return {'case': name, 'setting': label,
             'force_pct': 100.0 * np.abs(perturbed.F - ref_F).max() / np.abs(ref_F).max(),
             'disp_pct': float('nan'), 'peak_pct': float('nan'), 'steps': 0, 'groups': 0,
             'substeps': 0, 'wall_s': float('nan'), 'fault': '',

@@ -26,6 +26,7 @@ def test_tube_counts_a_wrong_level_in_full():
     assert comparison.tube(T, 1.03 * ref, ref, tau=0.01) == pytest.approx(0.03, rel=1e-6)
     # a 5 ms shift of a 0.5 Hz sine (four whole periods, then at rest) stays inside a
     # +-10 ms tube
+
     def wave(t):
         return np.where((t > 0.0) & (t < 8.0), 100.0 * np.sin(2 * np.pi * 0.5 * t), 0.0)
     ref = wave(T)

@@ -573,8 +573,8 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
     curves = Curves(library_curves() if any(defaults[f] for f in CURVE_FIELDS) else {})
     defaults = ends_resolved({**defaults, 'buffers_per_end': 1}, {}, curves, 'parameters')
     name = defaults['friction_material']
-    materials = friction_laws.resolve(
-        [name], friction_laws.library_laws() if name != friction_laws.PAPER else {}, 'parameters: ')
+    laws = friction_laws.library_laws() if name != friction_laws.PAPER else {}
+    materials = friction_laws.resolve([name], laws, 'parameters: ')
     fields = {f: np.full(n, _number(f, v, {name: len(materials) - 1}))
               for f, v in defaults.items() if f != 'brake_regime'}
     fields['mass'] = np.array([float(m) for m in masses])
