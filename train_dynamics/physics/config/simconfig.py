@@ -21,6 +21,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from train_dynamics.physics import track
+from train_dynamics.physics.config.blending_params import check_blending
 from train_dynamics.physics.config.budgets import (config_memory, fmt_bytes, MAX_PERIOD_SECONDS,
                                                    max_period_steps, MAX_SIMULATOR_MEMORY)
 from train_dynamics.physics.config.consist import (check_friction_below_stiffness,
@@ -138,6 +139,18 @@ class SimConfig:
     brake_spring_force: float = 0.0                   # force chain: return spring [N]
     rigging_ratio: float = 0.0                        # force chain: lever ratio i [-]
     rigging_efficiency: float = 0.83                  # force chain: eta_r [-]
+    # multiple units: brake control unit and blending (config/blending_params.py)
+    blending: str = 'none'                            # 'none' or 'builtin'
+    blending_scope: str = 'train'                     # 'train' or 'car'
+    brake_demand_mode: str = 'fraction'               # 'fraction' or 'deceleration'
+    full_service_deceleration: float = 1.0            # [m/s^2]
+    blending_jerk_limit: float = 1.0                  # [m/s^3]
+    blending_period: float = 0.01                     # BCU cycle [s]
+    friction_response_time: float = 0.3               # EP cylinder time constant [s]
+    demand_schedule_times: list[float] = field(default_factory=list)   # [s]
+    demand_schedule_values: list[float] = field(default_factory=list)  # as brake_demand_mode
+    emergency_schedule_time: float = -1.0             # [s]; < 0 none
+    ed_trip_schedule_time: float = -1.0               # [s]; < 0 never
     brake_blocks: float = 8.0                         # blocks or pads per vehicle
     brake_radius_ratio: float = 1.0                   # disc: r_eff / r_wheel [-]
     braked_mass_p: float = 0.0                        # braked mass, regime P [kg]
@@ -293,6 +306,7 @@ class SimConfig:
     def check(self) -> None:
         """Cross-parameter checks; raises :class:`ConfigError`."""
         self._check_real_train()
+        check_blending(self)
         if self.masses and len(self.masses) < 2:
             raise ConfigError(f'masses: a train needs at least 2 coaches, got {len(self.masses)}')
         check_output_grid(float(self.publish_rate), float(self.integration_step))

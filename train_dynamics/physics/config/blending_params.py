@@ -1,0 +1,91 @@
+"""
+Parameters of multiple units: the brake control unit and its blending (physics/blending.py).
+
+Declared here, one :class:`~train_dynamics.physics.config.spec.ParamSpec` each, and added to
+the simulator's table (:data:`~train_dynamics.physics.config.table.PARAMETERS`); the rules
+between them and the other parameters are :func:`check_blending`. Motor cars are vehicles
+with ``max_dynamic_brake_force`` > 0: their electro-dynamic (ED) brake is the locomotive's
+dynamic brake (``kernel/traction.py``: force and power limits, adhesion, fade-out below
+``dynamic_brake_fade_speed``, build-up over ``traction_build_up_time``).
+"""
+from __future__ import annotations
+
+from typing import Any
+
+from train_dynamics.physics.config.spec import ConfigError, DOUBLE, DOUBLE_ARRAY, ParamSpec, STRING
+
+#: the blending modes: none (friction only, the brake inputs of brake_input as before),
+#: builtin (the reference brake control unit of physics/blending.py)
+BLENDING_MODES = ('none', 'builtin')
+
+BLENDING_PARAMS = [
+    ParamSpec('blending', 'none', STRING,
+              'Brake blending of a multiple unit: none (friction brakes only, driven by '
+              'brake_input as before) or builtin (a brake control unit takes the train-wide '
+              'brake_demand: the electro-dynamic brake of the motor cars first, up to its '
+              'limit at the present speed, the friction brake of every car makes up the rest; '
+              'needs brake_input cylinder_per_coach and brake_model empirical: the unit sets '
+              'the cylinder pressures itself).', choices=BLENDING_MODES),
+    ParamSpec('blending_scope', 'train', STRING,
+              'builtin blending: train (the ED force of the motor cars relieves every car: '
+              'the friction make-up is shared by all cars in proportion to their mass) or '
+              'car (each car brakes its own mass: a motor car its ED force, then friction; a '
+              'trailer friction only).', choices=('train', 'car')),
+    ParamSpec('brake_demand_mode', 'fraction', STRING,
+              'Meaning of brake_demand: fraction (of full service, in [0, 1]: '
+              'fraction x full_service_deceleration) or deceleration [m/s^2].',
+              choices=('fraction', 'deceleration')),
+    ParamSpec('full_service_deceleration', 1.0, DOUBLE,
+              'Deceleration demanded by a full-service brake_demand [m/s^2] (EN 13452-1 '
+              'expects about 1 m/s^2 for EMUs and high-speed units; the unit files set their '
+              "operators' figure).", low=0.05, high=5.0),
+    ParamSpec('blending_jerk_limit', 1.0, DOUBLE,
+              'builtin blending: largest rate of change of the demanded deceleration [m/s^3] '
+              '(the comfort limit of brake control units, typically 0.75-1.5 m/s^3; a guess '
+              'within that range). Emergency is not limited.', low=0.01, high=100.0),
+    ParamSpec('blending_period', 0.01, DOUBLE,
+              'builtin blending: cycle time of the brake control unit [s] (it reads the speeds '
+              'and achieved ED forces and sets ED commands and cylinder pressures once per '
+              'period; 10 ms: a guess, BCUs run at 10-50 ms).', low=1.0e-4, high=1.0),
+    ParamSpec('friction_response_time', 0.3, DOUBLE,
+              'builtin blending: time constant [s] of the EP-controlled cylinder pressure '
+              '(first-order lag from the pressure the unit commands to the cylinder; a guess '
+              'for an analogue EP valve feeding a disc-brake cylinder, 95 % in 3 time '
+              'constants).', low=1.0e-3, high=10.0),
+    ParamSpec('demand_schedule_times', [], DOUBLE_ARRAY,
+              'Offline runs without brake_demand in an input bag: times [s] (increasing) '
+              'from which the brake demand is the matching demand_schedule_values entry; '
+              'needs blending builtin.', low=0.0, high=1.0e7),
+    ParamSpec('demand_schedule_values', [], DOUBLE_ARRAY,
+              'Brake demand (as brake_demand_mode) from each demand_schedule_times entry on.',
+              low=0.0, high=10.0),
+    ParamSpec('emergency_schedule_time', -1.0, DOUBLE,
+              'Offline runs without brake_emergency in an input bag: time [s] of an emergency '
+              'brake application (bypasses the blending); < 0: none. Needs blending builtin.',
+              low=-1.0, high=1.0e7),
+    ParamSpec('ed_trip_schedule_time', -1.0, DOUBLE,
+              'Offline runs without ed_brake/trip in an input bag: time [s] at which the '
+              'electro-dynamic brake of every motor car is lost (line breaker trip); < 0: '
+              'never. Needs blending builtin.', low=-1.0, high=1.0e7),
+]
+
+
+def check_blending(cfg: Any) -> None:
+    """Refuse a blending configuration that cannot run; raises :class:`ConfigError`."""
+    times, values = cfg.demand_schedule_times, cfg.demand_schedule_values
+    if len(times) != len(values):
+        raise ConfigError(f'demand_schedule_times and demand_schedule_values must have the '
+                          f'same length ({len(times)} != {len(values)})')
+    if any(b <= a for a, b in zip(times, times[1:])):
+        raise ConfigError('demand_schedule_times: must strictly increase')
+    if cfg.blending == 'none':
+        if times or cfg.emergency_schedule_time >= 0.0 or cfg.ed_trip_schedule_time >= 0.0:
+            raise ConfigError('demand_schedule_times, emergency_schedule_time and '
+                              'ed_trip_schedule_time need blending builtin')
+        return
+    if cfg.brake_input != 'cylinder_per_coach' or cfg.brake_model != 'empirical':
+        raise ConfigError(f'blending {cfg.blending}: needs brake_input cylinder_per_coach and '
+                          f'brake_model empirical (the brake control unit sets the cylinder '
+                          f'pressures), got {cfg.brake_input} / {cfg.brake_model}')
+    if cfg.brake_demand_mode == 'fraction' and any(v > 1.0 for v in values):
+        raise ConfigError('demand_schedule_values: a fraction of full service is at most 1')
