@@ -206,7 +206,7 @@ def test_release_gives_the_traction_commands_back(unit):
 
 
 def test_blending_configuration_errors(tmp_path):
-    """Blending builtin needs the unit to own the cylinders; schedules need builtin; fraction <= 1."""
+    """Blending builtin needs the cylinders; schedules need builtin; a fraction is <= 1."""
     with pytest.raises(ConfigError, match='cylinder_per_coach'):
         SimConfig(blending='builtin').check()
     with pytest.raises(ConfigError, match='need blending builtin'):

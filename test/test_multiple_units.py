@@ -1,6 +1,7 @@
 """
-The shipped multiple units with builtin blending, run offline (config/emu_flirt_4.yaml,
-config/hs_ice3_8.yaml), and the brake control unit's inputs from an input bag.
+The shipped multiple units with builtin blending, run offline; the unit's inputs from a bag.
+
+config/emu_flirt_4.yaml and config/hs_ice3_8.yaml: a full-service stop from top speed each.
 """
 from pathlib import Path
 

@@ -16,7 +16,7 @@ from typing import Any
 from train_dynamics import topics
 from train_dynamics.recording.bags import bag_info, BagError, read_topics
 from train_dynamics.recording.inputs import InputBagError
-from train_dynamics.simulation.demand import BLENDING_INDEX, BLENDING_TOPICS, blending_rejection
+from train_dynamics.simulation.demand import BLENDING_INDEX, blending_rejection, BLENDING_TOPICS
 from train_dynamics.simulation.runner import step_of, TractionEvent
 
 _log = logging.getLogger(__name__)

@@ -67,6 +67,7 @@ from train_dynamics import topics
 from train_dynamics.physics.config import input_rejection, SIM_NODE_PARAMETERS, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
+from train_dynamics.ros.blending_inputs import BlendingInputs
 from train_dynamics.ros.ep_inputs import EpInputs
 from train_dynamics.ros.publishers import stamp
 from train_dynamics.ros.throttle import Throttle
@@ -205,6 +206,8 @@ class BrakeInputs:
         self.ep = EpInputs(node, INPUT_QOS, self._reject_traction, self._notify)
         #: the slide-protection valves (wsp external; same validation counts and timeout)
         self.wsp = WspInputs(node, INPUT_QOS, self._reject_traction, self._notify)
+        #: the brake control unit's demand, emergency, ED trip (blending builtin)
+        self.blending = BlendingInputs(node, INPUT_QOS, self._reject_traction, self._notify)
 
     def _notify(self) -> None:
         """Tell the simulation thread that an input was accepted (executor thread)."""
@@ -257,6 +260,7 @@ class BrakeInputs:
         self.traction.start(cfg.consist.commanded if cfg.external_forces else [])
         self.ep.start(cfg.ep_commanded)
         self.wsp.start(list(range(n)) if cfg.wsp == 'external' else [])
+        self.blending.start(cfg)
 
     def set_policy(self, timeout: float, on_timeout: str) -> None:
         """Report inputs older than ``timeout`` [s wall]; ``on_timeout``: hold/emergency."""
@@ -435,6 +439,7 @@ class BrakeInputs:
         self.traction.apply(now, sim, record, self.timeout, self.on_timeout == 'emergency')
         self.ep.apply(now, sim, record, self.timeout)
         self.wsp.apply(now, sim, record, self.timeout, False)
+        self.blending.apply(sim, record)
         if self._buffer.pending:        # input_timing stamp (or just switched off): those due
             self.schedule_due(sim, sim.t if self.by_stamp else math.inf, record)
         news = self._take(now)

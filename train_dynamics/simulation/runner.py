@@ -22,7 +22,7 @@ from typing import Any
 from train_dynamics import topics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.simulation.demand import (apply_blending_input, BLENDING_INDEX,
-                                              BLENDING_TOPICS, blending_schedule)
+                                              blending_schedule, BLENDING_TOPICS)
 
 
 #: TractionEvent.index of the EP / ECP train-line command
