@@ -215,3 +215,46 @@ def test_blending_configuration_errors(tmp_path):
         SimConfig(blending='builtin', brake_input='cylinder_per_coach',
                   demand_schedule_times=[1.0], demand_schedule_values=[1.5]).check()
     assert SimConfig().blending == 'none' and math.isfinite(SimConfig().blending_period)
+
+
+def test_track_brake_shortens_the_stop_by_its_impulse(unit, tmp_path):
+    """
+    Emergency with constant track brake forces: closed-form stopping distance and momentum.
+
+    Friction at once (tau 1 ms) and constant, a_f = mu_a g m / M per car; the track brakes
+    (F_T per motor car, constant: v_h huge) from the delay d on: a = a_f + 2 F_T / M. Then
+    s = v0 d - a_f d^2 / 2 + v(d)^2 / (2 a), v(d) = v0 - a_f d; without them v0^2 / (2 a_f).
+    """
+    v0, delay, f_t = 20.0, 0.5, 30000.0
+    text = UNIT.replace('rotating_mass_factor: 0.08', 'rotating_mass_factor: 0.0').replace(
+        'rotating_mass_factor: 0.04', 'rotating_mass_factor: 0.0').replace(
+        'dynamic_brake_fade_speed: 2.0', 'dynamic_brake_fade_speed: 2.0\n'
+        f'    track_brake_force: {f_t}\n    track_brake_half_speed: 1.0e9')
+    (tmp_path / 'tb.yaml').write_text(text)
+    mass = np.array([5e4, 4e4, 4e4, 5e4])
+    a_f = 0.15 * 9.81                      # every car: mu_a m g over m
+    a = a_f + 2 * f_t / mass.sum()
+    stops = {}
+    for on in (False, True):
+        sim = unit(consist_file=str(tmp_path / 'tb.yaml'), initial_speed=v0,
+                   friction_response_time=1e-3, track_brake_delay=delay)
+        if not on:
+            sim.bcu.track.cars = np.array([], dtype=int)
+        sim.bcu.set_emergency(True)
+        p0 = sim.momentum
+        while sim.v.max() > 0.0 and sim.t < 30.0:
+            sim.advance(1)
+        stops[on] = (sim.x.mean(), sim.t)
+        if on:
+            # momentum: friction impulse sum(mu_a m g) t_stop + the track brakes' own
+            friction_impulse = 0.15 * 9.81 * mass.sum() * sim.t
+            assert sim.bcu.track.impulse == pytest.approx(2 * f_t * (sim.t - delay), rel=2e-3)
+            assert p0 - sim.momentum == pytest.approx(
+                friction_impulse + sim.bcu.track.impulse, rel=2e-3)
+            assert -sim.external_impulse == pytest.approx(p0, rel=1e-6)
+            assert sim.bcu.track.work == pytest.approx(sim.work_resistance, rel=2e-3)
+    assert stops[False][0] == pytest.approx(v0 ** 2 / (2 * a_f), rel=2e-3)
+    vd = v0 - a_f * delay
+    closed = v0 * delay - a_f * delay ** 2 / 2 + vd ** 2 / (2 * a)
+    assert stops[True][0] == pytest.approx(closed, rel=2e-3)
+    assert stops[True][0] < 0.9 * stops[False][0]

@@ -25,7 +25,8 @@ A train-wide brake demand (``brake_demand``: a fraction of full service, or a de
    speed) is followed without a lag: the handover keeps the deceleration.
 
 Emergency (``brake_emergency``) bypasses the blending: every cylinder to p_max through the
-same lag, ED commands to 0, no jerk limit. ED trip (``ed_brake/trip``: line voltage lost):
+same lag, ED commands to 0, no jerk limit; the cars' magnetic track brakes
+(``track_brake_force``, :mod:`train_dynamics.physics.track_brake`) after their delay. ED trip (``ed_brake/trip``: line voltage lost):
 the ED force drops to 0 at once; the friction takes over within its response (3 tau for 95 %).
 Regenerated energy: the work of the ED forces, ``TrainSimulator.work_traction`` (negative
 while braking; its energy balance books it, ``observables.TrainBalances``).
@@ -42,6 +43,7 @@ import numpy as np
 from train_dynamics.physics.kernel.layout import INPUT, OUTPUT, PARAM, STATE, VEHICLE
 from train_dynamics.physics.kernel.step import available_braking_force
 from train_dynamics.physics.kernel.traction import available_force
+from train_dynamics.physics.track_brake import TrackBrakes
 
 #: bisection steps inverting a friction material's brake law (p_max / 2^30 resolution)
 _BISECTIONS = 30
@@ -114,6 +116,8 @@ class BrakeControlUnit:
         self.scale = (float(cfg.full_service_deceleration)
                       if cfg.brake_demand_mode == 'fraction' else 1.0)
         self.pmax = float(cfg.max_cylinder_pressure)
+        #: the magnetic track brakes, applied with the emergency (physics/track_brake.py)
+        self.track = TrackBrakes(sim)
         self.reset()
 
     # -- inputs ----------------------------------------------------------------------------
@@ -130,6 +134,7 @@ class BrakeControlUnit:
         self.friction_target = np.zeros(n)   # friction force the BCU asks of each car [N]
         self.ed_command = np.zeros(len(self.motors))   # ED force asked of each motor car [N]
         self._braking = False
+        self.track.reset()
         self._next_tick = self.sim.steps
         self.sim.schedule(self.sim.t, self._cycle)
 
@@ -143,6 +148,7 @@ class BrakeControlUnit:
     def set_emergency(self, active: bool) -> None:
         """Apply (True) or release (False) the emergency brake (bypasses the blending)."""
         self.emergency = bool(active)
+        self.track.set_applied(self.emergency)
 
     def set_ed_trip(self, tripped: bool) -> None:
         """Lose (True) or restore (False) the ED brake of every motor car; lost: 0 at once."""
@@ -172,6 +178,7 @@ class BrakeControlUnit:
         """One BCU cycle: demand -> ED commands and cylinder pressures; the next is scheduled."""
         sim = self.sim
         self._control()
+        self.track.update()
         self._next_tick += self.period_steps
         sim.schedule(self._next_tick * sim.h, self._cycle)
 

@@ -67,6 +67,20 @@ BLENDING_PARAMS = [
               'Offline runs without ed_brake/trip in an input bag: time [s] at which the '
               'electro-dynamic brake of every motor car is lost (line breaker trip); < 0: '
               'never. Needs blending builtin.', low=-1.0, high=1.0e7),
+    ParamSpec('track_brake_force', 0.0, DOUBLE,
+              'Magnetic track brakes of the vehicle: braking force at rest [N], all magnets '
+              'together (a force on the rail, not limited by adhesion; applied with the '
+              'emergency brake of blending builtin; physics/track_brake.py); 0 = none.',
+              low=0.0, high=1.0e6, vehicle='track_brake_force'),
+    ParamSpec('track_brake_half_speed', 30.0, DOUBLE,
+              'Magnetic track brakes: speed [m/s] at which the force has fallen to half, '
+              'F = F_0 / (1 + |v| / v_h) (a guess after manufacturers\' curves: about half '
+              'the standstill force near 100 km/h).', low=0.01, high=1.0e9,
+              vehicle='track_brake_half_speed'),
+    ParamSpec('track_brake_delay', 0.5, DOUBLE,
+              'Magnetic track brakes: time [s] from the emergency application to the force '
+              '(lowering the magnets, building the field; a guess); released at once.',
+              low=0.0, high=10.0),
 ]
 
 

@@ -139,18 +139,6 @@ class SimConfig:
     brake_spring_force: float = 0.0                   # force chain: return spring [N]
     rigging_ratio: float = 0.0                        # force chain: lever ratio i [-]
     rigging_efficiency: float = 0.83                  # force chain: eta_r [-]
-    # multiple units: brake control unit and blending (config/blending_params.py)
-    blending: str = 'none'                            # 'none' or 'builtin'
-    blending_scope: str = 'train'                     # 'train' or 'car'
-    brake_demand_mode: str = 'fraction'               # 'fraction' or 'deceleration'
-    full_service_deceleration: float = 1.0            # [m/s^2]
-    blending_jerk_limit: float = 1.0                  # [m/s^3]
-    blending_period: float = 0.01                     # BCU cycle [s]
-    friction_response_time: float = 0.3               # EP cylinder time constant [s]
-    demand_schedule_times: list[float] = field(default_factory=list)   # [s]
-    demand_schedule_values: list[float] = field(default_factory=list)  # as brake_demand_mode
-    emergency_schedule_time: float = -1.0             # [s]; < 0 none
-    ed_trip_schedule_time: float = -1.0               # [s]; < 0 never
     brake_blocks: float = 8.0                         # blocks or pads per vehicle
     brake_radius_ratio: float = 1.0                   # disc: r_eff / r_wheel [-]
     braked_mass_p: float = 0.0                        # braked mass, regime P [kg]
@@ -185,6 +173,21 @@ class SimConfig:
     integration_max_steps: int = 100                  # steps per output period
     multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = plain fixed step
     multirate_reversal_weight: float = MULTIRATE_REVERSAL_WEIGHT  # [-]; 0 = off
+    # multiple units: brake control unit and blending (config/blending_params.py)
+    blending: str = 'none'                            # 'none' or 'builtin'
+    blending_scope: str = 'train'                     # 'train' or 'car'
+    brake_demand_mode: str = 'fraction'               # 'fraction' or 'deceleration'
+    full_service_deceleration: float = 1.0            # [m/s^2]
+    blending_jerk_limit: float = 1.0                  # [m/s^3]
+    blending_period: float = 0.01                     # BCU cycle [s]
+    friction_response_time: float = 0.3               # EP cylinder time constant [s]
+    demand_schedule_times: list[float] = field(default_factory=list)   # [s]
+    demand_schedule_values: list[float] = field(default_factory=list)  # as brake_demand_mode
+    emergency_schedule_time: float = -1.0             # [s]; < 0 none
+    ed_trip_schedule_time: float = -1.0               # [s]; < 0 never
+    track_brake_force: float = 0.0                    # vehicle field: at rest [N]; 0 none
+    track_brake_half_speed: float = 30.0              # vehicle field: [m/s]
+    track_brake_delay: float = 0.5                    # switching delay [s]
 
     #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
     _consist = None
