@@ -102,3 +102,15 @@ def test_brake_demand_emergency_and_trip_from_an_input_bag(tmp_path):
     # 11.9 s: emergency, every cylinder at p_max: mu_a m g
     fb = np.array(coaches[11_900_000_000].effort)
     assert fb == pytest.approx(0.16 * 9.81 * mass, rel=1e-3)
+    # the brake control unit's outputs: per car ED / friction / track; demand and achieved
+    per_car = {t: m for _, t, m in read_topics(out, [topics.BRAKE_BLENDING_TOPIC])}
+    state = {t: m for _, t, m in read_topics(out, [topics.BRAKE_DEMAND_STATE_TOPIC])}
+    assert len(per_car) == len(state) == len(coaches)
+    m = per_car[3_900_000_000]
+    assert list(m.name) == ['coach_1', 'coach_2', 'coach_3', 'coach_4']
+    assert m.position[0] > 20000.0 and m.position[1] == 0.0           # ED of motor cars only
+    assert np.array(m.velocity) == pytest.approx(coaches[3_900_000_000].effort)
+    s = state[7_900_000_000]
+    assert list(s.name) == ['demand', 'achieved']
+    assert s.position[0] == pytest.approx(0.55) and s.position[1] == pytest.approx(0.55, rel=0.01)
+    assert s.effort[1] == 0.0                                          # ED tripped

@@ -26,6 +26,8 @@ def test_brake_demand_and_emergency_reach_the_brake_control_unit(harness):
     from std_msgs.msg import Float64
 
     coaches = harness.collect(JointState, 'coaches')
+    blending = harness.collect(JointState, 'brake_blending')
+    state = harness.collect(JointState, 'brake_demand/state')
     node = harness.start(consist_file=CONSIST, brake_input='cylinder_per_coach',
                          blending='builtin', initial_speed=30.0, real_time_factor=2.0,
                          full_service_deceleration=1.1)
@@ -39,6 +41,11 @@ def test_brake_demand_and_emergency_reach_the_brake_control_unit(harness):
     assert harness.wait(lambda: bcu.demanded_deceleration == 0.55, 20.0)
     assert harness.wait(lambda: bcu.ed_force()[[0, 3]].min() > 20000.0, 20.0)
     assert bcu.ed_force()[[1, 2]].sum() == 0.0
+    # published: the motor cars' ED force per car, the demand and the achieved deceleration
+    assert harness.wait(lambda: blending and blending[-1].position[0] > 20000.0, 20.0)
+    assert list(blending[-1].name) == [f'coach_{i}' for i in range(1, 5)]
+    assert blending[-1].position[1] == 0.0
+    assert harness.wait(lambda: state and abs(state[-1].position[1] - 0.55) < 0.02, 20.0)
     emergency.publish(Float64(data=1.0))
     assert harness.wait(lambda: np.all(node.simulator.cylinder_pressure > 0.99 * 380000.0),
                         20.0)

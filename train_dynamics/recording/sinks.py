@@ -15,6 +15,7 @@ import numpy as np
 from train_dynamics import topics
 from train_dynamics.physics.kernel import couplers
 from train_dynamics.recording.bags import BagRecorder
+from train_dynamics.recording.blending_outputs import blending_outputs
 from train_dynamics.recording.cdr import encode_float64
 from train_dynamics.recording.history import History, JointSeries
 from train_dynamics.recording.messages import stamp
@@ -45,6 +46,7 @@ class BagSink:
         if self.wheelsets:
             rec.add_topic(topics.WHEELSETS_TOPIC, topics.JOINT_STATE)
         self._rows: OutputRows | None = None
+        self._blending_topics: set[str] = set()
 
     def sample(self, s: Sample) -> None:
         """Write the outputs at an output step (and the head-pipe pressure of a valve run)."""
@@ -54,6 +56,11 @@ class BagSink:
             rows = self._rows = OutputRows(self.encoder, self.forces, head is not None,
                                            wheelsets=self.wheelsets)
         rows.write(self.rec, time_ns(s.t), s.sim, head)
+        for topic, data in blending_outputs(time_ns(s.t), s.sim):   # blending builtin
+            if topic not in self._blending_topics:
+                self._blending_topics.add(topic)
+                self.rec.add_topic(topic, topics.JOINT_STATE)
+            self.rec.write(topic, time_ns(s.t), data)
 
     def input(self, e: InputEvent | TractionEvent) -> None:  # noqa: A003 - runner's hook
         """Write an input message as applied, stamped with its time from the run's start."""

@@ -41,6 +41,7 @@ from sensor_msgs.msg import JointState
 from train_dynamics import topics
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.recording.blending_outputs import blending_outputs
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
 from train_dynamics.ros.live_metrics import LiveMetrics
 from train_dynamics.ros.recorder import BagWriter
@@ -172,6 +173,11 @@ class Outputs:
         wheels = self._encoder.encode_wheelsets(t_ns, sim) if self._wheelsets else None
         if wheels is not None:
             self._pub_wheelsets.publish(wheels)
+        blending = blending_outputs(t_ns, sim)       # blending builtin: the BCU's outputs
+        for topic, data in blending:
+            if topic not in self._pubs:
+                self._pubs[topic] = self._node.create_publisher(JointState, topic, OUTPUT_QOS)
+            self._pubs[topic].publish(data)
         self.metrics.put(sim)
         clock = None
         if self.publish_clock:
@@ -186,6 +192,8 @@ class Outputs:
                 w.write(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE, t_ns, forces)
             if wheels is not None:
                 w.write(topics.WHEELSETS_TOPIC, topics.JOINT_STATE, t_ns, wheels)
+            for topic, data in blending:
+                w.write(topic, topics.JOINT_STATE, t_ns, data)
             if clock is not None:
                 w.write(topics.CLOCK_TOPIC, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
         self.published += 1
