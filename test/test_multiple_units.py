@@ -3,6 +3,7 @@ The shipped multiple units with builtin blending, run offline; the unit's inputs
 
 config/emu_flirt_4.yaml and config/hs_ice3_8.yaml: a full-service stop from top speed each.
 """
+import json
 from pathlib import Path
 
 import numpy as np
@@ -114,3 +115,23 @@ def test_brake_demand_emergency_and_trip_from_an_input_bag(tmp_path):
     assert list(s.name) == ['demand', 'achieved']
     assert s.position[0] == pytest.approx(0.55) and s.position[1] == pytest.approx(0.55, rel=0.01)
     assert s.effort[1] == 0.0                                          # ED tripped
+
+
+def test_report_books_regenerated_and_friction_energy(tmp_path):
+    """report: energies from the bag match the simulator's work, friction share, stop."""
+    out = tmp_path / 'run'
+    assert cli.main(['simulate', '--params', str(CONFIG / 'emu_flirt_4.yaml'), '--duration',
+                     '45', '--output', str(out), '-q']) == 0
+    assert cli.main(['report', str(out), '--output', str(tmp_path / 'rep'), '-q']) == 0
+    doc = json.loads((tmp_path / 'rep' / 'summary.json').read_text())
+    b = doc['blending']
+    cfg, sim, (t_stop, dist) = _stop('emu_flirt_4.yaml', 45.0)
+    assert b['energy_regenerated'] == pytest.approx(-sim.work_traction, rel=5e-3)
+    assert b['energy_friction'] == pytest.approx(sim.work_brake, rel=5e-3)
+    assert b['friction_share'] == pytest.approx(
+        sim.work_brake / (sim.work_brake - sim.work_traction), rel=1e-2)
+    assert b['stopping_distance'] == pytest.approx(dist, abs=0.5)
+    assert b['stopping_time'] == pytest.approx(t_stop, abs=0.011)
+    assert b['max_tracking_error'] < 0.05              # the demand followed within 5 %
+    assert b['max_jerk'] <= cfg.blending_jerk_limit * 1.05
+    assert '## Brake blending' in (tmp_path / 'rep' / 'summary.md').read_text()

@@ -30,6 +30,7 @@ from train_dynamics.physics.config import ConfigError, SimConfig
 from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
 from train_dynamics.quoting import clip
 from train_dynamics.recording.bags import bag_info, BagError
+from train_dynamics.recording.blending_metrics import blending_metrics
 from train_dynamics.recording.history import History, stream_history
 from train_dynamics.recording.metrics_report import MetricsFeed, write_report
 
@@ -167,6 +168,9 @@ def cmd_report(args: argparse.Namespace) -> int:
         raise CliError(f'{args.bag}: needs the couplers and coaches topics (JointState)')
     refuse_non_finite(args.bag, hist)
     result = metrics.result()
+    blending = blending_metrics(args.bag, args.namespace)       # blending builtin runs only
+    if blending is not None:
+        result['blending'] = blending
     keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
     model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
     source = {'bag': str(args.bag), 'parameters': origin, 'model': model,

@@ -15,9 +15,10 @@ A train-wide brake demand (``brake_demand``: a fraction of full service, or a de
    min(F, sum E_k), every motor car at the same fraction of its E_k; car: each motor car
    brakes its own share a_ref M_k, up to E_k. The ED command acts through the motor car's
    build-up rate (``traction_build_up_time``), as a locomotive's;
-3. the friction brake of every car makes up the rest: scope train: R = F - sum(achieved ED),
+3. the friction brake of every car makes up the rest: scope train: R = F - sum(ED), the ED
+   force the motor cars will give over the coming period (their build-up rate applied),
    shared by all cars in proportion to their mass M_i (load-weighed: the loaded mass);
-   scope car: a_ref M_i - (achieved ED of car i). The force becomes a cylinder pressure by
+   scope car: a_ref M_i - (that ED of car i). The force becomes a cylinder pressure by
    inverting the car's brake law at its speed (eq. 13, or its friction material), clamped
    to [0, p_max]. The cylinder follows the commanded pressure with a first-order lag of
    time constant tau = ``friction_response_time`` (the EP valve and cylinder); the BCU
@@ -26,8 +27,9 @@ A train-wide brake demand (``brake_demand``: a fraction of full service, or a de
 
 Emergency (``brake_emergency``) bypasses the blending: every cylinder to p_max through the
 same lag, ED commands to 0, no jerk limit; the cars' magnetic track brakes
-(``track_brake_force``, :mod:`train_dynamics.physics.track_brake`) after their delay. ED trip (``ed_brake/trip``: line voltage lost):
-the ED force drops to 0 at once; the friction takes over within its response (3 tau for 95 %).
+(``track_brake_force``, :mod:`train_dynamics.physics.track_brake`) after their delay.
+ED trip (``ed_brake/trip``: line voltage lost): the ED force drops to 0 at once; the
+friction takes over within its response (3 tau for 95 %).
 Regenerated energy: the work of the ED forces, ``TrainSimulator.work_traction`` (negative
 while braking; its energy balance books it, ``observables.TrainBalances``).
 
@@ -205,10 +207,29 @@ class BrakeControlUnit:
         avail = ed_available(c, self.motors) if self.ed_ok else np.zeros(len(self.motors))
         ed = allocate_ed(self.a_ref, mass[self.motors], float(mass.sum()), avail, self.per_car)
         self._set_ed(ed, avail)
-        fric = friction_make_up(self.a_ref, mass, self.ed_force(), self.per_car)
+        fric = friction_make_up(self.a_ref, mass, self._ed_expected(avail), self.per_car)
         self.friction_target = fric
         self._set_pressures(self._pressure_for(fric))
         self._braking = self.a_ref > 0.0 or bool(np.any(self.p_cyl > 1.0))
+
+    def _ed_expected(self, avail: np.ndarray) -> np.ndarray:
+        """
+        Return each vehicle's ED force [N] expected over the coming period.
+
+        The effective command moves toward the command by T / ``traction_build_up_time``
+        (the motor car's build-up rate, ``kernel/traction.py``), times the ED available at
+        the present speed: the friction then makes up what the ED will give, not what it
+        gave a period ago.
+        """
+        c = self.sim.coach
+        out = np.zeros(self.sim.n)
+        for j, i in enumerate(self.motors):
+            eff, cmd = c[STATE.T_EFF, i], c[INPUT.T_CMD, i]
+            build = c[VEHICLE.T_BUILD, i]
+            step = self.period / build if build > 0.0 else math.inf
+            eff = min(cmd, eff + step) if cmd > eff else max(cmd, eff - step)
+            out[i] = max(-eff, 0.0) * avail[j]
+        return out
 
     def _set_ed(self, ed: np.ndarray, avail: np.ndarray) -> None:
         """Command ED force ``ed`` [N] of each motor car (a fraction of ``avail`` [N])."""
