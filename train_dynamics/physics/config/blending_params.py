@@ -74,7 +74,7 @@ BLENDING_PARAMS = [
               low=0.0, high=1.0e6, vehicle='track_brake_force'),
     ParamSpec('track_brake_half_speed', 30.0, DOUBLE,
               'Magnetic track brakes: speed [m/s] at which the force has fallen to half, '
-              'F = F_0 / (1 + |v| / v_h) (a guess after manufacturers\' curves: about half '
+              'F = F_0 / (1 + |v| / v_h) (a guess after the manufacturers curves: about half '
               'the standstill force near 100 km/h).', low=0.01, high=1.0e9,
               vehicle='track_brake_half_speed'),
     ParamSpec('track_brake_delay', 0.5, DOUBLE,
