@@ -65,7 +65,7 @@ def brake_inputs(args: argparse.Namespace, cfg: SimConfig) -> InputSchedule:
         except InputBagError as exc:
             raise CliError(str(exc)) from None
     inputs.traction = command_schedule(cfg, traction)
-    if cfg.blending != 'none':      # the brake control unit's demand, emergency, ED trip
+    if cfg.blending == 'builtin':   # the brake control unit's demand, emergency, ED trip
         inputs.traction = sorted(inputs.traction + blending_events(cfg, blending),
                                  key=lambda e: e.t_ns)
     return inputs
@@ -73,7 +73,7 @@ def brake_inputs(args: argparse.Namespace, cfg: SimConfig) -> InputSchedule:
 
 def _brake_only(args: argparse.Namespace, cfg: SimConfig) -> InputSchedule:
     """Return the brake input of the run: the ``--input`` bag or the brake-valve schedule."""
-    if cfg.blending != 'none':      # the brake control unit sets the cylinders itself
+    if cfg.blending == 'builtin':   # the brake control unit sets the cylinders itself
         return InputSchedule(cfg.brake_input, [], None, 'brake control unit')
     if args.input:
         try:

@@ -100,6 +100,13 @@ def friction_make_up(a_ref: float, mass: np.ndarray, ed: np.ndarray,
     return rest * mass / total
 
 
+def ed_forces(sim) -> np.ndarray:
+    """Return each vehicle's ED (dynamic-brake) force [N, >= 0 while braking, else 0]."""
+    c = sim.coach
+    f = -c[OUTPUT.F_TRAC] * np.where(c[STATE.V] < 0.0, -1.0, 1.0)
+    return np.maximum(f, 0.0)
+
+
 class BrakeControlUnit:
     """The builtin blending controller of one train (see the module's text)."""
 

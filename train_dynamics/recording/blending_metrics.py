@@ -9,7 +9,7 @@ and the node's ``record_bag``, :mod:`train_dynamics.recording.blending_outputs`)
 - ``energy_friction`` [J]: dissipated in the friction brakes, integral of sum Fb_i |v_i| dt;
 - ``energy_track_brake`` [J]: dissipated by the magnetic track brakes;
 - ``friction_share`` [-]: friction over the three together;
-- ``max_jerk`` [m/s^3]: the largest |d a / dt| of the achieved deceleration (brake forces over
+- ``max_jerk`` [m/s^3] (with a demand state): the largest |d a / dt| of the achieved deceleration (brake forces over
   the inertial mass) between samples while the train moves;
 - ``max_tracking_error``, ``rms_tracking_error`` [m/s^2]: |achieved - demanded deceleration|
   while a demand is applied and the train moves;
@@ -45,49 +45,62 @@ def _integral(t: np.ndarray, y: np.ndarray) -> float:
 
 
 def blending_metrics(bag: str, namespace: str = '') -> dict[str, Any] | None:
-    """Return the blending metrics of the run in ``bag`` (see the module); None: none."""
+    """
+    Return the blending metrics of the run in ``bag`` (see the module); None: none.
+
+    Without ``brake_demand/state`` (``blending: external``: the controller under test holds
+    the demand) the demand and deceleration metrics are None and the stop counts from the
+    first brake force.
+    """
     ns = namespace.strip('/')
 
     def name(topic):
         return f'{ns}/{topic}' if ns else topic
     try:
         tb, ed, fb, track = _arrays(bag, name(topics.BRAKE_BLENDING_TOPIC))
-        ts, demand, force, _ = _arrays(bag, name(topics.BRAKE_DEMAND_STATE_TOPIC))
         tc, x, v, _ = _arrays(bag, name(topics.COACHES_TOPIC))
     except Exception:  # noqa: BLE001 - a bag without the topics: no blending metrics
         return None
-    if not len(tb) or not len(ts) or len(tc) != len(tb) or len(ts) != len(tb):
+    if not len(tb) or len(tc) != len(tb):
         return None
+    try:
+        ts, demand, _, _ = _arrays(bag, name(topics.BRAKE_DEMAND_STATE_TOPIC))
+    except Exception:  # noqa: BLE001 - no such topic (blending external)
+        ts = np.zeros(0)
+    has_demand = len(ts) == len(tb)
     speed = np.abs(v)
     regen = _integral(tb, np.sum(ed * speed, axis=1))
     friction = _integral(tb, np.sum(fb * speed, axis=1))
     track_e = _integral(tb, np.sum(track * speed, axis=1))
     total = regen + friction + track_e
     moving = speed.max(axis=1) > 0.0
-    a_dem, a_ach = demand[:, 0], demand[:, 1]
-    both = moving[1:] & moving[:-1]
-    jerk = np.abs(np.diff(a_ach)) / np.diff(ts)
-    tracking = moving & (a_dem > 0.0)
-    err = np.abs(a_ach - a_dem)[tracking]
-    onset = np.flatnonzero((a_dem > 0.0) | (track.sum(axis=1) > 0.0))
-    stop_t = stop_x = None
+    out: dict[str, Any] = {
+        'energy_regenerated': regen,
+        'energy_friction': friction,
+        'energy_track_brake': track_e,
+        'friction_share': friction / total if total > 0.0 else 0.0,
+        'max_jerk': None, 'max_tracking_error': None, 'rms_tracking_error': None,
+        'stopping_time': None, 'stopping_distance': None,
+    }
+    braking = (ed + fb + track).sum(axis=1) > 0.0
+    if has_demand:
+        a_dem, a_ach = demand[:, 0], demand[:, 1]
+        both = moving[1:] & moving[:-1]
+        jerk = np.abs(np.diff(a_ach)) / np.diff(ts)
+        err = np.abs(a_ach - a_dem)[moving & (a_dem > 0.0)]
+        out['max_jerk'] = float(jerk[both].max()) if both.any() else 0.0
+        out['max_tracking_error'] = float(err.max()) if err.size else 0.0
+        out['rms_tracking_error'] = float(np.sqrt(np.mean(err ** 2))) if err.size else 0.0
+        braking = (a_dem > 0.0) | (track.sum(axis=1) > 0.0)
+    onset = np.flatnonzero(braking)
     if onset.size:
         k0 = int(onset[0])
         rest = np.flatnonzero(~moving[k0:])
         if rest.size:
             k1 = k0 + int(rest[0])
-            stop_t, stop_x = float(tc[k1] - tc[k0]), float(x[k1, 0] - x[k0, 0])
-    return {
-        'energy_regenerated': regen,
-        'energy_friction': friction,
-        'energy_track_brake': track_e,
-        'friction_share': friction / total if total > 0.0 else 0.0,
-        'max_jerk': float(jerk[both].max()) if both.any() else 0.0,
-        'max_tracking_error': float(err.max()) if err.size else 0.0,
-        'rms_tracking_error': float(np.sqrt(np.mean(err ** 2))) if err.size else 0.0,
-        'stopping_time': stop_t,
-        'stopping_distance': stop_x,
-    }
+            out['stopping_time'] = float(tc[k1] - tc[k0])
+            out['stopping_distance'] = float(x[k1, 0] - x[k0, 0])
+    return out
 
 
 def blending_markdown(metrics: dict[str, Any] | None) -> list[str]:

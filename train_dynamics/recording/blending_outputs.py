@@ -22,6 +22,7 @@ from typing import Any
 import numpy as np
 
 from train_dynamics import topics
+from train_dynamics.physics.blending import ed_forces
 from train_dynamics.recording.cdr import encode_joint_state
 
 #: the topics written for a run with blending builtin, in order
@@ -29,15 +30,23 @@ BLENDING_OUTPUT_TOPICS = (topics.BRAKE_BLENDING_TOPIC, topics.BRAKE_DEMAND_STATE
 
 
 def blending_outputs(t_ns: int, sim: Any) -> list[tuple[str, bytes]]:
-    """Return (topic, CDR bytes) of the brake control unit's outputs at ``t_ns``; [] if none."""
+    """
+    Return (topic, CDR bytes) of the brake control unit's outputs at ``t_ns``.
+
+    ``blending: builtin``: both topics; ``external``: ``brake_blending`` (the controller
+    under test is the unit: no demand known here, no track brakes); ``none``: [].
+    """
     bcu = getattr(sim, 'bcu', None)
-    if bcu is None:
+    external = bcu is None and sim.cfg.blending == 'external'
+    if bcu is None and not external:
         return []
-    ed = bcu.ed_force()
+    ed = ed_forces(sim) if external else bcu.ed_force()
     friction = sim.brake_force
-    track = bcu.track.force
+    track = np.zeros(sim.n) if external else bcu.track.force
     names = [f'coach_{i}' for i in range(1, sim.n + 1)]
     per_car = encode_joint_state(t_ns, names, ed, friction, track, topics.TRACK_FRAME)
+    if external:
+        return [(topics.BRAKE_BLENDING_TOPIC, per_car)]
     achieved = float(ed.sum() + friction.sum() + track.sum())
     mass = float(sim.inertia.sum())
     state = encode_joint_state(

@@ -42,7 +42,7 @@ def read_blending_bag(path: str, cfg: Any, *, namespace: str = '',
             continue
         if msgtype != topics.FLOAT64:
             warn(f'input bag: {topic} has type {msgtype}, not {topics.FLOAT64}; ignored')
-        elif cfg.blending == 'none':
+        elif cfg.blending != 'builtin':
             warn(f'input bag: {topic}: needs blending builtin; ignored')
         else:
             selected[topic] = kinds[rel]

@@ -42,11 +42,11 @@ class BlendingInputs:
         self.accepted = 0
 
     def start(self, cfg: Any) -> None:
-        """Subscribe (``blending`` builtin) or unsubscribe for a new run of ``cfg``."""
+        """Subscribe (``blending: builtin``) or unsubscribe for a new run of ``cfg``."""
         with self._lock:
             self._pending = {}
         self._cfg = cfg
-        active = cfg.blending != 'none'
+        active = cfg.blending == 'builtin'
         if active and not self._subs:
             for kind, topic in BLENDING_TOPICS.items():
                 name = self._node.resolve_topic_name(topic)

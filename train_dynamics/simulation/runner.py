@@ -147,9 +147,9 @@ def blending_events(cfg: Any, from_bag: list[TractionEvent]) -> list[TractionEve
     Return the brake control unit's inputs: an input bag's, else the parameter file's.
 
     The bag's events of a kind replace the schedule of that kind (``demand``,
-    ``emergency``, ``ed_trip``; simulation/demand.py). Empty with blending none.
+    ``emergency``, ``ed_trip``; simulation/demand.py). Empty unless blending builtin.
     """
-    if cfg.blending == 'none':
+    if cfg.blending != 'builtin':
         return []
     have = {e.kind for e in from_bag}
     h = float(cfg.integration_step)

@@ -15,8 +15,9 @@ from typing import Any
 from train_dynamics.physics.config.spec import ConfigError, DOUBLE, DOUBLE_ARRAY, ParamSpec, STRING
 
 #: the blending modes: none (friction only, the brake inputs of brake_input as before),
-#: builtin (the reference brake control unit of physics/blending.py)
-BLENDING_MODES = ('none', 'builtin')
+#: builtin (the reference brake control unit of physics/blending.py), external (the
+#: controller under test is the brake control unit)
+BLENDING_MODES = ('none', 'builtin', 'external')
 
 BLENDING_PARAMS = [
     ParamSpec('blending', 'none', STRING,
@@ -25,7 +26,12 @@ BLENDING_PARAMS = [
               'brake_demand: the electro-dynamic brake of the motor cars first, up to its '
               'limit at the present speed, the friction brake of every car makes up the rest; '
               'needs brake_input cylinder_per_coach and brake_model empirical: the unit sets '
-              'the cylinder pressures itself).', choices=BLENDING_MODES),
+              'the cylinder pressures itself) or external (the controller under test is the '
+              'brake control unit: it commands the cylinder of each car on '
+              'coach_<i>/brake_cylinder/pressure and the ED brake of each motor car on '
+              'coach_<i>/traction/command < 0, a fraction of the ED available at the present '
+              'speed; needs brake_input cylinder_per_coach; brake_blending shows the '
+              'achieved forces).', choices=BLENDING_MODES),
     ParamSpec('blending_scope', 'train', STRING,
               'builtin blending: train (the ED force of the motor cars relieves every car: '
               'the friction make-up is shared by all cars in proportion to their mass) or '
@@ -96,6 +102,13 @@ def check_blending(cfg: Any) -> None:
         if times or cfg.emergency_schedule_time >= 0.0 or cfg.ed_trip_schedule_time >= 0.0:
             raise ConfigError('demand_schedule_times, emergency_schedule_time and '
                               'ed_trip_schedule_time need blending builtin')
+        return
+    if cfg.blending == 'external':
+        if cfg.brake_input != 'cylinder_per_coach' or times or \
+                cfg.emergency_schedule_time >= 0.0 or cfg.ed_trip_schedule_time >= 0.0:
+            raise ConfigError('blending external: needs brake_input cylinder_per_coach (the '
+                              'controller commands the cylinders) and no demand, emergency or '
+                              'ED trip schedule (those are inputs of the builtin unit)')
         return
     if cfg.brake_input != 'cylinder_per_coach' or cfg.brake_model != 'empirical':
         raise ConfigError(f'blending {cfg.blending}: needs brake_input cylinder_per_coach and '
