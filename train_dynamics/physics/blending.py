@@ -44,7 +44,7 @@ import numpy as np
 
 from train_dynamics.physics.kernel.layout import INPUT, OUTPUT, PARAM, STATE, VEHICLE
 from train_dynamics.physics.kernel.step import available_braking_force
-from train_dynamics.physics.kernel.traction import available_force
+from train_dynamics.physics.kernel.traction import CK_AT_REST
 from train_dynamics.physics.track_brake import TrackBrakes
 
 #: bisection steps inverting a friction material's brake law (p_max / 2^30 resolution)
@@ -58,15 +58,15 @@ def ed_available(c: np.ndarray, motors: list[int], speed: np.ndarray | None = No
     min(F_db, P_db / |v|, mu(v) m g) min(|v| / v_fade, 1); ``speed`` [m/s] overrides the
     vehicles' present speeds (one per motor car).
     """
-    out = np.zeros(len(motors))
-    for j, i in enumerate(motors):
-        v = abs(float(c[STATE.V, i] if speed is None else speed[j]))
-        if v == 0.0:
-            continue
-        f = available_force(v, c[VEHICLE.DB_FORCE, i], c[VEHICLE.DB_POWER, i],
-                            c[VEHICLE.T_ADH, i], c[VEHICLE.WEIGHT, i])
-        out[j] = f * min(v / c[VEHICLE.DB_FADE, i], 1.0)
-    return out
+    idx = np.asarray(motors, dtype=int)
+    v = np.abs(c[STATE.V, idx] if speed is None else np.asarray(speed, dtype=float))
+    # kernel/traction.py, available_force and traction_force, on arrays
+    mu = c[VEHICLE.T_ADH, idx] * (0.161 + 7.5 / (3.6 * v + 44.0)) / CK_AT_REST
+    f = np.minimum(c[VEHICLE.DB_FORCE, idx], mu * c[VEHICLE.WEIGHT, idx])
+    power = c[VEHICLE.DB_POWER, idx]
+    f = np.where(power < f * v, power / np.where(v > 0.0, v, 1.0), f)
+    f = f * np.minimum(v / c[VEHICLE.DB_FADE, idx], 1.0)
+    return np.where(v == 0.0, 0.0, f)
 
 
 def allocate_ed(a_ref: float, motor_mass: np.ndarray, total_mass: float, avail: np.ndarray,
@@ -116,6 +116,7 @@ class BrakeControlUnit:
         cfg = sim.cfg
         c = sim.coach
         self.motors = [i for i in sim.consist.commanded if c[VEHICLE.DB_FORCE, i] > 0.0]
+        self._idx = np.array(self.motors, dtype=int)
         self.period_steps = max(1, int(round(float(cfg.blending_period) / sim.h)))
         self.period = self.period_steps * sim.h
         self.tau = float(cfg.friction_response_time)
@@ -178,8 +179,8 @@ class BrakeControlUnit:
         """Return each vehicle's achieved ED force [N, >= 0 while braking] (0: trailers)."""
         out = np.zeros(self.sim.n)
         c = self.sim.coach
-        for i in self.motors:
-            out[i] = -c[OUTPUT.F_TRAC, i] * math.copysign(1.0, c[STATE.V, i])
+        idx = self._idx
+        out[idx] = -c[OUTPUT.F_TRAC, idx] * np.where(c[STATE.V, idx] < 0.0, -1.0, 1.0)
         return out
 
     # -- the cycle -------------------------------------------------------------------------
@@ -230,21 +231,26 @@ class BrakeControlUnit:
         """
         c = self.sim.coach
         out = np.zeros(self.sim.n)
-        for j, i in enumerate(self.motors):
-            eff, cmd = c[STATE.T_EFF, i], c[INPUT.T_CMD, i]
-            build = c[VEHICLE.T_BUILD, i]
-            step = self.period / build if build > 0.0 else math.inf
-            eff = min(cmd, eff + step) if cmd > eff else max(cmd, eff - step)
-            out[i] = max(-eff, 0.0) * avail[j]
+        if not self.motors:
+            return out
+        idx = self._idx
+        eff, cmd = c[STATE.T_EFF, idx], c[INPUT.T_CMD, idx]
+        build = c[VEHICLE.T_BUILD, idx]
+        step = np.where(build > 0.0, self.period / np.maximum(build, 1e-300), np.inf)
+        eff = np.where(cmd > eff, np.minimum(cmd, eff + step), np.maximum(cmd, eff - step))
+        out[idx] = np.maximum(-eff, 0.0) * avail
         return out
 
     def _set_ed(self, ed: np.ndarray, avail: np.ndarray) -> None:
         """Command ED force ``ed`` [N] of each motor car (a fraction of ``avail`` [N])."""
         self.ed_command = ed
-        c = self.sim.coach
-        for j, i in enumerate(self.motors):
-            cmd = -min(ed[j] / avail[j], 1.0) if avail[j] > 0.0 and self.ed_ok else 0.0
-            c[INPUT.T_CMD, i] = cmd
+        if not self.motors:
+            return
+        cmd = np.zeros(len(self.motors))
+        if self.ed_ok:
+            ok = avail > 0.0
+            cmd[ok] = -np.minimum(ed[ok] / avail[ok], 1.0)
+        self.sim.coach[INPUT.T_CMD, self._idx] = cmd
 
     def _pressure_for(self, force: np.ndarray) -> np.ndarray:
         """
