@@ -9,8 +9,8 @@ and the node's ``record_bag``, :mod:`train_dynamics.recording.blending_outputs`)
 - ``energy_friction`` [J]: dissipated in the friction brakes, integral of sum Fb_i |v_i| dt;
 - ``energy_track_brake`` [J]: dissipated by the magnetic track brakes;
 - ``friction_share`` [-]: friction over the three together;
-- ``max_jerk`` [m/s^3] (with a demand state): the largest |d a / dt| of the achieved deceleration (brake forces over
-  the inertial mass) between samples while the train moves;
+- ``max_jerk`` [m/s^3] (with a demand state): the largest |d a / dt| of the achieved
+  deceleration (brake forces over the inertial mass) between samples while the train moves;
 - ``max_tracking_error``, ``rms_tracking_error`` [m/s^2]: |achieved - demanded deceleration|
   while a demand is applied and the train moves;
 - ``stopping_time`` [s], ``stopping_distance`` [m]: from the first sample with a demand > 0
