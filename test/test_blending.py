@@ -258,3 +258,33 @@ def test_track_brake_shortens_the_stop_by_its_impulse(unit, tmp_path):
     closed = v0 * delay - a_f * delay ** 2 / 2 + vd ** 2 / (2 * a)
     assert stops[True][0] == pytest.approx(closed, rel=2e-3)
     assert stops[True][0] < 0.9 * stops[False][0]
+
+
+def test_eddy_current_brake_follows_its_curve_and_books_its_work(unit, tmp_path):
+    """Eddy-current brakes in an emergency: F(v, g) of each car, energy balance with them."""
+    f_e, v_c, gap = 20000.0, 15.0, 0.01
+    text = UNIT.replace('dynamic_brake_fade_speed: 2.0', 'dynamic_brake_fade_speed: 2.0\n'
+                        f'    eddy_brake_force: {f_e}\n    eddy_brake_critical_speed: {v_c}\n'
+                        f'    eddy_brake_air_gap: {gap}')
+    (tmp_path / 'eddy.yaml').write_text(text)
+    sim = unit(consist_file=str(tmp_path / 'eddy.yaml'), initial_speed=30.0,
+               track_brake_delay=0.2)
+    ke0 = sim.kinetic_energy
+    sim.bcu.set_emergency(True)
+    sim.advance(95)                            # 0.19 s: not yet
+    assert sim.bcu.track.force.sum() == 0.0
+    sim.advance(1005)
+    v = sim.v[0]
+    r = v / v_c
+    # by hand: (7 / 10)^2 of the force at v_c, times 2 r / (1 + r^2) at the motor car's speed
+    expected = f_e * 0.49 * 2 * r / (1 + r * r)
+    assert sim.bcu.track.force[0] == pytest.approx(expected, rel=1e-2)
+    assert sim.bcu.track.force[1] == 0.0                       # trailers carry none
+    while sim.v.max() > 0.0 and sim.t < 40.0:
+        sim.advance(50)
+    assert sim.bcu.track.force.sum() == 0.0                    # 0 at rest
+    booked = sim.work_brake + sim.work_resistance + sim.work_coupler - sim.elastic_energy \
+        - sim.work_traction
+    assert booked == pytest.approx(ke0, rel=5e-3)
+    assert sim.bcu.track.work == pytest.approx(sim.work_resistance, rel=1e-2)
+    assert sim.bcu.track.work > 0.02 * ke0

@@ -1,5 +1,5 @@
 """
-Magnetic track brakes: a friction force on the rail, not through the wheels.
+Magnetic track brakes and linear eddy-current brakes: forces on the rail, not through wheels.
 
 Each car with ``track_brake_force`` F_0 > 0 [N] (all its magnets together, at rest) brakes,
 once applied, with
@@ -11,6 +11,18 @@ magnets' friction coefficient on the rail falls with speed; this hyperbolic law 
 default v_h = 30 m/s are a guess shaped after manufacturers' curves, which give about half
 the standstill force near 100 km/h). The force does not depend on the wheel-rail adhesion:
 it acts between the magnet and the rail (a large v_h gives a constant force).
+
+A car with ``eddy_brake_force`` F_e > 0 [N] (its linear eddy-current brake at the critical
+speed and the nominal air gap) brakes, once applied, with
+
+    F(v, g) = F_e (g_0 / g)^2 2 (|v| / v_c) / (1 + (|v| / v_c)^2),
+
+the classical eddy-current brake curve (rising from 0 at rest to its peak at the critical
+speed v_c = ``eddy_brake_critical_speed``, then falling as 1 / v; the force of a magnet
+scales as the square of its flux, hence (g_0 / g)^2 with the air gap g =
+``eddy_brake_air_gap``, g_0 = 7 mm). Shape, v_c and g_0 are guesses marked as such; limits:
+no heating of the rail, no field build-up beyond the delay, 0 at rest (it cannot hold a
+train). It is applied and released with the track brakes.
 
 The brakes are applied with the emergency brake (``blending: builtin``,
 :mod:`train_dynamics.physics.blending`) after ``track_brake_delay`` [s] (lowering the magnets
@@ -28,6 +40,18 @@ import numpy as np
 from train_dynamics.physics.kernel.layout import STATE, VEHICLE, WORK
 
 
+#: nominal air gap g_0 of the eddy-current brake [m] (a guess: 7 mm, the order of the
+#: ICE 3's)
+EDDY_NOMINAL_GAP = 0.007
+
+
+def eddy_brake_force(speed: np.ndarray, f_e: np.ndarray, v_c: np.ndarray,
+                     gap: np.ndarray) -> np.ndarray:
+    """Return F_e (g_0 / g)^2 2 (|v| / v_c) / (1 + (|v| / v_c)^2) [N] at ``speed`` [m/s]."""
+    r = np.abs(speed) / v_c
+    return f_e * (EDDY_NOMINAL_GAP / gap) ** 2 * 2.0 * r / (1.0 + r * r)
+
+
 def track_brake_force(speed: np.ndarray, f0: np.ndarray, v_half: np.ndarray) -> np.ndarray:
     """Return the track brake force F_0 / (1 + |v| / v_h) [N] of each car at ``speed`` [m/s]."""
     return f0 / (1.0 + np.abs(speed) / v_half)
@@ -42,8 +66,11 @@ class TrackBrakes:
         consist = sim.consist
         self.f0 = np.array(consist['track_brake_force'], dtype=float)
         self.v_half = np.array(consist['track_brake_half_speed'], dtype=float)
+        self.eddy = np.array(consist['eddy_brake_force'], dtype=float)
+        self.v_c = np.array(consist['eddy_brake_critical_speed'], dtype=float)
+        self.gap = np.array(consist['eddy_brake_air_gap'], dtype=float)
         self.delay = float(sim.cfg.track_brake_delay)
-        self.cars = np.flatnonzero(self.f0 > 0.0)
+        self.cars = np.flatnonzero((self.f0 > 0.0) | (self.eddy > 0.0))
         self.davis_a = sim.coach[VEHICLE.DAVIS_A].copy()
         self.reset()
 
@@ -79,8 +106,9 @@ class TrackBrakes:
         active = self.applied_at is not None and t >= self.applied_at + self.delay - 1e-9
         force = np.zeros(sim.n)
         if active:
-            force[self.cars] = track_brake_force(v[self.cars], self.f0[self.cars],
-                                                 self.v_half[self.cars])
+            k = self.cars
+            force[k] = (track_brake_force(v[k], self.f0[k], self.v_half[k])
+                        + eddy_brake_force(v[k], self.eddy[k], self.v_c[k], self.gap[k]))
         if np.any(force != self.force):
             self.force = force
             self._write()

@@ -83,6 +83,18 @@ BLENDING_PARAMS = [
               'F = F_0 / (1 + |v| / v_h) (a guess after the manufacturers curves: about half '
               'the standstill force near 100 km/h).', low=0.01, high=1.0e9,
               vehicle='track_brake_half_speed'),
+    ParamSpec('eddy_brake_force', 0.0, DOUBLE,
+              'Linear eddy-current brake of the vehicle: force [N] at the critical speed and '
+              'the nominal air gap of 7 mm, F = F_e (g_0 / g)^2 2 (v / v_c) / (1 + (v / '
+              'v_c)^2) (physics/track_brake.py: a force on the rail, 0 at rest; applied with '
+              'the track brakes); 0 = none.', low=0.0, high=1.0e6, vehicle='eddy_brake_force'),
+    ParamSpec('eddy_brake_critical_speed', 15.0, DOUBLE,
+              'Linear eddy-current brake: speed [m/s] of its largest force (a guess).',
+              low=0.1, high=200.0, vehicle='eddy_brake_critical_speed'),
+    ParamSpec('eddy_brake_air_gap', 0.007, DOUBLE,
+              'Linear eddy-current brake: air gap between magnets and rail [m]; the force '
+              'scales as (0.007 / gap)^2.', low=0.001, high=0.05,
+              vehicle='eddy_brake_air_gap'),
     ParamSpec('track_brake_delay', 0.5, DOUBLE,
               'Magnetic track brakes: time [s] from the emergency application to the force '
               '(lowering the magnets, building the field; a guess); released at once.',

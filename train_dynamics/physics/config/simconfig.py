@@ -187,6 +187,9 @@ class SimConfig:
     ed_trip_schedule_time: float = -1.0               # [s]; < 0 never
     track_brake_force: float = 0.0                    # vehicle field: at rest [N]; 0 none
     track_brake_half_speed: float = 30.0              # vehicle field: [m/s]
+    eddy_brake_force: float = 0.0                     # vehicle field: at v_c [N]; 0 none
+    eddy_brake_critical_speed: float = 15.0           # vehicle field: [m/s]
+    eddy_brake_air_gap: float = 0.007                 # vehicle field: [m]
     track_brake_delay: float = 0.5                    # switching delay [s]
 
     #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
