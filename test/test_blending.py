@@ -12,6 +12,7 @@ import pytest
 
 from train_dynamics.physics.blending import allocate_ed, ed_available, friction_make_up
 from train_dynamics.physics.config import ConfigError, SimConfig
+from train_dynamics.physics.kernel.layout import VEHICLE
 from train_dynamics.physics.kernel.traction import adhesion
 from train_dynamics.physics.train import TrainSimulator
 
@@ -288,3 +289,21 @@ def test_eddy_current_brake_follows_its_curve_and_books_its_work(unit, tmp_path)
     assert booked == pytest.approx(ke0, rel=5e-3)
     assert sim.bcu.track.work == pytest.approx(sim.work_resistance, rel=1e-2)
     assert sim.bcu.track.work > 0.02 * ke0
+
+
+def test_reset_releases_the_track_brakes_and_restarts_the_unit(unit, tmp_path):
+    """A reset mid-emergency: Davis A back to the car's own, the unit released at t = 0."""
+    text = UNIT.replace('dynamic_brake_fade_speed: 2.0', 'dynamic_brake_fade_speed: 2.0\n'
+                        '    track_brake_force: 30000.0\n    davis_a: 500.0')
+    (tmp_path / 'tb.yaml').write_text(text)
+    sim = unit(consist_file=str(tmp_path / 'tb.yaml'))
+    v0 = sim.v.copy()
+    sim.bcu.set_emergency(True)
+    sim.advance(1000)
+    assert sim.bcu.track.force[0] > 0.0
+    sim.reset()
+    assert sim.t == 0.0 and np.all(sim.v == v0)
+    assert sim.coach[VEHICLE.DAVIS_A, 0] == 500.0
+    assert not sim.bcu.emergency and sim.bcu.track.force.sum() == 0.0
+    sim.advance(500)
+    assert sim.brake_force.sum() == 0.0 and sim.bcu.ed_force().sum() == 0.0

@@ -113,6 +113,12 @@ class TrackBrakes:
             self.force = force
             self._write()
 
+    def restore(self) -> None:
+        """Give the cars their own Davis A back (released; ``TrainSimulator.reset``)."""
+        self.applied_at = None
+        self.force = np.zeros(self.sim.n)
+        self.sim.coach[VEHICLE.DAVIS_A] = self.davis_a
+
     def _write(self) -> None:
         """Put Davis A + the track brake force into the kernel's static resistance."""
         sim = self.sim

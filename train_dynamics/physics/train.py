@@ -258,9 +258,12 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             self.pneu.reset()
             c[INPUT.CYL] = self.pneu.cylinder_pressure
         self.fault: str | None = None
+        bcu = getattr(self, 'bcu', None)
+        if bcu is not None:         # the track brakes off before the couplers settle
+            bcu.track.restore()
         self._settle()
-        if getattr(self, 'bcu', None) is not None:
-            self.bcu.reset()
+        if bcu is not None:
+            bcu.reset()
 
     def _settle(self) -> None:
         """
