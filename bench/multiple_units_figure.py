@@ -6,8 +6,8 @@ offline run loop and writes ``docs/figures/multiple_units_<name>.png``: the dema
 achieved deceleration, and the train's ED, friction and track brake forces over a stop;
 ``multiple_units_trip.png``: the FLIRT at half of full service with the ED lost at 15 s;
 ``multiple_units_track_brake.png``: its emergency with magnetic track brakes on the two
-middle sections (2 x 2 magnets, 2 x 25 kN at rest: a guess for illustration, not part of the
-shipped unit). Prints the numbers of the tables.
+middle sections (50 kN at rest on each: a guess for illustration, not part of the shipped
+unit). Prints the numbers of the tables.
 """
 from __future__ import annotations
 
