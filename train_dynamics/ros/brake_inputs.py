@@ -237,7 +237,8 @@ class BrakeInputs:
     @property
     def accepted(self) -> int:
         """Return the accepted brake inputs and traction commands."""
-        return self._accepted + self.traction.accepted + self.ep.accepted + self.wsp.accepted
+        return (self._accepted + self.traction.accepted + self.ep.accepted + self.wsp.accepted
+                + self.blending.accepted)
 
     # -- a run (executor thread, simulation lock held) -------------------------------------
     def start(self, cfg: SimConfig, n: int, recording: bool) -> None:
