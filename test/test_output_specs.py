@@ -15,7 +15,7 @@ import pytest
 
 from train_dynamics import topics
 from train_dynamics.cli import offline as cli
-from train_dynamics.physics.config import ConfigError, SimConfig
+from train_dynamics.physics.config import ConfigError, load_param_file, SimConfig
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import bag_info, read_topics
@@ -41,8 +41,9 @@ def test_a_run_has_the_rows_whose_condition_holds_in_table_order():
     rich = SimConfig.from_dict({'brake_model': 'pneumatic', 'brake_system': 'ep',
                                 'davis_a': 1000.0, 'wheelsets': True,
                                 'target_stop_position': [800.0]})
+    unit_only = ('distributed_power/state', 'brake_blending', 'brake_demand/state')
     assert [s.topic for s in active(rich)] == [s.topic for s in OUTPUTS
-                                               if s.topic != 'distributed_power/state']
+                                               if s.topic not in unit_only]
     assert output_topics(rich).index('brake_reservoirs') == 3
 
 
@@ -62,10 +63,22 @@ def test_every_output_is_the_bytes_rosbags_gives_for_its_values():
                                'davis_a': 1000.0, 'wheelsets': True,
                                'target_stop_position': [800.0], 'num_coaches': 4})
     _, _, out = _messages(cfg, 0.5)
-    assert set(out) == set(output_topics(cfg)) and len(out) == len(OUTPUTS) - 1   # not DP
-    for topic, (raw, msg) in out.items():
+    assert set(out) == set(output_topics(cfg)) and len(out) == len(OUTPUTS) - 3   # not DP
+    for topic, (raw, msg) in out.items():                         # nor the unit's two
         assert serialize(msg) == raw, topic
         assert msg.header.frame_id == topics.TRACK_FRAME
+
+
+def test_a_multiple_unit_has_the_brake_control_units_outputs_as_rosbags_encodes_them():
+    cfg = load_param_file(str(REPO / 'config' / 'emu_flirt_4.yaml'))
+    sim, _, out = _messages(cfg, 0.5)
+    assert {'brake_blending', 'brake_demand/state'} <= set(out)
+    for topic in ('brake_blending', 'brake_demand/state'):
+        raw, msg = out[topic]
+        assert serialize(msg) == raw, topic
+    per_car = out['brake_blending'][1]
+    np.testing.assert_array_equal(per_car.velocity, sim.brake_force)
+    assert list(out['brake_demand/state'][1].name) == ['demand', 'achieved']
 
 
 def test_odometry_is_the_lead_vehicle_along_the_track():

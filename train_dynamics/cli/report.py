@@ -30,6 +30,7 @@ from train_dynamics.physics.config import ConfigError, SimConfig
 from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
 from train_dynamics.quoting import clip
 from train_dynamics.recording.bags import bag_info, BagError
+from train_dynamics.recording.blending_metrics import blending_metrics
 from train_dynamics.recording.history import History, stream_history
 from train_dynamics.recording.metrics_report import (MetricsFeed, stop_error_from_bag,
                                                      write_report)
@@ -170,6 +171,9 @@ def run_result(args: argparse.Namespace, overrides: dict) -> tuple[dict, Any, di
         stop_error_from_bag(result, args.bag, args.namespace)
     except BagError as exc:
         raise CliError(str(exc)) from None
+    blending = blending_metrics(args.bag, args.namespace)       # multiple units only
+    if blending is not None:
+        result['blending'] = blending
     keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
     model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
     source = {'bag': str(args.bag), 'parameters': origin, 'model': model,

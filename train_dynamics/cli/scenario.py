@@ -22,8 +22,9 @@ from train_dynamics.cli.errors import CliError, warn
 from train_dynamics.physics.brake_valve import BrakeValveModel, VALVE_PARAMETERS
 from train_dynamics.physics.config import (ConfigError, load_param_file, node_sections,
                                            read_param_sections, SimConfig)
+from train_dynamics.recording.demand_inputs import read_blending_bag
 from train_dynamics.recording.inputs import InputBagError, read_input_bag, read_traction_bag
-from train_dynamics.simulation.runner import command_schedule, InputSchedule
+from train_dynamics.simulation.runner import blending_events, command_schedule, InputSchedule
 
 #: the brake valve without a ``schedule`` or ``position`` in the parameter file
 DEFAULT_VALVE_SCHEDULE = ['0.0:release', '1.0:emergency']
@@ -56,17 +57,24 @@ def brake_inputs(args: argparse.Namespace, cfg: SimConfig) -> InputSchedule:
     """
     inputs = _brake_only(args, cfg)
     traction = []
+    blending = []
     if args.input:
         try:
             traction = read_traction_bag(args.input, cfg, namespace=args.namespace, warn=warn)
+            blending = read_blending_bag(args.input, cfg, namespace=args.namespace, warn=warn)
         except InputBagError as exc:
             raise CliError(str(exc)) from None
     inputs.traction = command_schedule(cfg, traction)
+    if cfg.blending == 'builtin':   # the brake control unit's demand, emergency, ED trip
+        inputs.traction = sorted(inputs.traction + blending_events(cfg, blending),
+                                 key=lambda e: e.t_ns)
     return inputs
 
 
 def _brake_only(args: argparse.Namespace, cfg: SimConfig) -> InputSchedule:
     """Return the brake input of the run: the ``--input`` bag or the brake-valve schedule."""
+    if cfg.blending == 'builtin':   # the brake control unit sets the cylinders itself
+        return InputSchedule(cfg.brake_input, [], None, 'brake control unit')
     if args.input:
         try:
             return read_input_bag(args.input, cfg, namespace=args.namespace, warn=warn)

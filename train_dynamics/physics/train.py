@@ -23,7 +23,7 @@ import itertools
 
 import numpy as np
 
-from train_dynamics.physics import equilibrium, friction, pneumatic
+from train_dynamics.physics import blending, equilibrium, friction, pneumatic
 from train_dynamics.physics import track as track_module
 from train_dynamics.physics.config import (Consist, G_FILL_TIME, G_RELEASE_TIME,
                                            P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
@@ -120,6 +120,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         #: pipe_per_coach); the pipe-head delay line and the pneumatic brake run on the
         #: tick h: there an input at t acts from the first step k with k h >= t
         self.exact_inputs = self.pneu is None and self.mode != brakes.PIPE_HEAD
+        #: blending builtin: the brake control unit (physics/blending.py); None: friction only
+        self.bcu = blending.BrakeControlUnit(self) if cfg.blending == 'builtin' else None
 
     def _build_couplers(self, consist: Consist, coupler_constants: dict | None) -> None:
         """Fill ``cpl``: each connection's constants (eqs. 2-3, free play, strokes, K_b)."""
@@ -258,7 +260,12 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             self.pneu.reset()
             c[INPUT.CYL] = self.pneu.cylinder_pressure
         self.fault: str | None = None
+        bcu = getattr(self, 'bcu', None)
+        if bcu is not None:         # the track brakes off before the couplers settle
+            bcu.track.restore()
         self._settle()
+        if bcu is not None:
+            bcu.reset()
 
     def _settle(self) -> None:
         """

@@ -29,6 +29,7 @@ import numpy as np
 from train_dynamics import topics
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.recording.bags import read_topics
+from train_dynamics.recording.blending_metrics import blending_markdown
 from train_dynamics.recording.history import History, natural_key
 from train_dynamics.recording.plots import (_new_figure, _save, _set_xlim, _style,
                                             plot_history, PlotError)
@@ -341,6 +342,7 @@ def summary_markdown(doc: dict[str, Any]) -> str:
         lines.append(f"- WARN {e['name']}: {e['kind']} {e['value']:.4g} {unit} at t = "
                      f"{e['t']:.3f} s (beyond {e['limit']:.4g} {unit} from {e['t_start']:.3f} "
                      f'to {end})')
+    lines += [''] + blending_markdown(doc.get('blending'))
     lines += ['', 'Deceleration and jerk over the comfort window (EN 12299 practice); '
               'energies by the trapezoid rule over the recorded samples. See docs/offline.md '
               '("Run metrics").', '']

@@ -26,6 +26,7 @@ from typing import Any, Callable, Sequence
 import numpy as np
 
 from train_dynamics import topics
+from train_dynamics.physics.blending import ed_forces
 from train_dynamics.physics.wheelset import speed_sensor
 from train_dynamics.recording.cdr import (_cdr_align, _cdr_header, _cdr_string, _ENCAPSULATION,
                                           joint_state_layout, Layout)
@@ -182,6 +183,29 @@ def _distance_to_go(sim: Any, t_ns: int, run: OutputRun) -> tuple:
     return target - front, sim.v[:1], np.full(1, target)
 
 
+def _blending_per_car(sim: Any, t_ns: int, run: Any) -> tuple:
+    """Per car: achieved ED force, friction brake force, track + eddy-current force [N]."""
+    bcu = getattr(sim, 'bcu', None)
+    if bcu is None:      # blending external: the controller under test is the unit
+        return ed_forces(sim), sim.brake_force, np.zeros(sim.n)
+    return bcu.ed_force(), sim.brake_force, bcu.track.force
+
+
+def _demand_state(sim: Any, t_ns: int, run: Any) -> tuple:
+    """Demanded and achieved deceleration [m/s^2], brake force [N], ED force [N]."""
+    bcu = sim.bcu
+    ed = bcu.ed_force()
+    achieved = float(ed.sum() + sim.brake_force.sum() + bcu.track.force.sum())
+    return (np.array([bcu.demanded_deceleration, achieved / float(sim.inertia.sum())]),
+            np.array([bcu.force_demand, achieved]),
+            np.array([float(np.sum(bcu.ed_command)), float(ed.sum())]))
+
+
+def has_blending(cfg: Any) -> bool:
+    """Return whether a run of ``cfg`` has a brake control unit (blending builtin or external)."""
+    return getattr(cfg, 'blending', 'none') != 'none'
+
+
 def has_reservoirs(cfg: Any) -> bool:
     """Return whether a run of ``cfg`` has reservoirs to publish (pneumatic brake)."""
     return (getattr(cfg, 'brake_model', 'empirical') == 'pneumatic'
@@ -279,6 +303,18 @@ OUTPUTS: tuple[OutputSpec, ...] = (
                 'the target stopping point [m, track position]'),
                _distance_to_go, lambda cfg: target_of(cfg) is not None,
                '`target_stop_position` set'),
+    OutputSpec(topics.BRAKE_BLENDING_TOPIC, topics.JOINT_STATE, _vehicles, _EVERY_VEHICLE,
+               ('achieved electro-dynamic brake force [N, >= 0; 0 for trailers]',
+                'friction brake force [N, >= 0]',
+                'magnetic track + eddy-current brake force [N, >= 0; 0 with external]'),
+               _blending_per_car, has_blending, '`blending` builtin or external'),
+    OutputSpec(topics.BRAKE_DEMAND_STATE_TOPIC, topics.JOINT_STATE,
+               lambda cfg: ['demand', 'achieved'], '`demand`, `achieved`',
+               ('deceleration [m/s^2] (demand: after the jerk limit; achieved: ED + friction + '
+                'track forces over the inertial mass, resistance and gradient not counted)',
+                'brake force [N]', 'electro-dynamic brake force of the train [N]'),
+               _demand_state, lambda cfg: getattr(cfg, 'blending', 'none') == 'builtin',
+               '`blending: builtin`'),
 )
 
 #: topic -> its row

@@ -67,6 +67,7 @@ from train_dynamics import topics
 from train_dynamics.physics.config import input_rejection, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
+from train_dynamics.ros.blending_inputs import BlendingInputs
 from train_dynamics.ros.ep_inputs import EpInputs
 from train_dynamics.ros.lockstep_inputs import LockstepInputs
 from train_dynamics.ros.publishers import stamp
@@ -205,6 +206,8 @@ class BrakeInputs(LockstepInputs):
         self.ep = EpInputs(node, INPUT_QOS, self._reject_traction, self._notify)
         #: the slide-protection valves (wsp external; same validation counts and timeout)
         self.wsp = WspInputs(node, INPUT_QOS, self._reject_traction, self._notify)
+        #: the brake control unit's demand, emergency, ED trip (blending builtin)
+        self.blending = BlendingInputs(node, INPUT_QOS, self._reject_traction, self._notify)
 
     def _notify(self) -> None:
         """Tell the simulation thread that an input was accepted (executor thread)."""
@@ -234,7 +237,8 @@ class BrakeInputs(LockstepInputs):
     @property
     def accepted(self) -> int:
         """Return the accepted brake inputs and traction commands."""
-        return self._accepted + self.traction.accepted + self.ep.accepted + self.wsp.accepted
+        return (self._accepted + self.traction.accepted + self.ep.accepted + self.wsp.accepted
+                + self.blending.accepted)
 
     # -- a run (executor thread, simulation lock held) -------------------------------------
     def start(self, cfg: SimConfig, n: int, recording: bool) -> None:
@@ -258,6 +262,7 @@ class BrakeInputs(LockstepInputs):
         self.traction.start(cfg.consist.commanded if cfg.external_forces else [])
         self.ep.start(cfg.ep_commanded)
         self.wsp.start(list(range(n)) if cfg.wsp == 'external' else [])
+        self.blending.start(cfg)
 
     def set_policy(self, timeout: float, on_timeout: str) -> None:
         """Report inputs older than ``timeout`` [s wall]; ``on_timeout``: hold/emergency."""
@@ -449,6 +454,7 @@ class BrakeInputs(LockstepInputs):
         self.traction.apply(now, sim, record, self.timeout, self.on_timeout == 'emergency')
         self.ep.apply(now, sim, record, self.timeout)
         self.wsp.apply(now, sim, record, self.timeout, False)
+        self.blending.apply(sim, record)
         if self._buffer.pending:        # input_timing stamp (or just switched off): those due
             self.schedule_due(sim, sim.t if self.by_stamp else math.inf, record)
         news = self._take(now)

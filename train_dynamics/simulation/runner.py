@@ -21,6 +21,8 @@ from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.simulation.demand import (apply_blending_input, BLENDING_INDEX,
+                                              blending_schedule, BLENDING_TOPICS)
 
 
 #: TractionEvent.index of the EP / ECP train-line command
@@ -63,6 +65,8 @@ def _command(sim: TrainSimulator, e: TractionEvent) -> None:
     """Hand a command event (traction, EP, slide-protection valve) to ``sim``."""
     if e.kind == 'wsp':
         sim.set_wsp_valve(int(e.command), e.index)
+    elif e.kind in BLENDING_TOPICS:      # the brake control unit's (simulation/demand.py)
+        apply_blending_input(sim, e.kind, e.command)
     elif e.index == EP_INDEX:
         sim.set_ep_command(e.command)
     else:
@@ -136,6 +140,24 @@ def command_schedule(cfg: Any, from_bag: list[TractionEvent]) -> list[TractionEv
     if ep:
         events = sorted(events + ep, key=lambda e: e.t_ns)
     return events
+
+
+def blending_events(cfg: Any, from_bag: list[TractionEvent]) -> list[TractionEvent]:
+    """
+    Return the brake control unit's inputs: an input bag's, else the parameter file's.
+
+    The bag's events of a kind replace the schedule of that kind (``demand``,
+    ``emergency``, ``ed_trip``; simulation/demand.py). Empty unless blending builtin.
+    """
+    if cfg.blending != 'builtin':
+        return []
+    have = {e.kind for e in from_bag}
+    h = float(cfg.integration_step)
+    events = list(from_bag) + [
+        TractionEvent(step_of(t_ns, h), t_ns, BLENDING_INDEX, value, BLENDING_TOPICS[kind],
+                      kind=kind)
+        for t_ns, kind, value in blending_schedule(cfg) if kind not in have]
+    return sorted(events, key=lambda e: e.t_ns)
 
 
 def step_of(t_ns: int, h: float) -> int:

@@ -21,6 +21,7 @@ from typing import Any, Callable, Mapping
 import numpy as np
 
 from train_dynamics.physics import track
+from train_dynamics.physics.config.blending_params import check_blending
 from train_dynamics.physics.config.budgets import (config_memory, fmt_bytes, MAX_PERIOD_SECONDS,
                                                    max_period_steps, MAX_SIMULATOR_MEMORY)
 from train_dynamics.physics.config.consist import (check_friction_below_stiffness,
@@ -183,6 +184,24 @@ class SimConfig:
     sauthoff_c: float = 0.0024                        # Sauthoff c [per mille per km/h]
     sauthoff_area: float = 1.45                       # Sauthoff area f [m^2]
     resistance_wind: float = 15.0                     # wind allowance dV [km/h]
+    # multiple units: brake control unit and blending (config/blending_params.py)
+    blending: str = 'none'                            # 'none' or 'builtin'
+    blending_scope: str = 'train'                     # 'train' or 'car'
+    brake_demand_mode: str = 'fraction'               # 'fraction' or 'deceleration'
+    full_service_deceleration: float = 1.0            # [m/s^2]
+    blending_jerk_limit: float = 1.0                  # [m/s^3]
+    blending_period: float = 0.01                     # BCU cycle [s]
+    friction_response_time: float = 0.3               # EP cylinder time constant [s]
+    demand_schedule_times: list[float] = field(default_factory=list)   # [s]
+    demand_schedule_values: list[float] = field(default_factory=list)  # as brake_demand_mode
+    emergency_schedule_time: float = -1.0             # [s]; < 0 none
+    ed_trip_schedule_time: float = -1.0               # [s]; < 0 never
+    track_brake_force: float = 0.0                    # vehicle field: at rest [N]; 0 none
+    track_brake_half_speed: float = 30.0              # vehicle field: [m/s]
+    eddy_brake_force: float = 0.0                     # vehicle field: at v_c [N]; 0 none
+    eddy_brake_critical_speed: float = 15.0           # vehicle field: [m/s]
+    eddy_brake_air_gap: float = 0.007                 # vehicle field: [m]
+    track_brake_delay: float = 0.5                    # switching delay [s]
 
     #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
     _consist = None
@@ -305,6 +324,7 @@ class SimConfig:
     def check(self) -> None:
         """Cross-parameter checks; raises :class:`ConfigError`."""
         self._check_real_train()
+        check_blending(self)
         if self.masses and len(self.masses) < 2:
             raise ConfigError(f'masses: a train needs at least 2 coaches, got {len(self.masses)}')
         check_output_grid(float(self.publish_rate), float(self.integration_step))

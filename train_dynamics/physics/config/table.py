@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from typing import Any, Mapping
 
+from train_dynamics.physics.config.blending_params import BLENDING_PARAMS
 from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
                                                 DOUBLE_ARRAY, EQUAL_FORCE, INTEGER, ParamSpec,
                                                 SERIES, STRING, STRING_ARRAY)
@@ -494,6 +495,7 @@ _PARAMS = [
               'velocity error times k_f |y| u, the slope of the tanh law at its next friction '
               'reversal [-] (outside the friction band the estimate does not see velocity '
               'errors that shift the reversal). 0 = off.', low=0.0, high=100.0),
+    *BLENDING_PARAMS,       # multiple units: brake control unit, blending (blending_params.py)
 ]
 # side buffers, screw-coupling pretension, tabulated curves, resistance laws: table_ends.py
 _PARAMS += END_AND_RESISTANCE_PARAMS
