@@ -98,6 +98,8 @@ BRAKE_EP_STATE_TOPIC = 'brake_ep/state'
 #: pressure the remote's brake valve regulates the pipe to [Pa gauge]
 RADIO_STATE_TOPIC = 'distributed_power/state'
 CLOCK_TOPIC = '/clock'
+#: ``namespaced_clock``: the clock relative to the node's namespace instead of ``/clock``
+NAMESPACED_CLOCK_TOPIC = 'clock'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 
 

@@ -19,7 +19,11 @@ simulation time, at the integration steps nearest to k / publish_rate
   gradient force [N, on the vehicle, forward > 0];
 - ``wheelsets`` (a train with rotating wheelsets): JointState ``coach_1..N``: position =
   available adhesion [-], velocity = wheel peripheral speed [m/s], effort = creep force [N];
-- ``/clock`` (``rosgraph_msgs/Clock``) when ``publish_clock``.
+- ``/clock`` (``rosgraph_msgs/Clock``) when ``publish_clock``, ``clock`` in the node's
+  namespace with ``namespaced_clock`` (:mod:`train_dynamics.ros.clock`).
+
+A topic's publisher exists only while the run publishes it (``brake_reservoirs`` with the
+pneumatic brake, the clock while ``publish_clock``): nothing is advertised unused.
 
 Output messages are CDR-encoded once per output (:class:`OutputEncoder`: names and header
 layout computed once), then published and recorded as the same bytes: ~10x cheaper than
@@ -35,13 +39,13 @@ from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
-from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
 from train_dynamics import topics
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
+from train_dynamics.ros.clock import ClockOutput
 from train_dynamics.ros.live_metrics import LiveMetrics
 from train_dynamics.ros.recorder import BagWriter
 from train_dynamics.simulation.runner import output_step
@@ -72,8 +76,9 @@ class Outputs:
 
     def __init__(self, node: Node) -> None:
         self._pubs = {topic: node.create_publisher(JointState, topic, OUTPUT_QOS)
-                      for topic in topics.OUTPUT_TOPICS + (topics.BRAKE_RESERVOIRS_TOPIC,)}
-        self._pub_clock = node.create_publisher(Clock, topics.CLOCK_TOPIC, OUTPUT_QOS)
+                      for topic in topics.OUTPUT_TOPICS}
+        #: /clock (or the namespaced clock), advertised only while publish_clock
+        self.clock = ClockOutput(node, OUTPUT_QOS)
         self._pub_motion = node.create_publisher(JointState, topics.VEHICLE_MOTION_TOPIC,
                                                  OUTPUT_QOS)
         self._node = node
@@ -82,7 +87,6 @@ class Outputs:
         self._pub_wheelsets = None      # wheelsets, created for a train that has them
         self._wheelsets = False
         self.writer: BagWriter | None = None
-        self.publish_clock = False
         self.rate = 0.0                 # [Hz] publish_rate of the run
         self.next_step = 0              # integration step of the next output
         self._h = 0.0
@@ -111,9 +115,7 @@ class Outputs:
         """
         self.metrics.start(metrics)
         self._encoder = encoder
-        for topic in encoder.topics:     # the brake-system states, created when first used
-            if topic not in self._pubs:
-                self._pubs[topic] = self._node.create_publisher(JointState, topic, OUTPUT_QOS)
+        self._publish_only(encoder.topics)
         self._forces = bool(forces)
         if self._forces and self._pub_forces is None:
             self._pub_forces = self._node.create_publisher(
@@ -131,6 +133,24 @@ class Outputs:
         self.published = 0
         self.last_step = -1
         self.last_t_ns = -1
+
+    def _publish_only(self, wanted) -> None:
+        """Create the JointState publishers of ``wanted`` not yet there; destroy the others."""
+        for topic in [t for t in self._pubs if t not in wanted]:
+            self._node.destroy_publisher(self._pubs.pop(topic))
+        for topic in wanted:     # e.g. the brake-system states, created when first used
+            if topic not in self._pubs:
+                self._pubs[topic] = self._node.create_publisher(JointState, topic, OUTPUT_QOS)
+
+    @property
+    def publish_clock(self) -> bool:
+        """Return True while the clock is published."""
+        return self.clock.active
+
+    @publish_clock.setter
+    def publish_clock(self, value: bool) -> None:
+        """Publish the clock or not (``namespaced_clock``: where); executor thread."""
+        self.clock.configure(bool(value), bool(self._node.get_parameter('namespaced_clock').value))
 
     def subscribed(self) -> bool:
         """Return True if a subscriber is matched on one of the JointState outputs."""
@@ -173,10 +193,7 @@ class Outputs:
         if wheels is not None:
             self._pub_wheelsets.publish(wheels)
         self.metrics.put(sim)
-        clock = None
-        if self.publish_clock:
-            clock = Clock(clock=stamp(t_ns))
-            self._pub_clock.publish(clock)
+        clock = self.clock.publish(stamp(t_ns))
         w = self.writer
         if w is not None:
             for topic, data in zip(self._encoder.topics, encoded):
@@ -187,7 +204,7 @@ class Outputs:
             if wheels is not None:
                 w.write(topics.WHEELSETS_TOPIC, topics.JOINT_STATE, t_ns, wheels)
             if clock is not None:
-                w.write(topics.CLOCK_TOPIC, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
+                w.write(self.clock.topic, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
         self.published += 1
         self.last_step = sim.steps
         self.last_t_ns = t_ns
