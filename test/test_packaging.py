@@ -98,7 +98,7 @@ def test_every_import_maps_to_a_dependency_and_none_is_unused():
 
 
 def test_documents_agree_on_the_rosbags_rosdep_key():
-    """rosdep installs rosbags with pip through python3-rosbags-pip (ros/rosdistro)."""
+    """Name python3-rosbags-pip: rosdep installs rosbags with pip through it (ros/rosdistro)."""
     pages = ['README.md', 'docs/install.md', 'requirements.txt', 'package.xml']
     for page in pages:
         text = ' '.join((REPO / page).read_text(encoding='utf-8').split())

@@ -8,8 +8,9 @@ declares (invalid parameters, ...) print one line ``<prog>: error: ...`` and end
 status; anything else is a crash, unless the context went down under a callback (then it is a
 clean stop too). A missing or malformed ``--params-file`` is one line and status 2 before rclpy
 starts, and so is one with no section for the node (its values would be ignored); ``-h`` /
-``--help`` print the usage (:mod:`train_dynamics.ros.usage`) and exit 0 without starting; timer callbacks wrapped in :func:`shutdown_safe` stay quiet when a signal shuts the
-context down under them.
+``--help`` print the usage (:mod:`train_dynamics.ros.usage`) and exit 0 without starting;
+timer callbacks wrapped in :func:`shutdown_safe` stay quiet when a signal shuts the context
+down under them.
 """
 from __future__ import annotations
 

@@ -495,7 +495,7 @@ PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
 #: ``sim_node``'s own parameters (not part of the simulator configuration; all live).
 SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
     ParamSpec('namespaced_clock', False, BOOL,
-              'With publish_clock: publish the simulation time on clock in the node\'s '
+              "With publish_clock: publish the simulation time on clock in the node's "
               'namespace (/<namespace>/clock) instead of the global /clock, so that several '
               'simulated trains in one ROS graph each have their own clock; their nodes on '
               'use_sim_time read it with --ros-args -r /clock:=/<namespace>/clock.',
