@@ -19,6 +19,14 @@ Figures: every coupler-force sample (every 2 ms) and displacement sample: max |o
 max |ref| [%]; the peak force's error [%]; chain steps; wall time of the run [s]
 (in-process, 2 ms read-out; shared machine: compare within a table only).
 ``python bench/accuracy.py [--case NAME]``; the table is kept in ``bench/accuracy_results.md``.
+
+``--robust`` adds the long-train metrics of the accuracy contract (docs/integrators.md,
+:mod:`train_dynamics.physics.comparison`, on the 10 ms samples): the +-10 ms tube, 1 s window
+and per-coupler envelopes, damage-equivalent load (rainflow, m = 4) and the count of cycles
+above 10 % of the peak; and, first, the sensitivity floor: the same metrics between the
+reference and the reference of the same train with one coach (the middle one) 1e-3 heavier.
+Cases ``paper100`` (100 coaches, 0-20 s) and ``paper1000`` (1000 coaches, 0-20 s) exist for
+it (the references take minutes to tens of minutes).
 """
 from __future__ import annotations
 
@@ -27,6 +35,7 @@ import time
 
 import numpy as np
 
+from train_dynamics.physics import comparison
 from train_dynamics.physics.chain_reference import ChainLaw, solve_chain
 from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.config.budgets import max_period_steps
@@ -129,10 +138,39 @@ def _mixed_freeplay(t_end=4.0):
 
 
 CASES = {'paper': _paper, 'khz_unequal': _khz_unequal, 'mixed_freeplay': _mixed_freeplay,
-         'paper30': lambda: _paper(30, 8.0)}
+         'paper30': lambda: _paper(30, 8.0), 'paper100': lambda: _paper(100, 20.0),
+         'paper1000': lambda: _paper(1000, 20.0)}
+
+#: the sensitivity floor's perturbation: one coach's mass, relative
+FLOOR_PERTURBATION = 1e-3
+#: the robust metrics are taken on the output samples (10 ms), as a user's run has them
+ROBUST_EVERY = 5
 
 
-def run_case(name: str, only=None) -> list[dict]:
+def _robust(F: np.ndarray, ref_F: np.ndarray, t_eval: np.ndarray) -> dict:
+    """Return the accuracy contract's metrics [% of the reference's peak] on 10 ms samples."""
+    sel = slice(ROBUST_EVERY - 1, None, ROBUST_EVERY)
+    found = comparison.all_metrics(t_eval[sel], F[sel], ref_F[sel])
+    return {key: 100.0 * value for key, value in found.items()}
+
+
+def _floor(name: str, t_eval: np.ndarray, ref_F: np.ndarray) -> dict:
+    """Return the robust metrics between the reference and a one-coach-heavier reference."""
+    make, steps, brake, t_end, v0 = CASES[name]()
+    sim = make()
+    inertia = np.array(sim.inertia, dtype=float)
+    inertia[sim.n // 2] *= 1.0 + FLOOR_PERTURBATION
+    law = ChainLaw.of_simulator(sim)
+    perturbed = solve_chain(inertia, law, v0, steps, t_eval, brake_of_t=brake)
+    return {'case': name, 'setting': f'reference, coach {sim.n // 2 + 1} mass '
+                                      f'x (1 + {FLOOR_PERTURBATION:g})',
+            'force_pct': 100.0 * np.abs(perturbed.F - ref_F).max() / np.abs(ref_F).max(),
+            'disp_pct': float('nan'), 'peak_pct': float('nan'), 'steps': 0, 'groups': 0,
+            'substeps': 0, 'wall_s': float('nan'), 'fault': '',
+            **_robust(perturbed.F, ref_F, t_eval)}
+
+
+def run_case(name: str, only=None, robust: bool = False) -> list[dict]:
     """Return one row per setting of case ``name`` (errors in %, steps, wall [s])."""
     make, steps, brake, t_end, v0 = CASES[name]()
     t_eval = np.round(np.arange(1, int(round(t_end / DT)) + 1) * DT, 10)
@@ -141,7 +179,7 @@ def run_case(name: str, only=None) -> list[dict]:
                       brake_of_t=brake)
     peak_f = np.abs(ref.F).max()
     peak_y = np.abs(ref.y).max()
-    rows = []
+    rows = [_floor(name, t_eval, ref.F)] if robust else []
     budget = {'integration_max_steps': max_period_steps(sim.n), 'publish_rate': 1.0 / DT}
     for label, over in SETTINGS:
         if only and not any(label.startswith(o) for o in only):
@@ -163,8 +201,26 @@ def run_case(name: str, only=None) -> list[dict]:
                      'peak_pct': 100.0 * (np.abs(F).max() / peak_f - 1.0),
                      'steps': stats['steps'] if stats['adaptive'] else sim.steps,
                      'groups': stats['mr_groups'], 'substeps': stats['mr_substeps'],
-                     'wall_s': wall, 'fault': sim.fault})
+                     'wall_s': wall, 'fault': sim.fault,
+                     **(_robust(F, ref.F, t_eval) if robust else {})})
     return rows
+
+
+ROBUST_COLUMNS = (('tube_10ms', 'tube +-10 ms'), ('window_envelope_1s', '1 s windows'),
+                  ('coupler_envelope', 'per-coupler envelope'), ('del_m4', 'DEL (m = 4)'),
+                  ('cycles_above_10pct', 'cycles > 10 % [% of count]'))
+
+
+def robust_table(rows: list[dict]) -> str:
+    """Return the rows' accuracy-contract metrics as a markdown table."""
+    head = ' | '.join(label for _, label in ROBUST_COLUMNS)
+    out = [f'| case | setting | worst sample | {head} | wall [s] |',
+           '|---|---|' + '---|' * (len(ROBUST_COLUMNS) + 2)]
+    for r in rows:
+        cells = ' | '.join(f'{r[key]:.3f}' for key, _ in ROBUST_COLUMNS)
+        out.append(f"| {r['case']} | {r['setting']} | {r['force_pct']:.3f} | {cells} | "
+                   f"{r['wall_s']:.2f} |")
+    return '\n'.join(out)
 
 
 def table(rows: list[dict]) -> str:
@@ -184,11 +240,14 @@ def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument('--case', choices=sorted(CASES), action='append')
     ap.add_argument('--setting', action='append', help='only the settings starting with this')
+    ap.add_argument('--robust', action='store_true',
+                    help="the accuracy contract's long-train metrics and the sensitivity floor")
     args = ap.parse_args(argv)
     rows = []
-    for name in args.case or list(CASES):
-        rows += run_case(name, args.setting)
-    print(table(rows))
+    default_cases = [c for c in CASES if c not in ('paper100', 'paper1000')]
+    for name in args.case or default_cases:
+        rows += run_case(name, args.setting, args.robust)
+    print(robust_table(rows) if args.robust else table(rows))
     return 0
 
 

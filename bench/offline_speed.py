@@ -107,10 +107,9 @@ class _Encode:
     """Encode every output topic of each sample in place (OutputRows, as BagSink), no bag."""
 
     def __init__(self, cfg) -> None:
-        from train_dynamics.recording.outputs import has_reservoirs, OutputEncoder, OutputRows
+        from train_dynamics.recording.outputs import OutputEncoder, OutputRows
         self.atm = float(cfg.atmospheric_pressure)
-        self.rows = OutputRows(OutputEncoder(cfg.n_coaches, has_reservoirs(cfg)),
-                               bool(cfg.external_forces), True)
+        self.rows = OutputRows(OutputEncoder(cfg), True)
         self.rec = _Discard()
 
     def sample(self, s) -> None:

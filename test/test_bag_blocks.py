@@ -15,11 +15,11 @@ import pytest
 
 from train_dynamics import topics
 from train_dynamics.physics.config import SimConfig
+from train_dynamics.physics.observables import TrainOutputs
 from train_dynamics.recording import cdr
 from train_dynamics.recording.bags import bag_info, BagRecorder, read_topics
 from train_dynamics.recording.outputs import OutputEncoder, OutputRows
 
-JS = 'sensor_msgs/msg/JointState'
 FP = 'sensor_msgs/msg/FluidPressure'
 
 
@@ -37,6 +37,13 @@ class _State:
         self.ydot = self.v[:-1] - self.v[1:]
         self.coupler_force = rng.normal(size=n - 1) * 1e5
         self.cfg = SimConfig()          # the outputs' options (the exact wheel speed)
+
+    def __getattr__(self, name):
+        """Return a quantity derived from the ones above, by the simulator's own property."""
+        prop = getattr(TrainOutputs, name, None)
+        if not isinstance(prop, property):
+            raise AttributeError(name)
+        return prop.fget(self)
 
 
 def _raw(bag):
@@ -71,22 +78,32 @@ def test_layouts_give_the_encoders_bytes(n):
     assert bytes(data) == cdr.encode_fluid_pressure(3_000_000_005, 601325.5)
 
 
+def _config(n, reservoirs=False, forces=False, wheelsets=False):
+    """Return a configuration whose outputs include the optional topics asked for."""
+    opts = {'num_coaches': n}
+    if reservoirs:
+        opts['brake_model'] = 'pneumatic'
+    if forces:
+        opts['davis_a'] = 1000.0
+    if wheelsets:
+        opts['wheelsets'] = True
+    return SimConfig.from_dict(opts)
+
+
 def _write_both(tmp_path, n, samples, split=None, reservoirs=True, forces=True, inputs=(),
                 wheelsets=False):
     """Write ``samples`` per message and in blocks (small blocks: several per file)."""
     bags = []
+    cfg = _config(n, reservoirs, forces, wheelsets)
     for blocks in (False, True):
         bag = tmp_path / ('blocks' if blocks else 'messages')
         rec = BagRecorder(bag, split_seconds=split, atomic=True, file_stem='bag')
-        enc = OutputEncoder(n, reservoirs)
-        for t in enc.topics + (topics.VEHICLE_MOTION_TOPIC,) + (
-                (topics.VEHICLE_FORCES_TOPIC,) if forces else ()) + (
-                (topics.WHEELSETS_TOPIC,) if wheelsets else ()):
-            rec.add_topic(t, JS)
+        enc = OutputEncoder(cfg)
+        for t, msgtype in zip(enc.topics, enc.msgtypes):
+            rec.add_topic(t, msgtype)
         rec.add_topic(topics.HEAD_PIPE_TOPIC, FP)
         rec.add_topic('coach_1/brake_cylinder/pressure', FP)
-        rows = OutputRows(enc, forces, True, capacity=7,    # many blocks per file
-                          wheelsets=wheelsets)
+        rows = OutputRows(enc, True, capacity=7)    # many blocks per file
         for k in range(samples):
             t_ns = k * 10_000_000
             sim = _State(n, k)
@@ -100,11 +117,6 @@ def _write_both(tmp_path, n, samples, split=None, reservoirs=True, forces=True, 
             else:
                 for t, data in zip(enc.topics, enc.encode(t_ns, sim)):
                     rec.write(t, t_ns, data)
-                rec.write(topics.VEHICLE_MOTION_TOPIC, t_ns, enc.encode_motion(t_ns, sim))
-                if forces:
-                    rec.write(topics.VEHICLE_FORCES_TOPIC, t_ns, enc.encode_forces(t_ns, sim))
-                if wheelsets:
-                    rec.write(topics.WHEELSETS_TOPIC, t_ns, enc.encode_wheelsets(t_ns, sim))
                 rec.write(topics.HEAD_PIPE_TOPIC, t_ns, cdr.encode_fluid_pressure(t_ns, head))
         rec.close()
         bags.append(bag)
@@ -118,7 +130,9 @@ def test_blocks_write_the_messages_of_the_per_message_path(tmp_path):
     assert len(b['couplers']) == 100 and len(b['coach_1/brake_cylinder/pressure']) == 4
     ia, ib = bag_info(one), bag_info(blocks)
     assert (ia.topics, ia.start_ns, ia.end_ns, ia.message_count) == (
-        ib.topics, ib.start_ns, ib.end_ns, ib.message_count) and ib.message_count == 7 * 100 + 4
+        ib.topics, ib.start_ns, ib.end_ns, ib.message_count)
+    outputs = len(OutputEncoder(_config(5, True, True)).topics)
+    assert ib.message_count == (outputs + 1) * 100 + 4         # + the head pipe
     # the inputs come between the samples they were written between (bag-time order)
     got = [(topic, t) for topic, t, _ in read_topics(blocks)]
     at = got.index(('coach_1/brake_cylinder/pressure', 13 * 10_000_000 - 1000))
@@ -148,23 +162,24 @@ def test_blocks_split_files_at_the_same_samples(tmp_path):
 
 
 def test_rows_filled_before_close_are_in_the_bag_and_keep_drops_the_open_file(tmp_path):
-    enc = OutputEncoder(3)
+    enc = OutputEncoder(_config(3))
+    per_sample = len(enc.topics)
     for how in ('close', 'keep'):
         bag = tmp_path / how
         rec = BagRecorder(bag, split_seconds=0.1)
-        for t in enc.topics + (topics.VEHICLE_MOTION_TOPIC,):
-            rec.add_topic(t, JS)
-        rows = OutputRows(enc, False, False)
+        for t, msgtype in zip(enc.topics, enc.msgtypes):
+            rec.add_topic(t, msgtype)
+        rows = OutputRows(enc, False)
         for k in range(25):                                  # 0.00 .. 0.24 s
             rows.write(rec, k * 10_000_000, _State(3, k))
         assert rows.block.count > 0                          # rows not yet written
         if how == 'close':
             rec.close()
-            assert bag_info(bag).message_count == 25 * 4
+            assert bag_info(bag).message_count == 25 * per_sample
         else:
             rec.keep('disk full')                            # the file 0.20 - 0.24 s is dropped
             info = bag_info(bag)
-            assert info.message_count == 20 * 4 and info.end_ns == 19 * 10_000_000
+            assert info.message_count == 20 * per_sample and info.end_ns == 19 * 10_000_000
 
 
 def test_blocks_keep_the_chunks_of_about_1_mib(tmp_path):

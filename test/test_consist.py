@@ -170,6 +170,10 @@ def test_the_per_vehicle_declarations_elsewhere_name_fields_of_the_table():
 #: parameters a field's consist needs to be valid (remote brake valves: the pneumatic brake)
 _CONTEXT = {'remote': {'brake_model': 'pneumatic'}}
 
+#: the tabulated curve a field naming one names (stored as its number in the consist)
+_CURVE = ('characteristics: {c: {stroke: [0.0, 0.1], loading: [0.0, 1.0e5], '
+          'unloading: [0.0, 5.0e4]}}\n')
+
 
 def _distinctive(spec):
     """Return a valid value of the field ``spec`` declares that is not its default."""
@@ -177,6 +181,10 @@ def _distinctive(spec):
         return next(c for c in spec.choices if c != spec.default)
     if isinstance(spec.default, bool):
         return not spec.default
+    if spec.kind == 'integer':
+        return spec.default + 1
+    if spec.kind == 'string':             # a tabulated curve's name (_CURVE defines it)
+        return 'c'
     value = spec.default * 1.1 + 0.01
     return value if spec.high is None or value <= spec.high else (spec.default + spec.high) / 2
 
@@ -209,13 +217,16 @@ def test_one_declaration_per_vehicle_field(tmp_path, field, spec):
         extra += ', braked_mass_p: 40000.0'
     if field == 'piston_stroke':          # a stroke needs the pistons' area
         extra += ', brake_cylinder_area: 0.0507'
-    path = write(tmp_path, f'vehicle_types: {{w: {{{field}: {value!r}{extra}}}}}\n'
+    curve = _CURVE if field in consist.CURVE_FIELDS else ''
+    path = write(tmp_path, f'{curve}vehicle_types: {{w: {{{field}: {value!r}{extra}}}}}\n'
                            'vehicles: [{type: w, count: 3}]\n')
     cfg = SimConfig.from_dict({'consist_file': path, **_CONTEXT.get(field, {})})
     kernel_value = value
     if spec.choices:            # a choice reaches the kernel as its index in the choices
         assert cfg.consist.choices(field) == [value] * 3
         kernel_value = float(spec.choices.index(value))
+    elif field in consist.CURVE_FIELDS:     # the curve's number: the first of the consist
+        assert list(cfg.consist[field]) == [1.0] * 3
     else:
         assert list(cfg.consist[field]) == [value] * 3
     if spec.row:

@@ -157,16 +157,27 @@ def _energy_to_blocking(c, j=0):
 
 
 def test_two_category_buffers_absorb_the_sum_of_their_datasheet_energies(tmp_path):
-    """UIC 526-1 category A + A (30 + 30 kJ) and A + C (30 + 70 kJ), each to 2 x 105 mm."""
+    """
+    UIC 526-1 category A ends (two side buffers) + A ends, and one-buffer A + C ends.
+
+    The library's category A wagon has two buffers per end in parallel: each end absorbs
+    2 x 30 kJ to its 105 mm and carries 2 x 1 MN at the stroke; a coupling of two such ends
+    120 kJ to 2 x 105 mm. One-buffer ends (buffers_per_end 1): 30 + 70 kJ and 1 MN.
+    """
     lib = consist.library_types()['freight_wagon_loaded_category_a']
-    c = coupling_of(tmp_path, CATEGORY_C, '[{type: freight_wagon_loaded_category_a, count: 2}, '
+    assert lib['buffers_per_end'] == 2
+    one_a = CATEGORY_C.replace('cat_c', 'cat_a').replace('70000.0', '30000.0')
+    c = coupling_of(tmp_path, CATEGORY_C + '\n' + one_a,
+                    '[{type: freight_wagon_loaded_category_a, count: 2}, {type: cat_a}, '
                     '{type: cat_c}]')
     assert c.coupler('buffer_stroke')[0] == pytest.approx(2 * 0.105)
-    assert _energy_to_blocking(c, 0) == pytest.approx(2 * lib['buffer_energy'], rel=0.02)
-    assert _energy_to_blocking(c, 1) == pytest.approx(30000.0 + 70000.0, rel=0.02)
-    # at the end of the stroke both buffers carry their final force (1 MN), before blocking
-    f_end = -quasi_static_force(c, 0, [-(2 * 0.105 - 1e-9)])[0]
-    assert f_end == pytest.approx(1.0e6, rel=1e-6)
+    assert _energy_to_blocking(c, 0) == pytest.approx(2 * 2 * lib['buffer_energy'], rel=0.02)
+    assert _energy_to_blocking(c, 2) == pytest.approx(30000.0 + 70000.0, rel=0.02)
+    # at the end of the stroke the buffers carry their final force, before blocking
+    f_two = -quasi_static_force(c, 0, [-(2 * 0.105 - 1e-9)])[0]
+    assert f_two == pytest.approx(2 * 1.0e6, rel=1e-6)
+    f_one = -quasi_static_force(c, 2, [-(2 * 0.105 - 1e-9)])[0]
+    assert f_one == pytest.approx(1.0e6, rel=1e-6)
 
 
 def test_preloaded_ends_stay_closed_below_the_preload_then_take_the_springs(tmp_path):
@@ -190,8 +201,8 @@ def test_a_progressive_and_a_degressive_end_in_series_carry_one_force(tmp_path):
           'final_force': 1.0e6, 'kb': 2.0e8}
     load_a = characteristics.end_loading(d, energy=30000.0, **kw)
     load_c = characteristics.end_loading(d, energy=70000.0, **kw)
-    for force in (2.0e5, 5.0e5, 8.0e5):
-        y = -(np.interp(force, load_a, d) + np.interp(force, load_c, d))
+    for force in (2.0e5, 5.0e5, 8.0e5):     # the category A end: two buffers in parallel
+        y = -(np.interp(force / 2, load_a, d) + np.interp(force, load_c, d))
         assert -quasi_static_force(c, 0, [y])[0] == pytest.approx(force, rel=0.01)
 
 

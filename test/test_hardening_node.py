@@ -156,6 +156,10 @@ class SlowRecorder:
         self.release.wait()
         self.written += 1
 
+    @property
+    def saved(self):
+        return self.written               # what the bag holds once closed
+
     def flush(self):
         pass
 

@@ -16,12 +16,13 @@ from train_dynamics.cli import offline as cli
 from train_dynamics.cli import simulate as simulate_cmd
 from train_dynamics.physics.brake_valve import BrakeValveModel, MAX_SCHEDULE_TIME
 from train_dynamics.physics.config import (ConfigError, input_rejection, MAX_SIMULATOR_MEMORY,
-                                           output_disk, PARAMETERS, SimConfig, simulator_memory,
+                                           PARAMETERS, SimConfig, simulator_memory,
                                            validate_value)
 from train_dynamics.physics.config.budgets import SIMULATOR_FIXED_BYTES
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import BagRecorder, read_topics
 from train_dynamics.recording.cdr import encode_fluid_pressure
+from train_dynamics.recording.output_specs import output_disk
 from train_dynamics.simulation import runner
 
 REPO = Path(__file__).resolve().parents[1]

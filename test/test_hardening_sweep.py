@@ -138,11 +138,11 @@ def test_sweep_missing_consist_file_refused(tmp_path, capsys):
 
 
 def test_sweep_every_case_failing_exits_nonzero(tmp_path, capsys):
-    """Every case an invalid combination: the table is written, the exit status is 1."""
+    """Every case an invalid combination: the table is written, exit 2 (invalid parameters)."""
     path = write(tmp_path / 's.yaml', 'duration: 0.3\n'
                  'grid: {buffer_friction: [3.0e6, 3.5e6]}\n')      # >= buffer_stiffness
     out = tmp_path / 'out'
-    assert sweep('--sweep', path, '--output', out) == 1
+    assert sweep('--sweep', path, '--output', out) == 2
     line = one_line_error(capsys)
     assert 'every case failed (2)' in line and 'buffer_friction must be <' in line
     assert len(pd.read_parquet(out / 'results.parquet')) == 2

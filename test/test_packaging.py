@@ -1,8 +1,9 @@
 """
 The package as ROS 2 tooling sees it: package.xml's dependencies, rosdep keys, launch files.
 
-- every module the package imports (``train_dynamics/``, ``launch/``) maps to a run
-  dependency of package.xml, every module the tests import to a run or test dependency, and
+- every module the package imports (``train_dynamics/``, ``launch/``; and the package of
+  every message type the topic table names, imported by name) maps to a run dependency of
+  package.xml, every module the tests import to a run or test dependency, and
   no dependency is unused; a module without a rosdep key is installed with pip from
   requirements.txt (checked against ros/rosdistro ``rosdep/python.yaml``);
 - the documents name rosbags' rosdep key (``python3-rosbags-pip``) alike: none says it has
@@ -28,6 +29,7 @@ IMPORT_KEYS = {
     'rclpy': 'rclpy', 'rcl_interfaces': 'rcl_interfaces', 'sensor_msgs': 'sensor_msgs',
     'std_msgs': 'std_msgs', 'std_srvs': 'std_srvs', 'diagnostic_msgs': 'diagnostic_msgs',
     'rosgraph_msgs': 'rosgraph_msgs', 'builtin_interfaces': 'builtin_interfaces',
+    'nav_msgs': 'nav_msgs', 'geometry_msgs': 'geometry_msgs',
     'ament_index_python': 'ament_index_python', 'launch': 'launch', 'launch_ros': 'launch_ros',
     'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'numba': 'python3-numba',
     'llvmlite': 'python3-numba',          # a dependency of numba's Debian package
@@ -67,6 +69,13 @@ def _imports(paths) -> dict[str, list[str]]:
     return found
 
 
+def _message_packages() -> dict[str, list[str]]:
+    """Return the packages of the message types the topic table names (imported by name)."""
+    text = (REPO / 'train_dynamics' / 'topics.py').read_text(encoding='utf-8')
+    return {pkg: ['train_dynamics/topics.py']
+            for pkg in re.findall(r"'(\w+)/(?:msg|srv)/\w+'", text)}
+
+
 def _local_modules() -> set[str]:
     """Return the package, the tests' helper modules and the benchmarks some tests import."""
     return {'train_dynamics'} | {p.stem for folder in ('test', 'bench')
@@ -75,6 +84,8 @@ def _local_modules() -> set[str]:
 
 def test_every_import_maps_to_a_dependency_and_none_is_unused():
     code = _imports([*(REPO / 'train_dynamics').rglob('*.py'), *(REPO / 'launch').glob('*.py')])
+    for pkg, where in _message_packages().items():      # imported by type name at run time
+        code.setdefault(pkg, where)
     tests = _imports([*(REPO / 'test').glob('*.py'), *(REPO / 'examples').glob('*.py')])
     for found in (code, tests):
         for name in _local_modules():

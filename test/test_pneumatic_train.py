@@ -27,7 +27,8 @@ def test_default_is_empirical_and_has_no_reservoirs():
     assert cfg.brake_model == 'empirical'
     sim = TrainSimulator(cfg)
     assert sim.pneu is None and sim.auxiliary_pressure is None
-    assert output_topics(cfg) == ('couplers', 'coaches', 'brake_cylinders')
+    assert output_topics(cfg)[:3] == ('couplers', 'coaches', 'brake_cylinders')
+    assert 'brake_reservoirs' not in output_topics(cfg)
 
 
 def test_pneumatic_train_hands_the_cylinders_to_the_chain():
@@ -107,6 +108,7 @@ def test_reservoir_topic_encoded_and_recorded(tmp_path):
     assert np.allclose(rs.effort[-1], 500000.0, atol=2000.0)       # CR keeps 5 bar
     assert np.all(rs.position[-1] < rs.position[0])                # AR fed the cylinders
     assert np.all(hist.cylinders.position[-1] > 0.5 * P_MAX)
-    assert OutputEncoder(3, True).topics[-1] == 'brake_reservoirs'
+    pneumatic = SimConfig.from_dict({'brake_model': 'pneumatic', 'num_coaches': 3})
+    assert OutputEncoder(pneumatic).topics[3] == 'brake_reservoirs'
     names = [p.name for p in plot_bag(out, tmp_path / 'plots')]
     assert 'brake_pressures.png' in names

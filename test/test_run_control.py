@@ -16,6 +16,7 @@ from train_dynamics.ros.sim_node import SimNode
 
 ATM = 101325.0
 PERIOD = 0.01     # [s] output period at the default publish_rate
+WAIT = 60.0       # [s wall] bound of a wait on an event (it returns at the event)
 
 
 def _call(harness, name: str, node='train_dynamics'):
@@ -27,7 +28,7 @@ def _call(harness, name: str, node='train_dynamics'):
 def test_pause_stops_time_step_advances_exactly_n_periods_resume_goes_on(harness):
     coaches = harness.collect(JointState, 'coaches')
     node = harness.start(real_time_factor=2.0)
-    assert harness.wait(lambda: node.sim_time > 0.3, 10.0)
+    assert harness.wait(lambda: node.sim_time > 0.3, WAIT)
     assert 'paused at t =' in _call(harness, 'pause')
     t_paused, n_paused = node.sim_time, len(coaches)
     harness.spin_for(0.5)
@@ -36,7 +37,7 @@ def test_pause_stops_time_step_advances_exactly_n_periods_resume_goes_on(harness
     assert n_before - n_paused <= 1                  # (one in flight at the pause)
     node.set_parameters([Parameter('step_periods', value=7)])
     assert 'stepping 7 output period(s)' in _call(harness, 'step')
-    assert harness.wait(lambda: len(coaches) >= n_before + 7, 5.0)
+    assert harness.wait(lambda: len(coaches) >= n_before + 7, WAIT)
     harness.spin_for(0.4)
     stepped = coaches[n_before:]
     assert len(stepped) == 7                         # exactly N outputs, then paused again
@@ -46,7 +47,7 @@ def test_pause_stops_time_step_advances_exactly_n_periods_resume_goes_on(harness
     harness.spin_for(0.3)
     assert node.sim_time == t[-1]
     assert 'resumed' in _call(harness, 'resume')
-    assert harness.wait(lambda: node.sim_time > t[-1] + 0.2, 5.0)
+    assert harness.wait(lambda: node.sim_time > t[-1] + 0.2, WAIT)
 
 
 def _controller(harness, answer: bool):
@@ -73,7 +74,7 @@ def test_lockstep_waits_for_the_controller_and_advances_one_period_per_answer(ha
     harness.spin_for(0.5)
     assert node.sim_time == 0.0                      # nobody connected: t = 0 holds
     pub, seen = _controller(harness, answer=True)
-    assert harness.wait(lambda: node.finished, 20.0)
+    assert harness.wait(lambda: node.finished, WAIT)
     t = [stamp_s(m) for m in seen]
     assert t[0] == 0.0                               # the first output is not lost
     assert len(t) == 51 and all(abs(b - a - PERIOD) < 1e-9 for a, b in zip(t, t[1:]))
@@ -85,9 +86,9 @@ def test_lockstep_timeout_reports_and_waits(harness):
     diags = harness.collect(DiagnosticArray, '/diagnostics')
     pub, seen = _controller(harness, answer=False)
     node = harness.start(sync_mode='lockstep', real_time_factor=0.0, lockstep_timeout=0.3)
-    assert harness.wait(lambda: seen, 10.0)
+    assert harness.wait(lambda: seen, WAIT)
     assert harness.wait(lambda: (diag_values(diags, 'train_dynamics: simulation') or {})
-                        .get('lockstep_timeouts') == '1', 5.0)
+                        .get('lockstep_timeouts') == '1', WAIT)
     d = diag_values(diags, 'train_dynamics: simulation')
     assert d['_level'] == 1 and 'waiting' in d['_message'] and d['sync_mode'] == 'lockstep'
     assert node.sim_time == 0.0 and not node.finished and len(seen) == 1
@@ -95,7 +96,7 @@ def test_lockstep_timeout_reports_and_waits(harness):
     out = fluid(5e5 + ATM)
     out.header.stamp = seen[0].header.stamp
     pub.publish(out)
-    assert harness.wait(lambda: len(seen) >= 2, 5.0)
+    assert harness.wait(lambda: len(seen) >= 2, WAIT)
     assert stamp_s(seen[1]) == PERIOD
 
 
@@ -128,7 +129,7 @@ def test_lockstep_on_traction_commands_waits_for_each_and_names_the_silent_one(h
                          lockstep_inputs=['traction'], real_time_factor=0.0,
                          lockstep_timeout=0.3)
     assert harness.wait(lambda: (diag_values(diags, 'train_dynamics: simulation') or {})
-                        .get('lockstep_timeouts') == '1', 20.0)
+                        .get('lockstep_timeouts') == '1', WAIT)
     assert [round(stamp_s(m), 9) for m in seen] == [0.0, 0.01, 0.02, 0.03, 0.04, 0.05]
     assert node.sim_time == 0.05
     d = diag_values(diags, 'train_dynamics: simulation')
@@ -144,13 +145,13 @@ def test_input_timing_stamp_applies_a_command_at_its_stamp(harness, tmp_path):
     pub = harness.publisher('brake_pipe/pressure')
     node = harness.start(input_timing='stamp', real_time_factor=1.0, record_bag=str(bag))
     assert harness.wait_for_subscriber(pub)
-    assert harness.wait(lambda: node.sim_time > 0.2, 10.0)
+    assert harness.wait(lambda: node.sim_time > 0.2, WAIT)
     msg = fluid(3.5e5 + ATM)
     msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 700_000_000   # t = 0.7 s
     pub.publish(msg)
     late = fluid(4.0e5 + ATM)                                           # t = 0: late
     pub.publish(late)
-    assert harness.wait(lambda: node.sim_time > 1.0, 10.0)
+    assert harness.wait(lambda: node.sim_time > 1.0, WAIT)
     assert node._inputs.late == 1
     harness.stop(node)
     times = {round(m.fluid_pressure): t
@@ -179,7 +180,7 @@ def test_input_timing_stamp_acts_between_two_steps_exactly_at_the_stamp(harness,
     node = harness.start(input_timing='stamp', real_time_factor=1.0, record_bag=str(bag),
                          **params)
     assert all(harness.wait_for_subscriber(p) for p in pubs)
-    assert harness.wait(lambda: node.sim_time > 0.2, 10.0)
+    assert harness.wait(lambda: node.sim_time > 0.2, WAIT)
     assert node.sim_time < 0.6
     t_s, p = 0.7043, 190e3
     for pub in pubs:
@@ -189,7 +190,7 @@ def test_input_timing_stamp_acts_between_two_steps_exactly_at_the_stamp(harness,
     late = fluid(ATM)                      # stamped t = 0.1 s, long passed: late, at once
     late.header.stamp.nanosec = 100_000_000
     pubs[0].publish(late)
-    assert harness.wait(lambda: node.sim_time > 1.0, 10.0)
+    assert harness.wait(lambda: node.sim_time > 1.0, WAIT)
     assert node._inputs.late == 1
     harness.stop(node)
 
@@ -226,7 +227,7 @@ def test_namespaced_trains_keep_their_own_clock_and_status_names(harness):
                                                  Parameter('real_time_factor', value=rtf)])
         harness.add(nodes[ns])
     assert harness.wait(lambda: all(diag_values(diags, f'{ns}/train_dynamics: simulation')
-                                    for ns in nodes) and nodes['train2'].sim_time > 1.0, 10.0)
+                                    for ns in nodes) and nodes['train2'].sim_time > 1.0, WAIT)
     last = {ns: clocks[ns][-1].clock.sec + clocks[ns][-1].clock.nanosec * 1e-9 for ns in nodes}
     assert last['train2'] > 1.5 * last['train1'] > 0      # each its own time
     assert diag_values(diags, 'train_dynamics: simulation') is None
@@ -237,7 +238,7 @@ def test_diagnostics_run_under_use_sim_time_without_a_clock(harness):
 
     diags = harness.collect(DiagnosticArray, '/diagnostics')
     harness.start(use_sim_time=True)
-    assert harness.wait(lambda: diag_values(diags, 'train_dynamics: simulation'), 5.0)
+    assert harness.wait(lambda: diag_values(diags, 'train_dynamics: simulation'), WAIT)
 
 
 def test_two_publishers_on_the_active_input_raise_a_warn(harness):
@@ -248,7 +249,7 @@ def test_two_publishers_on_the_active_input_raise_a_warn(harness):
     harness.publisher('brake_pipe/pressure')
     harness.start()
     assert harness.wait(lambda: 'brake_pipe/pressure (2 publishers)' in (diag_values(
-        diags, 'train_dynamics: brake input') or {}).get('multiple_publishers', ''), 10.0)
+        diags, 'train_dynamics: brake input') or {}).get('multiple_publishers', ''), WAIT)
     d = diag_values(diags, 'train_dynamics: brake input')
     assert d['_level'] == 1 and 'more than one publisher' in d['_message']
 

@@ -42,8 +42,9 @@ def test_category_a_buffers_absorb_the_impact_energy_on_their_datasheet_curve(tm
 
     At the largest compression both move together: the kinetic energy of the relative motion
     at contact, mu v^2 / 2 (mu the reduced inertia), is what the coupling's loading branch
-    absorbed, the category A buffer's curve (by hand from P, F_f, W_A) plus the locomotive's
-    linear end F^2 / (2 (k + k_f)): the peak force and compression follow within 1 %. On
+    absorbed: the wagon's end, two category A buffers in parallel (each at F / 2 on its curve,
+    by hand from P, F_f, W_A), plus the locomotive's linear end F^2 / (2 (k + k_f)): the peak
+    force and compression follow within 1 %. On
     unloading every end gives back (k - k_f) / (k + k_f) of its loading force, so the
     vehicles part at sqrt of that ratio times the impact speed (coefficient of restitution).
     """
@@ -67,14 +68,17 @@ def test_category_a_buffers_absorb_the_impact_energy_on_their_datasheet_curve(tm
     k_loco = loco['buffer_stiffness'] + loco['buffer_friction']
     deflection, energy = category_a_end(wagon)
     kinetic = 0.5 * mu * v_impact ** 2
-    lo, hi = wagon['buffer_preload'] * 1.0001, wagon['buffer_final_force']
+    n = wagon['buffers_per_end']
+    assert n == 2                            # UIC: two side buffers, the category per buffer
+    lo, hi = n * wagon['buffer_preload'] * 1.0001, n * wagon['buffer_final_force']
     for _ in range(100):                     # bisection: energy absorbed at force F = kinetic
         mid = 0.5 * (lo + hi)
-        lo, hi = (mid, hi) if energy(mid) + mid ** 2 / (2 * k_loco) < kinetic else (lo, mid)
+        absorbed = n * energy(mid / n) + mid ** 2 / (2 * k_loco)
+        lo, hi = (mid, hi) if absorbed < kinetic else (lo, mid)
     peak = 0.5 * (lo + hi)
     assert -force.min() == pytest.approx(peak, rel=0.01)
-    assert -y.min() - GAP == pytest.approx(deflection(peak) + peak / k_loco, rel=0.01)
-    assert energy(peak) < wagon['buffer_energy']                 # within the category A buffer
+    assert -y.min() - GAP == pytest.approx(deflection(peak / n) + peak / k_loco, rel=0.01)
+    assert energy(peak / n) < wagon['buffer_energy']             # within the category A buffer
 
     assert force[-1] == 0.0 and y[-1] > -GAP                     # parted again
     ratio = (loco['buffer_stiffness'] - loco['buffer_friction']) / k_loco

@@ -19,6 +19,7 @@ JOINT_STATE = 'sensor_msgs/msg/JointState'
 CLOCK_TYPE = 'rosgraph_msgs/msg/Clock'
 DIAGNOSTIC_ARRAY = 'diagnostic_msgs/msg/DiagnosticArray'
 FLOAT64 = 'std_msgs/msg/Float64'
+ODOMETRY = 'nav_msgs/msg/Odometry'
 
 # -- brake inputs (sensor_msgs/FluidPressure, ABSOLUTE Pa) ---------------------------------------
 PIPE_HEAD = 'pipe_head'
@@ -60,42 +61,29 @@ WSP_VALVE_TOPIC_PATTERN = re.compile(r'coach_(\d+)/wsp/valve')
 WSP_VALVE_TOPIC_DISPLAY = 'coach_<i>/wsp/valve'
 INT8 = 'std_msgs/msg/Int8'
 
-# -- outputs (sensor_msgs/JointState, header.stamp = simulation time) ----------------------------
+# -- the stopping target (std_msgs/Float64, a track position [m]) -------------------------------
+#: moves the target stopping point (parameter ``target_stop_position``) while the node runs
+TARGET_STOP_TOPIC = 'target_stop_position'
+
+# -- outputs (header.stamp = simulation time) ----------------------------------------------------
+# What each output carries, when a run has it and how it is read off the simulator: the
+# table train_dynamics.recording.output_specs.OUTPUTS (here only the names).
 COUPLERS_TOPIC = 'couplers'
 COACHES_TOPIC = 'coaches'
 BRAKE_CYLINDERS_TOPIC = 'brake_cylinders'
-#: brake_model pneumatic only (after OUTPUT_TOPICS): auxiliary and control reservoirs
 BRAKE_RESERVOIRS_TOPIC = 'brake_reservoirs'
-#: the JointState output topics, in the order they are published and recorded
-OUTPUT_TOPICS = (COUPLERS_TOPIC, COACHES_TOPIC, BRAKE_CYLINDERS_TOPIC)
-#: per-vehicle external forces, JointState ``coach_1..N`` (only for a train that has them):
-#: position = traction / dynamic-brake force, velocity = running + curve resistance,
-#: effort = gradient force; all [N] on the vehicle, forward > 0
 VEHICLE_FORCES_TOPIC = 'vehicle_forces'
-#: per-vehicle motion, JointState ``coach_1..N``: position = track position of the vehicle's
-#: front [m] (``initial_position`` minus the lengths ahead at t = 0, plus x_i), velocity = v_i
-#: [m/s], effort = acceleration [m/s^2, forward > 0], the mean over the last output period
-#: (0 at t = 0)
 VEHICLE_MOTION_TOPIC = 'vehicle_motion'
-#: ``header.frame_id`` of every JointState output (couplers, coaches, brake_cylinders,
-#: brake_reservoirs, vehicle_forces, vehicle_motion, wheelsets, ...): the track, one axis
+#: nav_msgs/Odometry of the lead vehicle (``coach_1``) along the track line
+LEAD_ODOMETRY_TOPIC = 'odom'
+#: ``target_stop_position`` set: the distance from the lead vehicle's front to the target
+DISTANCE_TO_GO_TOPIC = 'distance_to_go'
+#: ``header.frame_id`` of every output (the JointStates and ``odom``): the track, one axis
 #: along it, forward (towards ``coach_1``'s end) positive; displacements, speeds,
 #: accelerations and forces are along it, pressures are scalars of the vehicles on it
 TRACK_FRAME = 'track'
-#: rotating wheelsets only (``wheelsets``, ``wsp``, low ``track_adhesion``): JointState
-#: ``coach_1..N``: position = available adhesion at the vehicle's speed [-] (the track's, with
-#: Curtius-Kniffler's fall with speed), velocity = wheel peripheral speed [m/s, >= 0 in the
-#: motion's sense], effort = creep force [N, on the vehicle, positive retarding]; the
-#: adhesion used is effort / (m g)
 WHEELSETS_TOPIC = 'wheelsets'
-#: brake_system ep / ecp: JointState ``coach_1..N``: position = the command the vehicle's EP
-#: valves / car control device follow [fraction of full service; 0 with the train line lost],
-#: velocity = its cylinder valve in the last step [+1 filling, 0 lapped, -1 venting],
-#: effort = the train line [1 healthy, 0 lost]
 BRAKE_EP_STATE_TOPIC = 'brake_ep/state'
-#: a train with remote locomotives: JointState ``coach_<i>`` of each remote: position = radio
-#: link [1 up, 0 lost], velocity = age of the last radio message received [s], effort =
-#: pressure the remote's brake valve regulates the pipe to [Pa gauge]
 RADIO_STATE_TOPIC = 'distributed_power/state'
 CLOCK_TOPIC = '/clock'
 #: ``namespaced_clock``: the clock relative to the node's namespace instead of ``/clock``

@@ -19,7 +19,7 @@ import math
 from pathlib import Path
 import time
 
-from train_dynamics.cli.errors import CliError, EXIT_OK, warn
+from train_dynamics.cli.errors import check_runnable, CliError, EXIT_OK, warn
 from train_dynamics.cli.output import output_dir, remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
@@ -63,6 +63,7 @@ def cmd_compare(args: argparse.Namespace) -> int:
         raise CliError('--sample-rate must be > 0')
     duration = check_duration(args.duration)
     base = load_config(args.params)
+    check_runnable(base, args.params)
     inputs = brake_inputs(args, base)
     us = _parse_floats(args.scale_factors, '--scale-factors')
     h0 = float(base.integration_step)

@@ -2,8 +2,9 @@
 The offline command's errors and exit statuses, and its one-line messages on stderr.
 
 Exit statuses: 0 done, 2 bad input (parameter file, bag, duration, existing output; also
-argparse's usage errors), 1 anything else, 3 simulation fault (the bag up to the fault is
-kept), 130 Ctrl-C, 143 SIGTERM.
+argparse's usage errors; a configuration the simulator refuses: :func:`check_runnable`, any
+``ConfigError``), 1 anything else, 3 simulation fault (the bag up to the fault is kept), 130
+Ctrl-C, 143 SIGTERM.
 """
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ import contextlib
 import signal
 import sys
 import threading
+from typing import Any
 
 PROG = 'train-dynamics'
 EXIT_OK = 0
@@ -20,6 +22,8 @@ EXIT_USAGE = 2
 EXIT_FAULT = 3
 EXIT_INTERRUPT = 130
 EXIT_TERMINATED = 143
+#: how a configuration error begins (after its source): every command, every sweep case
+INVALID_PARAMETERS = 'invalid parameters'
 
 
 class CliError(Exception):
@@ -28,6 +32,29 @@ class CliError(Exception):
     def __init__(self, message: str, code: int = EXIT_USAGE) -> None:
         super().__init__(' '.join(str(message).split()))
         self.code = code
+
+
+def invalid_parameters(exc: BaseException, source: str = '') -> CliError:
+    """Return the exit-2 error of a configuration refused with ``exc`` (one line)."""
+    where = f'{source}: ' if source else ''
+    why = ' '.join(str(exc).split()) or type(exc).__name__
+    return CliError(f'{where}{INVALID_PARAMETERS}: {why}')
+
+
+def check_runnable(cfg: Any, source: str = '') -> None:
+    """
+    Refuse (exit 2) a configuration the simulator cannot run, before anything is written.
+
+    Builds the simulator of ``cfg`` and takes one step, as ``sim_node`` does at start: a
+    ``ValueError`` (``ConfigError`` included: e.g. a friction material without a force level,
+    a braked mass the brake cannot deliver) is an invalid configuration, as the node's exit 2.
+    """
+    from train_dynamics.physics.train import TrainSimulator     # here: errors stays light
+
+    try:
+        TrainSimulator(cfg).advance(1)
+    except ValueError as exc:
+        raise invalid_parameters(exc, source) from None
 
 
 class Terminated(BaseException):

@@ -29,7 +29,8 @@ the machine allows, through :func:`train_dynamics.simulation.runner.run_simulati
   section: emergency braking at t = 1 s.
 
 Errors print one line ``train-dynamics: error: ...`` and exit with 2 (bad input: parameter
-file, bag, duration, existing output) or 1 (anything else); a simulation fault (diverged
+file, a configuration the simulator refuses, bag, duration, existing output) or 1 (anything
+else); a simulation fault (diverged
 state) keeps the bag up to the fault and exits 3; Ctrl-C exits 130, SIGTERM 143
 (:mod:`.errors`; ``simulate`` keeps the bag of the samples so far, ``sweep`` its finished
 cases). Nothing else is left under the output path unless the command wrote a complete
@@ -47,7 +48,8 @@ import threading
 
 from train_dynamics import __version__
 from train_dynamics.cli.errors import (CliError, error, EXIT_ERROR, EXIT_INTERRUPT,
-                                       EXIT_TERMINATED, EXIT_USAGE, PROG, Terminated)
+                                       EXIT_TERMINATED, EXIT_USAGE, invalid_parameters, PROG,
+                                       Terminated)
 
 
 class _Parser(argparse.ArgumentParser):
@@ -127,6 +129,10 @@ def _main(argv: Sequence[str] | None) -> int:
         print(f'{PROG}: terminated', file=sys.stderr)
         return EXIT_TERMINATED
     except Exception as exc:  # noqa: B902 - last resort: still one line
+        from train_dynamics.physics.config import ConfigError   # imported by every command
+        if isinstance(exc, ConfigError):           # a configuration error: exit 2, everywhere
+            error(str(invalid_parameters(exc)))
+            return EXIT_USAGE
         text = ' '.join(str(exc).split()) or type(exc).__name__
         error(f'{type(exc).__name__}: {text}')
         if os.environ.get('TRAIN_DYNAMICS_DEBUG'):

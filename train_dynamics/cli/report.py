@@ -31,7 +31,8 @@ from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
 from train_dynamics.quoting import clip
 from train_dynamics.recording.bags import bag_info, BagError
 from train_dynamics.recording.history import History, stream_history
-from train_dynamics.recording.metrics_report import MetricsFeed, write_report
+from train_dynamics.recording.metrics_report import (MetricsFeed, stop_error_from_bag,
+                                                     write_report)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -150,6 +151,32 @@ def write_whole_report(result: dict[str, Any], hist: History, out: Path,
     return paths
 
 
+def run_result(args: argparse.Namespace, overrides: dict) -> tuple[dict, Any, dict]:
+    """
+    Return the run metrics of ``args.bag``, its history and the report's ``source`` entry.
+
+    The steps every report of a bag takes (``train-dynamics report`` and the harness): read
+    it block by block, refuse a bag without ``couplers``/``coaches`` or with a non-finite or
+    ragged sample (:class:`CliError`, one line), take the metrics, fill the stop error from
+    the bag's last ``distance_to_go``.
+    """
+    hist, metrics, origin = read_run(args, overrides)
+    if hist.couplers is None or hist.coaches is None or not len(hist.coaches) \
+            or metrics is None:
+        raise CliError(f'{args.bag}: needs the couplers and coaches topics (JointState)')
+    refuse_non_finite(args.bag, hist)
+    result = metrics.result()
+    try:
+        stop_error_from_bag(result, args.bag, args.namespace)
+    except BagError as exc:
+        raise CliError(str(exc)) from None
+    keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
+    model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
+    source = {'bag': str(args.bag), 'parameters': origin, 'model': model,
+              'notes': list(hist.notes)}
+    return result, hist, source
+
+
 def cmd_report(args: argparse.Namespace) -> int:
     """Run ``report``; return the exit status."""
     if not Path(args.bag).exists():
@@ -161,16 +188,7 @@ def cmd_report(args: argparse.Namespace) -> int:
             if not value >= 0.0:
                 raise CliError(f'--{name.replace("_", "-")} must be >= 0, got {value:g}')
             overrides[name] = value
-    hist, metrics, origin = read_run(args, overrides)
-    if hist.couplers is None or hist.coaches is None or not len(hist.coaches) \
-            or metrics is None:
-        raise CliError(f'{args.bag}: needs the couplers and coaches topics (JointState)')
-    refuse_non_finite(args.bag, hist)
-    result = metrics.result()
-    keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
-    model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
-    source = {'bag': str(args.bag), 'parameters': origin, 'model': model,
-              'notes': list(hist.notes)}
+    result, hist, source = run_result(args, overrides)
     paths = write_whole_report(result, hist, Path(args.output), source)
     if not args.quiet:
         tr = result['train']

@@ -12,7 +12,7 @@ a complete bag (it writes a hidden sibling directory and renames it at the end),
 stopped by SIGINT / SIGTERM: then the bag holds the whole samples up to there (its
 ``custom_data`` ``interrupted`` says when) and the command exits 130 / 143 with one line; a
 second signal aborts at once, leaving nothing. The bag's size
-is estimated before the run (:func:`train_dynamics.physics.config.output_disk`): more
+is estimated before the run (:func:`train_dynamics.recording.output_specs.output_disk`): more
 than the free space is refused, more than :data:`LARGE_BAG` needs ``--allow-large``. Memory
 does not grow with the duration (the samples stream to the bag). A bag estimated larger than
 :data:`FILE_BYTES` is written as several MCAP files (rosbag2's splitting, whole samples per
@@ -22,18 +22,19 @@ readable bag (``custom_data`` ``incomplete``) and the command exits 1 with one l
 from __future__ import annotations
 
 import argparse
-import errno
 from pathlib import Path
 import shutil
 
 from train_dynamics import topics
-from train_dynamics.cli.errors import (CliError, deferred_signals, error, EXIT_ERROR,
-                                       EXIT_FAULT, EXIT_INTERRUPT, EXIT_OK, Interrupted, PROG)
+from train_dynamics.cli.errors import (check_runnable, CliError, deferred_signals, error,
+                                       EXIT_ERROR, EXIT_FAULT, EXIT_INTERRUPT, EXIT_OK,
+                                       Interrupted, PROG)
 from train_dynamics.cli.output import remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
-from train_dynamics.physics.config import fmt_bytes, output_disk, SimConfig
-from train_dynamics.recording.bags import BagError, BagRecorder
+from train_dynamics.physics.config import fmt_bytes, SimConfig
+from train_dynamics.recording.bags import BagError, BagRecorder, DISK_FULL, recording_failed
+from train_dynamics.recording.output_specs import output_disk
 from train_dynamics.recording.outputs import run_metadata
 from train_dynamics.recording.sinks import BagSink
 from train_dynamics.simulation.runner import InputSchedule, run_simulation
@@ -44,8 +45,6 @@ LARGE_BAG = 10 ** 10
 #: [bytes] about the largest MCAP file of a bag: a full disk loses at most the file being
 #: written (a bag estimated smaller is one file)
 FILE_BYTES = 128 * 2 ** 20
-#: errors of a write that found no room
-DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -80,6 +79,7 @@ def cmd_simulate(args: argparse.Namespace) -> int:
     if parent.exists() and not parent.is_dir():
         raise CliError(f'{parent} is not a directory')
     cfg = load_config(args.params)
+    check_runnable(cfg, args.params)
     inputs = brake_inputs(args, cfg)
     need = _check_disk(cfg, duration, inputs, parent, args.allow_large)
     split = duration * FILE_BYTES / need if need > FILE_BYTES else None
@@ -150,9 +150,9 @@ def _keep_disk_full(rec: BagRecorder, out: Path, created: list[Path], exc: OSErr
         remove_created(created)
         raise CliError(f'{what} at t = {t:.3f} s: nothing could be kept of {out}',
                        EXIT_ERROR) from None
-    raise CliError(f'{what} at t = {t:.3f} s: {out} holds the run up to t = '
-                   f'{rec.saved_until_ns * 1e-9:.3f} s ({rec.saved} messages); free some space '
-                   'or shorten the run', EXIT_ERROR)
+    raise CliError(recording_failed(out, f'{what} at t = {t:.3f} s', rec.saved, rec.given,
+                                    rec.saved_until_ns) + '; free some space or shorten the run',
+                   EXIT_ERROR)
 
 
 def _check_disk(cfg: SimConfig, duration: float, inputs: InputSchedule, parent: Path,

@@ -18,6 +18,7 @@ from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.cli import simulate
+from train_dynamics.cli.errors import check_runnable, CliError
 from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.metrics import FLAT_KEYS, RunMetrics
 from train_dynamics.recording.bags import BagRecorder
@@ -52,11 +53,14 @@ def run_case(index: int, params: dict[str, Any], duration: float, inputs: InputS
     t0 = time.perf_counter()
     try:
         cfg = SimConfig.from_dict(params)
+        check_runnable(cfg)                  # a refused configuration: 'invalid parameters'
         sink = _Metrics(cfg)
         if bag is None:
             sim = run_simulation(cfg, duration, inputs, on_sample=sink.sample)
         else:
             sim = _run_with_bag(cfg, duration, inputs, sink, Path(bag))
+    except CliError as exc:               # as the plan's cases of invalid parameters
+        return failed_row(index, str(exc))
     except Exception as exc:  # noqa: B902 - a failing case is a row, not a crashed sweep
         text = ' '.join(str(exc).split()) or type(exc).__name__
         row = failed_row(index, f'{type(exc).__name__}: {text}')

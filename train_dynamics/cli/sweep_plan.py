@@ -55,7 +55,7 @@ from typing import Any
 import numpy as np
 from scipy.stats import qmc
 
-from train_dynamics.cli.errors import CliError
+from train_dynamics.cli.errors import CliError, INVALID_PARAMETERS
 from train_dynamics.cli.scenario import brake_inputs, load_config
 from train_dynamics.physics.config import (ConfigError, DOUBLE, INTEGER, PARAMETERS,
                                            read_param_file, resolve_path, validate_value)
@@ -288,7 +288,7 @@ def make_plan(base_path: str, sweep_path: str) -> Plan:
         try:
             cfg = base.replace(**{**case.swept, **case.files})   # the consist kept unless swept
         except ConfigError as exc:
-            case.error = f'invalid parameters: {clip(str(exc))}'
+            case.error = f'{INVALID_PARAMETERS}: {clip(str(exc))}'
         else:
             key = tuple(cfg.values[k] for k in (
                 'brake_input', 'integration_step', 'atmospheric_pressure',

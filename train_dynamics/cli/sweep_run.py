@@ -14,7 +14,8 @@ have no file in ``DIR/cases``; a different plan is refused. Dask reschedules the
 worker that dies (a case that kills workers repeatedly ends as a row with the error).
 
 Exit status: 0 when at least one case gave its metrics, 1 when every case failed (the table
-is written all the same), 2 for a bad sweep file, ``--workers`` or ``--scheduler``; Ctrl-C
+is written all the same), 2 for a bad sweep file, ``--workers`` or ``--scheduler``, or when
+every case failed for invalid parameters (a configuration error, as ``simulate``'s); Ctrl-C
 130 and SIGTERM 143, the finished cases kept for a resume. ``--workers`` is at most
 :data:`WORKERS_PER_CORE` per core and what the available memory holds at
 :data:`WORKER_MEMORY` each. ``--scheduler`` is checked (its form, its port, a TCP
@@ -45,7 +46,8 @@ import pandas as pd
 import psutil
 from tqdm import tqdm
 
-from train_dynamics.cli.errors import CliError, error, EXIT_ERROR, EXIT_OK
+from train_dynamics.cli.errors import (CliError, error, EXIT_ERROR, EXIT_OK, EXIT_USAGE,
+                                       INVALID_PARAMETERS)
 from train_dynamics.cli.sweep_case import failed_row, run_case
 from train_dynamics.cli.sweep_plan import make_plan, Plan
 from train_dynamics.physics.config import fmt_bytes
@@ -97,7 +99,8 @@ def run_sweep(args: argparse.Namespace) -> int:
     if failed == len(table):
         first = str(table['error'].iloc[0])
         error(f'every case failed ({failed}), the first: {first[:200]}; see {out / RESULTS}')
-        return EXIT_ERROR
+        invalid = table['error'].astype(str).str.startswith(INVALID_PARAMETERS).all()
+        return EXIT_USAGE if invalid else EXIT_ERROR
     return EXIT_OK
 
 

@@ -9,6 +9,15 @@ both, strokes add: :func:`series_curve`), inverted numerically once, when the co
 built, into one table per device (:func:`coupling_table`), which the kernel's coupler law
 interpolates (:mod:`train_dynamics.physics.kernel.couplers`, ``coupler_branch_table``). Plain
 numpy: imported by the configuration, never by the kernel.
+
+Two more ways to give an end (:func:`coupling_table` takes both):
+
+- a tabulated curve (:func:`check_curve`): force over stroke for loading and for unloading,
+  as a buffer's or draw gear's test diagram gives it; linear between the points;
+- the screw coupling's pretension P_0 (``coupling_pretension``): tightened at rest until
+  buffers and draw gear carry the elastic force P_0, both then act in parallel, F(y) =
+  T(d_t0 + y) - C(d_c0 - y), each device's part 0 once it is unloaded
+  (:func:`pretension_table`).
 """
 from __future__ import annotations
 
@@ -75,12 +84,67 @@ def unloading_ratio(k, k_friction) -> float:
 
 
 def has_characteristic(end: dict, device: str) -> bool:
-    """Return True when one end's ``device`` (buffer, draw_gear) has a preload or final force."""
-    return end[f'{device}_preload'] > 0.0 or end[f'{device}_final_force'] > 0.0
+    """
+    Return True when one end's ``device`` (buffer, draw_gear) needs the coupling's tables.
+
+    A preload, a final force, a tabulated curve, or the screw coupling's pretension.
+    """
+    return (end[f'{device}_preload'] > 0.0 or end[f'{device}_final_force'] > 0.0
+            or end.get(f'{device}_characteristic', 0.0) > 0.0
+            or end.get('coupling_pretension', 0.0) > 0.0)
 
 
-def _end_curves(end: dict, device: str):
-    """Return (d [m], L [N], U [N]) of one end's device, dense, increasing."""
+def check_curve(curve, kb: float = 1.0e8):
+    """
+    Return a tabulated force-stroke curve as arrays (d [m], L [N], U [N]); ValueError if bad.
+
+    ``curve``: a mapping ``stroke`` [m] (from 0, increasing), ``loading`` and ``unloading``
+    [N] (increasing after the first point, 0 <= unloading <= loading), as many points each.
+    A force at stroke 0 is a preload: the end stays rigid up to it (a ramp of the blocked
+    stiffness K_b [N/m] over L_0 / K_b, as :func:`end_loading`), the unloading branch in
+    the same proportion over the ramp. Linear between the points.
+    """
+    if not isinstance(curve, dict) or set(curve) != {'stroke', 'loading', 'unloading'}:
+        raise ValueError('a curve is a mapping of stroke [m], loading [N] and unloading [N]')
+    try:
+        d, load, unload = (np.asarray(curve[k], dtype=float)
+                           for k in ('stroke', 'loading', 'unloading'))
+    except (TypeError, ValueError):
+        raise ValueError('stroke, loading and unloading must be lists of numbers') from None
+    if d.ndim != 1 or d.size < 2 or load.shape != d.shape or unload.shape != d.shape:
+        raise ValueError('stroke, loading and unloading need as many values each, >= 2')
+    if not np.all(np.isfinite(np.concatenate((d, load, unload)))):
+        raise ValueError('values must be finite')
+    if d[0] != 0.0 or np.any(np.diff(d) <= 0.0):
+        raise ValueError('stroke must start at 0 and increase')
+    if np.any(np.diff(load) <= 0.0) or np.any(np.diff(unload) <= 0.0):
+        raise ValueError('loading and unloading forces must increase with the stroke')
+    if np.any(unload < 0.0) or np.any(unload > load):
+        raise ValueError('0 <= unloading <= loading at every stroke')
+    if load[0] > 0.0:
+        dp = load[0] / kb
+        if dp >= d[1]:
+            raise ValueError(f'force {load[0]:g} N at stroke 0 over the blocked stiffness '
+                             f'{kb:g} N/m reaches past the second point')
+        d = np.concatenate(([0.0, dp], d[1:]))
+        load = np.concatenate(([0.0], load))
+        unload = np.concatenate(([0.0], unload))
+    return d, load, unload
+
+
+def _end_curves(end: dict, device: str, curves=()):
+    """
+    Return (d [m], L [N], U [N]) of one end's device, dense, increasing.
+
+    ``curves``: the consist's tabulated curves ((d, L, U) of :func:`check_curve` and the
+    preload [N]); the end's ``{device}_characteristic`` is 1 + its index there (0: none, the
+    datasheet figures).
+    """
+    code = int(end.get(f'{device}_characteristic', 0.0))
+    if code > 0:
+        d, load, unload = curves[code - 1][:3]
+        dense = np.unique(np.concatenate((d, np.linspace(0.0, d[-1], _DENSE))))
+        return dense, np.interp(dense, d, load), np.interp(dense, d, unload)
     stroke = end[f'{device}_stroke']
     kb = end['blocked_stiffness']
     dp = end[f'{device}_preload'] / kb
@@ -91,6 +155,14 @@ def _end_curves(end: dict, device: str):
                        final_force=end[f'{device}_final_force'],
                        energy=end[f'{device}_energy'], kb=kb)
     return d, load, unloading_ratio(k, kfr) * load
+
+
+def _end_preload(end: dict, device: str, curves=()) -> float:
+    """Return one end's preload [N]: its curve's force at stroke 0, else its ``*_preload``."""
+    code = int(end.get(f'{device}_characteristic', 0.0))
+    if code > 0:
+        return float(curves[code - 1][3])
+    return end[f'{device}_preload']
 
 
 def series_curve(branches):
@@ -112,7 +184,7 @@ def series_curve(branches):
     return total, forces
 
 
-def coupling_table(rear: dict, front: dict, knots: int) -> np.ndarray:
+def coupling_table(rear: dict, front: dict, knots: int, curves=()) -> np.ndarray:
     """
     Return the table rows of the coupling of two ends (``layout.COUPLER`` TAB onwards).
 
@@ -124,14 +196,24 @@ def coupling_table(rear: dict, front: dict, knots: int) -> np.ndarray:
     coupling leaves its preload ramp: the smaller nonzero preload), then equally spaced up to
     the sum of the strokes; E = (L + U) / 2, R = (L - U) / 2. Linear between knots, so a
     curve's energy is kept to the trapezoids' error (0.5 % for an x^3 curve at 16 knots).
+    ``curves``: the tabulated curves an end may name (:func:`_end_curves`). A pretensioned
+    coupling (the larger ``coupling_pretension`` of its ends > 0) is
+    :func:`pretension_table`.
     """
     head = []
     body = []
+    series = {}
     for device in ('draw_gear', 'buffer'):
-        ends = [_end_curves(e, device) for e in (rear, front)]
+        ends = [_end_curves(e, device, curves) for e in (rear, front)]
         d_l, f_l = series_curve([(d, lo) for d, lo, _ in ends])
         d_u, f_u = series_curve([(d, up) for d, _, up in ends])
-        preloads = [e[f'{device}_preload'] for e in (rear, front) if e[f'{device}_preload'] > 0]
+        series[device] = (d_l, f_l, d_u, f_u, float(ends[0][0][-1] + ends[1][0][-1]))
+    pretension = max(rear.get('coupling_pretension', 0.0), front.get('coupling_pretension', 0.0))
+    if pretension > 0.0:
+        return pretension_table(series, pretension, knots)
+    for device in ('draw_gear', 'buffer'):
+        d_l, f_l, d_u, f_u, _ = series[device]
+        preloads = [p for p in (_end_preload(e, device, curves) for e in (rear, front)) if p > 0]
         d1 = float(np.interp(min(preloads), f_l, d_l)) if preloads else 0.0
         stroke = rear[f'{device}_stroke'] + front[f'{device}_stroke']
         grid = np.concatenate(([0.0], np.linspace(d1, stroke, knots - 1)))
@@ -139,4 +221,61 @@ def coupling_table(rear: dict, front: dict, knots: int) -> np.ndarray:
         unload = np.interp(grid, d_u, f_u)
         head += [d1, (knots - 2) / (stroke - d1)]
         body += [0.5 * (load + unload), 0.5 * (load - unload)]
+    return np.concatenate(([1.0], head, *body))
+
+
+def table_span(rows: np.ndarray, side: int) -> float:
+    """Return the deflection [m] of a coupling table's last knot (side 0 draw gear, 1 buffers)."""
+    return float(rows[1 + 2 * side] + (len(rows[5:]) // 4 - 2) / rows[2 + 2 * side])
+
+
+def pretension_table(series: dict, pretension: float, knots: int) -> np.ndarray:
+    """
+    Return the table rows of a coupling whose screw coupling holds ``pretension`` P_0 [N].
+
+    ``series``: per device (draw_gear, buffer) the coupling's loading and unloading branches
+    (d_l, L, d_u, U, stroke), both ends in series (:func:`coupling_table`). Each device's
+    elastic force is E = (L + U) / 2, its friction amplitude R = (L - U) / 2 (eqs. 2-3 as
+    :func:`coupling_table` splits them). At rest the draw gear is stretched by d_t0 and the
+    buffers compressed by d_c0, E_T(d_t0) = E_C(d_c0) = P_0: no net force. Moving by y, the
+    draw gear is at d_t0 + y, the buffers at d_c0 - y, each carrying force only while it is
+    loaded (argument > 0), in parallel:
+
+        y = d > 0:  E(d) = E_T(d_t0 + d) - E_C(d_c0 - d),  R(d) = R_T(d_t0 + d) + R_C(d_c0 - d)
+        y = -a < 0: E(a) = E_C(d_c0 + a) - E_T(d_t0 - a),  R(a) = R_C(d_c0 + a) + R_T(d_t0 - a)
+
+    (the friction of both devices opposes the motion). Each side is tabled from d = 0 (knot 1,
+    no preload ramp: d_1 = 0; R(0) = R_T(d_t0) + R_C(d_c0) is the friction at rest) to its
+    remaining travel S_T - d_t0 (S_C - d_c0), where the device blocks: the coupling's strokes
+    are these spans (:func:`table_span`). The kink where the other device unloads (d = d_c0,
+    a = d_t0) lies between knots: the force there is the linear interpolation of the knots.
+    At y = 0.0 exactly the kernel's tight-coupling branch gives F = 0 where both sides tend
+    to s R(0): a state is there only at rest at t = 0 (s = 0), so the law is the same.
+    Raises ValueError when P_0 is more than a device carries at its stroke.
+    """
+    parts = {}
+    for device, (d_l, f_l, d_u, f_u, stroke) in series.items():
+        grid = np.linspace(0.0, stroke, _DENSE)
+        load = np.interp(grid, d_l, f_l)
+        unload = np.interp(grid, d_u, f_u)
+        e = 0.5 * (load + unload)
+        if not pretension < e[-1]:
+            raise ValueError(f'coupling_pretension {pretension:g} N is more than the '
+                             f'{device.replace("_", " ")} carries at its stroke '
+                             f'({e[-1]:.4g} N)')
+        rest = float(np.interp(pretension, e, grid))
+        parts[device] = (grid, e, 0.5 * (load - unload), rest, stroke)
+    head = []
+    body = []
+    for own, other in (('draw_gear', 'buffer'), ('buffer', 'draw_gear')):
+        g_o, e_o, r_o, rest_o, stroke_o = parts[own]
+        g_x, e_x, r_x, rest_x, _ = parts[other]
+        span = stroke_o - rest_o
+        d = np.linspace(0.0, span, knots - 1)
+        back = np.maximum(rest_x - d, 0.0)
+        e = np.interp(rest_o + d, g_o, e_o) - np.interp(back, g_x, e_x)
+        r = np.interp(rest_o + d, g_o, r_o) + np.interp(back, g_x, r_x)
+        e[0] = 0.0               # E_T(d_t0) - E_C(d_c0) = P_0 - P_0
+        head += [0.0, (knots - 2) / span]
+        body += [np.concatenate(([e[0]], e)), np.concatenate(([r[0]], r))]
     return np.concatenate(([1.0], head, *body))

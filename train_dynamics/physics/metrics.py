@@ -43,7 +43,10 @@ present in :meth:`RunMetrics.flat` only then).
 
 Train: stopping time and distance, the first sample at which every |v_i| <= ``stop_speed``
 (0.01 m/s), from the first sample (x of the leading vehicle) and from the brake onset (the
-first sample with any Fb > 0); resolution one sample period.
+first sample with any Fb > 0); resolution one sample period. With a target stopping point
+(``target_stop_position`` [m, track position]): the stop error [m] = track position of the
+leading vehicle's front at the last sample (``track_origin`` + x_1) minus the target, > 0
+overrun; defined only when the train is at rest then (else None: no stop to judge).
 
 Sampling error: the energies integrate the output samples (default 100 Hz), not the
 integrator's steps. Smooth parts: trapezoid error ~ (dt w)^2 / 12 relative (2e-4 for
@@ -85,7 +88,7 @@ FLAT_KEYS = ('max_tension', 'max_tension_coupler', 'max_tension_time', 'max_comp
              'peak_deceleration', 'max_jerk', 'max_jerk_vehicle', 'max_jerk_time',
              'brake_energy', 'coupler_work', 'coupler_dissipated', 'blocking_count',
              'max_blocking_overrun', 'impact_count', 'max_impact_speed', 'limit_crossings',
-             'samples', 't_end')
+             'samples', 't_end', 'stop_error')
 #: the wheelsets' metrics of :meth:`RunMetrics.flat` (a simulator with rotating wheelsets)
 SLIDING_KEYS = ('max_sliding_time', 'max_sliding_time_vehicle', 'max_sliding_distance',
                 'max_sliding_distance_vehicle')
@@ -200,7 +203,8 @@ class RunMetrics:
                  draw_gear_slack: Any = None,
                  elastic_energy: Callable[[np.ndarray], np.ndarray] | None = None,
                  window: float = COMFORT_WINDOW, stop_speed: float = STOP_SPEED,
-                 block: int = BLOCK) -> None:
+                 block: int = BLOCK, target_stop_position: float | None = None,
+                 track_origin: float = 0.0) -> None:
         if n_vehicles < 2:
             raise ValueError('a train has at least 2 vehicles')
         n = self.n = int(n_vehicles)
@@ -237,6 +241,7 @@ class RunMetrics:
         self._hist_v = np.empty((0, n))
         self.t_start = self.x_start = self.brake_onset = None
         self.stop_time = self.stop_x = None
+        self.target, self.track_origin = target_stop_position, float(track_origin)
 
     # -- feeding -----------------------------------------------------------------------------
     def sample(self, s: Any) -> None:
@@ -314,7 +319,7 @@ class RunMetrics:
         self._stops(t, x, v, fb)
         self.samples += t.shape[0]
         self._last = {'t': float(t[-1]), 'y': y[-1].copy(), 'v': v[-1].copy(),
-                      'pc': ydot[-1] * f[-1], 'pb': fb[-1] * v[-1]}
+                      'pc': ydot[-1] * f[-1], 'pb': fb[-1] * v[-1], 'x1': float(x[-1, 0])}
 
     def _couplers(self, t, y, ydot) -> None:
         """Blocking and free-play impacts (the couplings' strokes and slacks)."""
@@ -431,7 +436,9 @@ class RunMetrics:
             'impact_count': int(np.sum(self.impacts)),
             'max_impact_speed': float(np.max(self.impact_speed.value)),
             'limit_crossings': len(self.force_crossings.all()) + len(self.jerk_crossings.all()),
-            'samples': self.samples, 't_end': self._last['t']}
+            'samples': self.samples, 't_end': self._last['t'], 'stop_error': None}
+        if self.target is not None and out['final_speed'] <= self.stop_speed:
+            out['stop_error'] = self.track_origin + self._last['x1'] - self.target
         if self.envelope is not None:
             out['max_tension_every_step'] = float(np.max(self.envelope[0]))
             out['max_compression_every_step'] = float(np.max(self.envelope[1]))
@@ -535,6 +542,9 @@ class RunMetrics:
         if np.all(ke > 0) and np.all(kec > 0):
             opts['elastic_energy'] = lambda y: couplers.elastic_energy(
                 y, np.broadcast_to(ke, y.shape), np.broadcast_to(kec, y.shape))
+        target = values.get('target_stop_position') or []
+        opts.update(target_stop_position=float(target[0]) if len(target) else None,
+                    track_origin=float(values.get('initial_position', 0.0)))
         opts.update(kwargs)
         return cls(int(cfg.n_coaches), **opts)
 

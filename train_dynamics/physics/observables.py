@@ -92,6 +92,11 @@ class TrainOutputs:
         return self.coach[OUTPUT.FB_APPLIED].copy()
 
     @property
+    def total_brake_force(self) -> float:
+        """Return the train's braking force [N, >= 0]: the sum of every Fb_i (eq. 13)."""
+        return float(np.sum(self.brake_force))
+
+    @property
     def cylinder_pressure(self) -> np.ndarray:
         p = self.coach[STATE.PCYL].copy()
         if np.any(self.pmax_ratio != 1.0):

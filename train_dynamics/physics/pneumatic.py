@@ -552,7 +552,8 @@ def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=
 
     ``lengths``, ``p_max``, ``regimes``, ``accelerators``, ``remotes``: per-vehicle data of
     a consist; by default the uniform train's ``coach_length``, ``max_cylinder_pressure`` and
-    ``brake_regime``, no accelerators, no remote locomotives. ``cylinders``: the per-vehicle
+    ``brake_regime``, ``emergency_accelerator`` on every vehicle, no remote locomotives.
+    ``cylinders``: the per-vehicle
     cylinder keywords of :class:`PneumaticBrake` (``inshot``, ``dead_volume``,
     ``stroke_volume``, ``spring_pressure``).
     """
@@ -571,6 +572,6 @@ def from_config(cfg, h: float, external_pipe: bool = False, lengths=None, p_max=
         np.full(n, float(cfg.coach_length)) if lengths is None else lengths,
         float(cfg.max_cylinder_pressure) if p_max is None else p_max,
         str(cfg.brake_regime) if regimes is None else regimes, h, spec, external_pipe,
-        accelerators=False if accelerators is None else accelerators,
+        accelerators=bool(cfg.emergency_accelerator) if accelerators is None else accelerators,
         remotes=False if remotes is None else remotes, brake_system=str(cfg.brake_system),
         **cylinders)

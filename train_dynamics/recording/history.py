@@ -21,7 +21,7 @@ import numpy as np
 
 from train_dynamics import topics
 from train_dynamics.physics.config import PARAMETERS
-from train_dynamics.recording.bags import bag_info, read_topics
+from train_dynamics.recording.bags import bag_info, BagError, read_topics
 
 #: samples of a topic kept for the figures before min/max decimation sets in
 MAX_PLOT_SAMPLES = 20000
@@ -38,6 +38,10 @@ _HISTORY_TOPICS = {name: msgtype.rsplit('/', 1)[-1] for name, msgtype in (
     (topics.BRAKE_RESERVOIRS_TOPIC, topics.JOINT_STATE),
     (topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE),
     (topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE))}
+
+
+class MalformedMessage(BagError):
+    """A message that does not carry what its topic must (one line: topic, message, why)."""
 
 
 @dataclass
@@ -221,6 +225,34 @@ class Envelope:
 #: the fields of :func:`_joint_values`, in order
 _FIELD_NAMES = ('position', 'velocity', 'effort')
 
+#: JointState topics read -> the fields (indices into :data:`_FIELD_NAMES`) every message
+#: must carry, one value per joint name: what the outputs carry
+#: (:class:`train_dynamics.recording.outputs.OutputEncoder`: ``brake_cylinders`` and
+#: ``brake_reservoirs`` leave ``velocity`` empty). Any other field is empty or one value per
+#: name (the ``sensor_msgs/JointState`` rule); a message without names is malformed too.
+REQUIRED_FIELDS = {topics.COUPLERS_TOPIC: (0, 1, 2), topics.COACHES_TOPIC: (0, 1, 2),
+                   topics.BRAKE_CYLINDERS_TOPIC: (0, 2), topics.BRAKE_RESERVOIRS_TOPIC: (0, 2),
+                   topics.VEHICLE_FORCES_TOPIC: (0, 1, 2)}
+
+
+def malformed_joint_state(names: Sequence[str], values: Sequence[Sequence[float]],
+                          required: Sequence[int]) -> str | None:
+    """
+    Return why a JointState does not carry one value per name, or None if it does.
+
+    ``values``: its (position, velocity, effort); ``required``: the fields that must not be
+    empty. A field with values has one per name (``sensor_msgs/msg/JointState``: "all arrays
+    in this message should have the same size, or be empty").
+    """
+    n = len(names)
+    if not n:
+        return 'no joint names'
+    for f, v in enumerate(values):
+        k = len(v)
+        if k != n and (k or f in required):
+            return f'{k} {_FIELD_NAMES[f]} value(s) for {n} names'
+    return None
+
 
 def _joint_values(msg) -> tuple[Sequence[str], tuple[Sequence[float], ...]]:
     return msg.name, (msg.position, msg.velocity, msg.effort)
@@ -237,7 +269,11 @@ class TopicStream:
     last run is kept. Joints are matched by name, columns in natural order (coupler_2 before
     coupler_10). Blocks of :data:`BLOCK_ROWS` messages go to the envelope and to
     ``on_block(topic, t, q, names)`` (``q`` (K, fields, M), ``names`` of the M columns in
-    arrival order); ``on_reset(topic)`` is called when the topic restarts.
+    arrival order); ``on_reset(topic)`` is called when the topic restarts. A JointState
+    message that does not carry one value per joint name in the fields its topic needs
+    (:data:`REQUIRED_FIELDS`, :func:`malformed_joint_state`) raises :class:`MalformedMessage`
+    naming the topic and the message: figures or metrics of it would be wrong (an empty
+    ``coaches`` read as a train at rest, a short array padded with NaN).
     """
 
     def __init__(self, topic: str, *, fields: int = 3, values: Callable = _joint_values,
@@ -258,6 +294,8 @@ class TopicStream:
         self.envelope = self._new_envelope()
         self.non_finite = 0                          # NaN / inf values given by a message
         self.first_non_finite: tuple[float, int, int, float] | None = None  # t, field, col, v
+        #: fields a message must carry (None: no check, e.g. FluidPressure)
+        self.required = REQUIRED_FIELDS.get(topic) if values is _joint_values else None
 
     def _new_envelope(self) -> Envelope:
         return Envelope(len(self.index), fields=self.fields, limit=self.limit,
@@ -280,6 +318,13 @@ class TopicStream:
             self._restart()
         self._last_t = t
         names, vals = self._values(msg)
+        if self.required is not None:
+            why = malformed_joint_state(names, vals, self.required)
+            if why is not None:
+                raise MalformedMessage(
+                    f'{self.topic}: message {self.total} (t = {t:.6g} s, bag time {t_ns} ns) '
+                    f'does not carry one value per joint name ({why}): refused, nothing '
+                    'written')
         key = tuple(names)
         if key != self._names_cache[0]:
             idx = [self.index.setdefault(str(n), len(self.index)) for n in names]
@@ -416,8 +461,11 @@ def stream_history(bag: str | os.PathLike, *, namespace: str = '',
                 atmospheric_pressure), **opts)
         else:
             streams[topic] = TopicStream(short, **opts)
-    for topic, t_ns, msg in read_topics(bag, list(streams)):
-        streams[topic].add(t_ns, msg)
+    try:
+        for topic, t_ns, msg in read_topics(bag, list(streams)):
+            streams[topic].add(t_ns, msg)
+    except MalformedMessage as exc:
+        raise MalformedMessage(f'{bag}: {exc}') from None
     by_short = {s.topic: s for s in streams.values()}
     for short, attr in _JOINT_ATTRS:
         if short in by_short:
@@ -428,6 +476,7 @@ def stream_history(bag: str | os.PathLike, *, namespace: str = '',
         if note is not None:
             hist.non_finite[s.topic] = note
             hist.notes.append(note)
+
     head = by_short.get(topics.HEAD_PIPE_TOPIC)
     if head is not None and head.total:
         t, q, _ = head.curves()

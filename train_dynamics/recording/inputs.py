@@ -9,6 +9,10 @@ integration step starting at or after that time
 (:func:`train_dynamics.simulation.runner.step_of`), and holds until the next one. Messages are
 rejected by the node's rule (:func:`train_dynamics.physics.config.input_rejection`:
 non-finite, negative or above 20 bar absolute), with a warning counting them per reason.
+A ``pipe_head`` run whose bag has no brake-pipe input but commands the run can use (the EP /
+ECP command of an EP train, traction, WSP valves: :func:`read_traction_bag`) keeps the pipe
+charged at ``pipe_nominal_pressure``, as ``sim_node`` holds it without a brake input (with a
+warning); a bag with neither is refused.
 """
 from __future__ import annotations
 
@@ -31,6 +35,10 @@ class InputBagError(ValueError):
     """An input bag with nothing usable for the run; the message is one line."""
 
 
+def _quiet(text: str) -> None:
+    """Drop a warning (the topics are named when they are read)."""
+
+
 def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
                    warn: Callable[[str], None] = _log.warning) -> InputSchedule:
     """
@@ -46,7 +54,16 @@ def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
         info = bag_info(path)
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
-    selected = _select_topics(info, mode, ns, int(cfg.n_coaches), warn, path)
+    try:
+        selected = _select_topics(info, mode, ns, int(cfg.n_coaches), warn, path)
+    except InputBagError:
+        if mode != topics.PIPE_HEAD or not any(_select_commands(info, cfg, ns, _quiet)):
+            raise
+        # commands only (e.g. brake_ep/command of an EP train): the pipe stays charged
+        warn(f'input bag: no {topics.HEAD_PIPE_TOPIC} input: the brake pipe stays at '
+             f'pipe_nominal_pressure ({float(cfg.pipe_nominal_pressure):g} Pa gauge), as '
+             'sim_node holds it without one')
+        return InputSchedule(mode, [], None, f'bag {Path(path).name} (commands only)')
     atm = float(cfg.atmospheric_pressure)
     h = float(cfg.integration_step)
     events: list[InputEvent] = []
@@ -97,6 +114,46 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
         info = bag_info(path)
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
+    selected, wsp = _select_commands(info, cfg, ns, warn)
+    h = float(cfg.integration_step)
+    events: list[TractionEvent] = []
+    rejected = 0
+    try:
+        for topic, t_ns, msg in read_topics(path, list(selected) + list(wsp)):
+            if topic in wsp:
+                if wsp_rejection(int(msg.data)) is not None:
+                    rejected += 1
+                    continue
+                rel_ns = t_ns - info.start_ns
+                i = wsp[topic]
+                events.append(TractionEvent(step_of(rel_ns, h), rel_ns, i, int(msg.data),
+                                            topics.wsp_valve_topic(i + 1), msg, kind='wsp'))
+                continue
+            c = float(msg.data)
+            i = selected[topic]
+            if (ep_rejection(c) if i == EP_INDEX else traction_rejection(c)) is not None:
+                rejected += 1
+                continue
+            rel_ns = t_ns - info.start_ns
+            name = topics.EP_COMMAND_TOPIC if i == EP_INDEX else topics.traction_topic(i + 1)
+            events.append(TractionEvent(step_of(rel_ns, h), rel_ns, i, c, name, msg))
+    except BagError as exc:
+        raise InputBagError(f'input bag: {exc}') from None
+    if rejected:
+        warn(f'input bag: {rejected} traction or EP command(s) not finite or out of range '
+             'rejected')
+    events.sort(key=lambda e: e.t_ns)
+    return events
+
+
+def _select_commands(info: BagInfo, cfg: Any, ns: str, warn: Callable[[str], None]
+                     ) -> tuple[dict[str, int], dict[str, int]]:
+    """
+    Return the bag's usable command topics: Float64 -> vehicle (EP_INDEX), Int8 WSP -> vehicle.
+
+    Traction commands of locomotives, ``brake_ep/command`` with an EP / ECP brake system,
+    ``coach_<i>/wsp/valve`` with ``wsp: external``; the others are named through ``warn``.
+    """
     locos = set(cfg.consist.commanded) if cfg.external_forces else set()
     selected: dict[str, int] = {}
     wsp: dict[str, int] = {}
@@ -131,35 +188,7 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
             warn(f'input bag: {topic}: vehicle {i + 1} is not a locomotive; ignored')
         else:
             selected[topic] = i
-    h = float(cfg.integration_step)
-    events: list[TractionEvent] = []
-    rejected = 0
-    try:
-        for topic, t_ns, msg in read_topics(path, list(selected) + list(wsp)):
-            if topic in wsp:
-                if wsp_rejection(int(msg.data)) is not None:
-                    rejected += 1
-                    continue
-                rel_ns = t_ns - info.start_ns
-                i = wsp[topic]
-                events.append(TractionEvent(step_of(rel_ns, h), rel_ns, i, int(msg.data),
-                                            topics.wsp_valve_topic(i + 1), msg, kind='wsp'))
-                continue
-            c = float(msg.data)
-            i = selected[topic]
-            if (ep_rejection(c) if i == EP_INDEX else traction_rejection(c)) is not None:
-                rejected += 1
-                continue
-            rel_ns = t_ns - info.start_ns
-            name = topics.EP_COMMAND_TOPIC if i == EP_INDEX else topics.traction_topic(i + 1)
-            events.append(TractionEvent(step_of(rel_ns, h), rel_ns, i, c, name, msg))
-    except BagError as exc:
-        raise InputBagError(f'input bag: {exc}') from None
-    if rejected:
-        warn(f'input bag: {rejected} traction or EP command(s) not finite or out of range '
-             'rejected')
-    events.sort(key=lambda e: e.t_ns)
-    return events
+    return selected, wsp
 
 
 def _select_topics(info: BagInfo, mode: str, ns: str, n_coaches: int,

@@ -28,6 +28,7 @@ import numpy as np
 
 from train_dynamics import topics
 from train_dynamics.physics.metrics import RunMetrics
+from train_dynamics.recording.bags import read_topics
 from train_dynamics.recording.history import History, natural_key
 from train_dynamics.recording.plots import (_new_figure, _save, _set_xlim, _style,
                                             plot_history, PlotError)
@@ -44,7 +45,7 @@ _UNITS = {'max_tension': ('kN', 1e-3), 'max_compression': ('kN', 1e-3),
           'max_jerk': ('m/s^3', 1.0), 'brake_energy': ('MJ', 1e-6),
           'coupler_work': ('J', 1.0), 'coupler_dissipated': ('J', 1.0), 't_end': ('s', 1.0),
           'max_blocking_overrun': ('mm', 1e3), 'max_impact_speed': ('m/s', 1.0),
-          'final_speed': ('m/s', 1.0)}
+          'final_speed': ('m/s', 1.0), 'stop_error': ('m', 1.0)}
 
 
 def write_report(result: dict[str, Any], hist: History, outdir: str | os.PathLike, *,
@@ -148,6 +149,30 @@ class MetricsFeed:
         """Feed what is left; return the metrics (None: no common sample)."""
         self._feed()
         return self.metrics
+
+
+def stop_error_from_bag(result: dict[str, Any], bag: str | os.PathLike,
+                        namespace: str = '') -> None:
+    """
+    Set ``result['train']['stop_error']`` from the last ``distance_to_go`` of ``bag``, if any.
+
+    The stop error [m] is the track position of vehicle 1's front minus the target stopping
+    point at the last sample: minus its distance to go (the target as it was then, also when
+    its input topic moved it during the run); None when the train is not at rest at the end
+    (``final_speed`` above the result's ``stop_speed``). A bag without
+    the topic keeps the value computed from the run's parameters.
+    """
+    ns = namespace.strip('/')
+    topic = (f'{ns}/' if ns else '') + topics.DISTANCE_TO_GO_TOPIC
+    last = None
+    for _, _, msg in read_topics(bag, [topic]):
+        last = msg
+    if last is None or not len(last.position):
+        return
+    train = result['train']
+    at_rest = (train.get('final_speed') is not None
+               and train['final_speed'] <= result['settings']['stop_speed'])
+    train['stop_error'] = -float(last.position[0]) if at_rest else None
 
 
 def _worst(train: dict[str, Any]) -> tuple[str, int, float, float | None]:
@@ -277,6 +302,9 @@ def summary_markdown(doc: dict[str, Any]) -> str:
     else:
         lines.append(f"**Not stopped** by t = {tr['t_end']:.2f} s (largest speed left "
                      f"{tr['final_speed']:.3g} m/s).")
+    if tr.get('stop_error') is not None:
+        lines.append(f"Stop error {tr['stop_error']:+.2f} m (the front of vehicle 1 minus the "
+                     'target stopping point; > 0 overrun).')
     lines += ['', '| metric | value |', '| --- | --- |']
     lines += [f'| {k} | {_fmt(k, v)} |' for k, v in tr.items()]
     cp = sorted(doc['couplers'], key=lambda r: -max(r['max_tension'], r['max_compression']))

@@ -36,14 +36,8 @@ class BagSink:
         self.rec = rec
         self.atm = float(cfg.atmospheric_pressure)
         self.encoder = OutputEncoder.for_config(cfg)
-        for topic in self.encoder.topics + (topics.VEHICLE_MOTION_TOPIC,):
-            rec.add_topic(topic, topics.JOINT_STATE)
-        self.forces = bool(cfg.external_forces)
-        if self.forces:
-            rec.add_topic(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE)
-        self.wheelsets = bool(cfg.has_wheelsets)
-        if self.wheelsets:
-            rec.add_topic(topics.WHEELSETS_TOPIC, topics.JOINT_STATE)
+        for topic, msgtype in zip(self.encoder.topics, self.encoder.msgtypes):
+            rec.add_topic(topic, msgtype)
         self._rows: OutputRows | None = None
 
     def sample(self, s: Sample) -> None:
@@ -51,8 +45,7 @@ class BagSink:
         head = None if s.head_gauge is None else s.head_gauge + self.atm
         rows = self._rows
         if rows is None or rows.head_pipe != (head is not None):
-            rows = self._rows = OutputRows(self.encoder, self.forces, head is not None,
-                                           wheelsets=self.wheelsets)
+            rows = self._rows = OutputRows(self.encoder, head is not None)
         rows.write(self.rec, time_ns(s.t), s.sim, head)
 
     def input(self, e: InputEvent | TractionEvent) -> None:  # noqa: A003 - runner's hook

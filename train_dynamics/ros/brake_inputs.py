@@ -64,10 +64,11 @@ from sensor_msgs.msg import FluidPressure
 from std_msgs.msg import Float64
 
 from train_dynamics import topics
-from train_dynamics.physics.config import input_rejection, SIM_NODE_PARAMETERS, SimConfig
+from train_dynamics.physics.config import input_rejection, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.outputs import time_ns
 from train_dynamics.ros.ep_inputs import EpInputs
+from train_dynamics.ros.lockstep_inputs import LockstepInputs
 from train_dynamics.ros.publishers import stamp
 from train_dynamics.ros.throttle import Throttle
 from train_dynamics.ros.traction_inputs import TractionInputs
@@ -77,15 +78,11 @@ HEAD = topics.PIPE_HEAD
 CYL = topics.CYLINDER_PER_COACH
 PER_COACH = (topics.PIPE_PER_COACH, topics.CYLINDER_PER_COACH)
 MAX_ABSOLUTE_PRESSURE = topics.MAX_ABSOLUTE_PRESSURE
-#: ``lockstep_inputs``: the controller inputs a lock-step period can wait for
-LOCKSTEP_INPUTS = SIM_NODE_PARAMETERS['lockstep_inputs'].choices
-BRAKE, TRACTION, EP, WSP = LOCKSTEP_INPUTS
 #: Reasons an input message is rejected (keys of the counts in /diagnostics).
 REJECT_REASONS = ('non_finite', 'negative', 'too_high', 'wrong_mode', 'unknown_coach',
                   'malformed', 'out_of_range', 'not_locomotive')
 GRAPH_SCAN_PERIOD = 2.0  # [s wall] search for input topics of other modes / unknown coaches
 MAX_EXTRA_SUBSCRIPTIONS = 256   # cap on the subscriptions made by the graph scan
-INPUT_SETTLE = 0.3       # [s wall] wait_for_input: pause after the inputs are connected
 
 INPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                        reliability=ReliabilityPolicy.BEST_EFFORT,
@@ -142,12 +139,13 @@ class InputBuffer:
         self.dirty = False                  # a value arrived since the simulator took them
         self.records: list[tuple[str, bytes]] = []      # accepted since, to record
         self.stamp = np.full(slots, -1, dtype=np.int64)  # [ns] header stamp of ``value``
+        self.last = np.full(slots, -1, dtype=np.int64)   # [ns] stamp of the last accepted
         #: ``input_timing`` stamp: accepted messages not yet handed to the simulator, in
         #: arrival order: (stamp [ns], slot, value [Pa gauge], raw CDR, topic)
         self.pending: list[tuple[int, int, float, bytes, str]] = []
 
 
-class BrakeInputs:
+class BrakeInputs(LockstepInputs):
     """
     Subscribe to, check and hold the brake inputs; apply them (or the fail-safe) to a run.
 
@@ -170,6 +168,8 @@ class BrakeInputs:
         # executor thread only
         self._subs: dict[str, Any] = {}       # resolved topic name -> subscription
         self._sub_info: dict[str, tuple[str, str | None, int | None]] = {}
+        self.free_qos = INPUT_QOS             # outside lock-step (LOCKSTEP_QOS in it)
+        self._qos = INPUT_QOS                 # of the active mode's subscriptions
         self._n_base_subs = 0
         self._accepted = 0
         self.rejected = dict.fromkeys(REJECT_REASONS, 0)
@@ -252,6 +252,7 @@ class BrakeInputs:
         self._stale_count = 0
         self._wait_since = None
         self.late = 0
+        self.duplicates_brake = 0
         self._applied_stamp = buffer.stamp.copy()
         self._update_subscriptions(mode, n)
         self.traction.start(cfg.consist.commanded if cfg.external_forces else [])
@@ -278,16 +279,17 @@ class BrakeInputs:
                 del self._sub_info[name]
         for name, info in resolved.items():
             if name not in self._subs:
-                self._subscribe(name, info)
+                self._subscribe(name, info, self._qos)
         self._n_base_subs = len(resolved)
         self._active = tuple(self._subs[name] for name, info in resolved.items()
                              if info[1] == mode)
 
-    def _subscribe(self, resolved: str, info: tuple[str, str | None, int | None]) -> None:
+    def _subscribe(self, resolved: str, info: tuple[str, str | None, int | None],
+                   qos: QoSProfile = INPUT_QOS) -> None:
         rel, family, index = info
         cb = functools.partial(self._on_input, rel, resolved, family, index)
         self._subs[resolved] = self._node.create_subscription(FluidPressure, resolved, cb,
-                                                              INPUT_QOS, raw=True)
+                                                              qos, raw=True)
         self._sub_info[resolved] = info
 
     def scan_graph(self) -> None:
@@ -396,18 +398,30 @@ class BrakeInputs:
         with self._in_lock:
             if self._buffer is not buffer:      # a reset replaced the run meanwhile
                 return
-            buffer.arrival[slot] = time.monotonic()
-            if self.by_stamp:       # takes effect at its stamp (apply)
-                buffer.pending.append((stamp_ns, slot, gauge, raw, rel))
-            else:
-                buffer.stamp[slot] = stamp_ns
-                buffer.value[slot] = gauge
-                buffer.raw[slot] = raw
-                buffer.dirty = True
-                if buffer.recording:
-                    buffer.records.append((rel, raw))
+            duplicate = self._duplicate_answer(int(buffer.last[slot]), stamp_ns)
+            if not duplicate:
+                buffer.last[slot] = stamp_ns
+                buffer.arrival[slot] = time.monotonic()
+                self._accept(buffer, slot, stamp_ns, gauge, raw, rel)
+        if duplicate:                           # lock-step: the first answer holds
+            self.duplicates_brake += 1
+            self.duplicate(resolved)
+            return
         self._accepted += 1
         self._notify()
+
+    def _accept(self, buffer: InputBuffer, slot: int, stamp_ns: int, gauge: float, raw: bytes,
+                rel: str) -> None:
+        """Keep an accepted message for the simulation thread (input lock held)."""
+        if self.by_stamp:       # takes effect at its stamp (apply)
+            buffer.pending.append((stamp_ns, slot, gauge, raw, rel))
+        else:
+            buffer.stamp[slot] = stamp_ns
+            buffer.value[slot] = gauge
+            buffer.raw[slot] = raw
+            buffer.dirty = True
+            if buffer.recording:
+                buffer.records.append((rel, raw))
 
     def _reject(self, resolved: str, exc: Rejected) -> None:
         self.rejected[exc.reason] += 1
@@ -449,9 +463,11 @@ class BrakeInputs:
                 self._enter_failsafe(sim, t_ns, record)
             return       # inputs arriving meanwhile wait until every input is fresh
         if self._emergency:
-            # Back from the fail-safe: the latest value of every input holds again.
+            # Back from the fail-safe: the latest value of every input holds again, and
+            # answers a lock-step output as it would have without the fail-safe.
             self._emergency = False
             self._set(sim, values)
+            self._applied_stamp = stamps
             buffer = self._buffer
             for k, topic in enumerate(buffer.topics):
                 raw = raws[k] if raws[k] is not None else self._synthetic(
@@ -535,55 +551,6 @@ class BrakeInputs:
         if buffer.recording:    # at the instant it acted: the offline replay acts there too
             record(rel, topics.FLUID_PRESSURE, stamp_ns if exact else time_ns(sim.t), raw)
 
-    # -- lock-step (simulation lock held) ---------------------------------------------------
-    def output_published(self, t_ns: int) -> None:
-        """Take note of an output stamped ``t_ns`` about to go out: Float64 commands answer it."""
-        self.traction.output_published(t_ns)
-        self.ep.output_published(t_ns)
-        self.wsp.output_published(t_ns)
-
-    def unanswered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> list[str]:
-        """
-        Return the input topics of ``families`` whose applied input does not answer ``t_ns``.
-
-        ``brake`` (:data:`LOCKSTEP_INPUTS`): every active brake input holds a value stamped
-        ``t_ns``; ``traction``, ``ep``, ``wsp``: the applied command (valve state) arrived
-        after the output stamped ``t_ns`` was published. Empty: every declared input has
-        answered.
-        """
-        out: list[str] = []
-        if BRAKE in families:
-            stamps = self._applied_stamp
-            missing = np.nonzero(stamps != t_ns)[0]
-            out += [self._buffer.topics[k] for k in missing[:10]]
-        if TRACTION in families:
-            out += self.traction.unanswered(t_ns)
-        if EP in families:
-            out += self.ep.unanswered(t_ns)
-        if WSP in families:
-            out += self.wsp.unanswered(t_ns)
-        return out
-
-    def answered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> bool:
-        """Lock-step: return True if every input of ``families`` answers the output ``t_ns``."""
-        if families == (BRAKE,):        # the common case, without building lists
-            stamps = self._applied_stamp
-            return bool(np.all(stamps == t_ns))
-        return not self.unanswered(t_ns, families)
-
-    def connected(self, families: tuple[str, ...] = (BRAKE,)) -> bool:
-        """Return True if every active input topic of ``families`` has a publisher."""
-        return ((BRAKE not in families
-                 or all(s.get_publisher_count() > 0 for s in self._active))
-                and (TRACTION not in families or self.traction.connected())
-                and (EP not in families or self.ep.connected())
-                and (WSP not in families or self.wsp.connected()))
-
-    def missing_inputs(self, families: tuple[str, ...]) -> list[str]:
-        """Return the families of ``families`` this run has no input topic of."""
-        return [f for f in families if (f == TRACTION and not self.traction.active)
-                or (f == EP and not self.ep.active) or (f == WSP and not self.wsp.active)]
-
     def _report_stale(self, stale: bool) -> None:
         self._stale = stale
         if stale:
@@ -624,29 +591,3 @@ class BrakeInputs:
         msg.header.stamp = stamp(time_ns(sim.t))
         msg.header.frame_id = frame_id
         return serialize_message(msg)
-
-    def hold_for_input(self, now: float) -> bool:
-        """``wait_for_input``: return True while the start waits for brake-input publishers."""
-        limit = self.wait_for_input
-        if limit <= 0.0:
-            return False
-        if self._wait_since is None:
-            self._wait_since = now
-            self._wait_ready = None
-            self._log.info(f'waiting up to {limit:g} s for publishers on the '
-                           f'{len(self._active)} brake-input topic(s) of {self._buffer.mode} '
-                           'before starting the clock')
-        if self.connected():
-            if self._wait_ready is None:
-                self._wait_ready = now
-            if now - self._wait_ready < INPUT_SETTLE:
-                return True          # let the other direction (e.g. their /clock) match too
-            self._log.info(f'brake input connected after {now - self._wait_since:.2f} s; '
-                           'starting')
-            return False
-        self._wait_ready = None
-        if now - self._wait_since >= limit:
-            self._log.warning(f'no publisher on every brake-input topic after {limit:g} s; '
-                              'starting anyway')
-            return False
-        return True

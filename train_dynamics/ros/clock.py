@@ -62,6 +62,10 @@ class ClockOutput:
         self._pub.publish(msg)
         return msg
 
+    def subscription_count(self) -> int:
+        """Return the subscriptions matched on the clock (0 while not publishing)."""
+        return 0 if self._pub is None else self._pub.get_subscription_count()
+
     def check_publishers(self) -> int:
         """
         Count the other publishers on the clock topic while active; warn when they appear.

@@ -55,6 +55,11 @@ class EpInputs:
         self._applied_tag = -1          # simulation lock: the output the applied one answers
         self._line = True
         self.accepted = 0
+        self._tag = -1                  # the output the last accepted command answers
+        #: lock-step on this command: a second command after one output is not used
+        self.dedupe = False
+        self.duplicates = 0
+        self.on_duplicate: Callable[[str], None] | None = None   # (resolved topic): warn
 
     def start(self, active: bool) -> None:
         """Subscribe (``active``: an EP or ECP train) or unsubscribe for a new run."""
@@ -62,15 +67,33 @@ class EpInputs:
             self._pending = None
             self._arrival = None
             self._period_ns = -1
+            self._tag = -1
         self._applied_tag = -1
+        self.duplicates = 0
         self._line = True
         if active and self._sub is None:
-            name = self._node.resolve_topic_name(topics.EP_COMMAND_TOPIC)
-            self._sub = self._node.create_subscription(
-                Float64, name, lambda data: self._on_command(name, data), self._qos, raw=True)
+            self._subscribe()
         elif not active and self._sub is not None:
             self._node.destroy_subscription(self._sub)
             self._sub = None
+
+    def _subscribe(self) -> None:
+        name = self._node.resolve_topic_name(topics.EP_COMMAND_TOPIC)
+        self._sub = self._node.create_subscription(
+            Float64, name, lambda data: self._on_command(name, data), self._qos, raw=True)
+
+    def set_qos(self, qos: Any) -> None:
+        """Subscribe with ``qos`` from now on (reliable in lock-step)."""
+        if qos == self._qos:
+            return
+        self._qos = qos
+        if self._sub is not None:
+            self._node.destroy_subscription(self._sub)
+            self._subscribe()
+
+    def subscriptions(self) -> list[Any]:
+        """Return the subscription of the command topic ([] when the run takes none)."""
+        return [] if self._sub is None else [self._sub]
 
     @property
     def active(self) -> bool:
@@ -88,8 +111,16 @@ class EpInputs:
             self._reject(resolved, *exc.args)
             return
         with self._lock:
-            self._pending = (value, bytes(data), self._period_ns)
-            self._arrival = time.monotonic()
+            duplicate = self.dedupe and self._period_ns >= 0 and self._tag == self._period_ns
+            if not duplicate:
+                self._pending = (value, bytes(data), self._period_ns)
+                self._arrival = time.monotonic()
+                self._tag = self._period_ns
+        if duplicate:          # lock-step: the first command after the output answers it
+            self.duplicates += 1
+            if self.on_duplicate is not None:
+                self.on_duplicate(resolved)
+            return
         self.accepted += 1
         self._notify()
 

@@ -322,7 +322,7 @@ class Pacer:
             self._inputs.discard_records()     # nothing acts any more: nothing to record
             return now + IDLE
         if self.control.stop_requested:
-            self._finish('lockstep timeout', code=EXIT_LOCKSTEP_TIMEOUT)
+            self._finish(self.control.stop_reason, code=EXIT_LOCKSTEP_TIMEOUT)
             return now + IDLE
         self._inputs.apply(now, sim, self._record_input)
         if not self._outputs.published and self.control.hold_start(now):
@@ -335,7 +335,10 @@ class Pacer:
             now = time.monotonic()
             self._anchor(now)
             self._rtf_window = (now, sim.t)
-        if self._held and self.control.limit(now) != sim.steps:
+        if self._held:
+            if self.control.limit(now) == sim.steps:
+                self.behind = 0.0              # paused or waiting: nothing to pace, no lag
+                return now + WAIT_POLL         # an input or a service wakes it
             self._held = False                 # released: pace from here, no catching up
             self._anchor(now)
         done = self._integrate(self._target_step(now), now + CHUNK_BUDGET)

@@ -3,27 +3,13 @@ The outputs of ``sim_node``: publishers, the output schedule and the run's recor
 
 Outputs (reliable, keep-last 10, ``header.stamp`` = simulation time), at ``publish_rate`` in
 simulation time, at the integration steps nearest to k / publish_rate
-(:func:`train_dynamics.simulation.runner.output_step`, the offline command's grid):
-
-- ``couplers``: JointState ``coupler_1..N-1``: position y [m], velocity ydot [m/s], effort F [N];
-- ``coaches``: JointState ``coach_1..N``: position x [m], velocity v [m/s], effort Fb [N];
-- ``brake_cylinders``: JointState ``coach_1..N``: position = brake-cylinder gauge pressure [Pa],
-  effort = local brake-pipe gauge pressure [Pa] (as the offline command writes);
-- ``brake_ep/state`` (``brake_system`` ep or ecp), ``distributed_power/state`` (remote
-  locomotives): the EP / ECP command and valve state per vehicle, the radio link per remote
-  (:mod:`train_dynamics.recording.outputs`);
-- ``vehicle_motion``: JointState ``coach_1..N`` (``frame_id`` ``track``): position = track
-  position [m], velocity v [m/s], effort = acceleration [m/s^2] over the last output period;
-- ``vehicle_forces`` (a train with resistance, track or traction): JointState ``coach_1..N``:
-  position = traction / dynamic-brake force, velocity = running + curve resistance, effort =
-  gradient force [N, on the vehicle, forward > 0];
-- ``wheelsets`` (a train with rotating wheelsets): JointState ``coach_1..N``: position =
-  available adhesion [-], velocity = wheel peripheral speed [m/s], effort = creep force [N];
-- ``/clock`` (``rosgraph_msgs/Clock``) when ``publish_clock``, ``clock`` in the node's
-  namespace with ``namespaced_clock`` (:mod:`train_dynamics.ros.clock`).
-
-A topic's publisher exists only while the run publishes it (``brake_reservoirs`` with the
-pneumatic brake, the clock while ``publish_clock``): nothing is advertised unused.
+(:func:`train_dynamics.simulation.runner.output_step`, the offline command's grid): the topics
+of the table :data:`train_dynamics.recording.output_specs.OUTPUTS` that the run has (each
+row says what it carries and when a run has it; docs/ros_interface.md shows the table), and
+``/clock`` (``rosgraph_msgs/Clock``) when ``publish_clock`` (``clock`` in the node's namespace
+with ``namespaced_clock``: :mod:`train_dynamics.ros.clock`). A topic has a publisher only
+while the run has it: a reset to a run without it destroys its publisher, and the clock's
+exists only while it is published.
 
 Output messages are CDR-encoded once per output (:class:`OutputEncoder`: names and header
 layout computed once), then published and recorded as the same bytes: ~10x cheaper than
@@ -32,18 +18,19 @@ thread holds the GIL meanwhile: output jitter).
 """
 from __future__ import annotations
 
+import importlib
 import time
-from typing import Callable
+from typing import Any, Callable
 
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
-from sensor_msgs.msg import JointState
 
 from train_dynamics import topics
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.recording.output_specs import OutputRun
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
 from train_dynamics.ros.clock import ClockOutput
 from train_dynamics.ros.live_metrics import LiveMetrics
@@ -53,6 +40,12 @@ from train_dynamics.simulation.runner import output_step
 OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                         reliability=ReliabilityPolicy.RELIABLE,
                         durability=DurabilityPolicy.VOLATILE)
+
+
+def message_class(msgtype: str) -> Any:
+    """Return the rclpy message class of ``msgtype`` (``'pkg/msg/Name'``)."""
+    package, _, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{package}.msg'), name)
 
 
 def stamp(t_ns: int) -> Time:
@@ -75,17 +68,11 @@ class Outputs:
     """
 
     def __init__(self, node: Node) -> None:
-        self._pubs = {topic: node.create_publisher(JointState, topic, OUTPUT_QOS)
-                      for topic in topics.OUTPUT_TOPICS}
+        #: topic -> publisher of the run's outputs (:meth:`start` makes and destroys them)
+        self._pubs: dict[str, Any] = {}
         #: /clock (or the namespaced clock), advertised only while publish_clock
         self.clock = ClockOutput(node, OUTPUT_QOS)
-        self._pub_motion = node.create_publisher(JointState, topics.VEHICLE_MOTION_TOPIC,
-                                                 OUTPUT_QOS)
         self._node = node
-        self._pub_forces = None         # vehicle_forces, created for a train that has them
-        self._forces = False
-        self._pub_wheelsets = None      # wheelsets, created for a train that has them
-        self._wheelsets = False
         self.writer: BagWriter | None = None
         self.rate = 0.0                 # [Hz] publish_rate of the run
         self.next_step = 0              # integration step of the next output
@@ -101,29 +88,23 @@ class Outputs:
         self.on_output: Callable[[int], None] | None = None
 
     def start(self, encoder: OutputEncoder, rate: float, h: float, publish_clock: bool,
-              writer: BagWriter | None, forces: bool = False,
-              metrics: RunMetrics | None = None, wheelsets: bool = False) -> None:
+              writer: BagWriter | None, metrics: RunMetrics | None = None) -> None:
         """
         Begin a run at t = 0: outputs at ``rate`` [Hz] on steps ``h``.
 
-        ``encoder``: the run's output encoder (``OutputEncoder.for_config``): the JointState
-        topics published (and recorded) at every output, as the offline command writes
-        them; ``forces``: also publish ``vehicle_forces`` (a train with resistance, track or
-        traction); ``wheelsets``: also publish ``wheelsets`` (a train with rotating
-        wheelsets); ``metrics``: the run metrics, fed with every published sample (as the
-        offline command does).
+        ``encoder``: the run's output encoder (``OutputEncoder.for_config``): the topics
+        published (and recorded) at every output, as the offline command writes them;
+        ``metrics``: the run metrics, fed with every published sample (as the offline
+        command does).
         """
         self.metrics.start(metrics)
         self._encoder = encoder
-        self._publish_only(encoder.topics)
-        self._forces = bool(forces)
-        if self._forces and self._pub_forces is None:
-            self._pub_forces = self._node.create_publisher(
-                JointState, topics.VEHICLE_FORCES_TOPIC, OUTPUT_QOS)
-        self._wheelsets = bool(wheelsets)
-        if self._wheelsets and self._pub_wheelsets is None:
-            self._pub_wheelsets = self._node.create_publisher(
-                JointState, topics.WHEELSETS_TOPIC, OUTPUT_QOS)
+        for topic in [t for t in self._pubs if t not in encoder.topics]:
+            self._node.destroy_publisher(self._pubs.pop(topic))
+        for topic, msgtype in zip(encoder.topics, encoder.msgtypes):
+            if topic not in self._pubs:
+                self._pubs[topic] = self._node.create_publisher(
+                    message_class(msgtype), topic, OUTPUT_QOS)
         self.rate = float(rate)
         self._h = h
         self.publish_clock = bool(publish_clock)
@@ -133,14 +114,6 @@ class Outputs:
         self.published = 0
         self.last_step = -1
         self.last_t_ns = -1
-
-    def _publish_only(self, wanted) -> None:
-        """Create the JointState publishers of ``wanted`` not yet there; destroy the others."""
-        for topic in [t for t in self._pubs if t not in wanted]:
-            self._node.destroy_publisher(self._pubs.pop(topic))
-        for topic in wanted:     # e.g. the brake-system states, created when first used
-            if topic not in self._pubs:
-                self._pubs[topic] = self._node.create_publisher(JointState, topic, OUTPUT_QOS)
 
     @property
     def publish_clock(self) -> bool:
@@ -152,9 +125,23 @@ class Outputs:
         """Publish the clock or not (``namespaced_clock``: where); executor thread."""
         self.clock.configure(bool(value), bool(self._node.get_parameter('namespaced_clock').value))
 
+    @property
+    def run(self) -> OutputRun | None:
+        """Return what the run's outputs keep between two (the stopping target), or None."""
+        return None if self._encoder is None else self._encoder.run
+
     def subscribed(self) -> bool:
-        """Return True if a subscriber is matched on one of the JointState outputs."""
+        """Return True if a subscriber is matched on one of the outputs (not ``/clock``)."""
         return any(pub.get_subscription_count() > 0 for pub in self._pubs.values())
+
+    def clock_subscribed(self) -> bool:
+        """Return True if a subscriber is matched on ``/clock`` (lock-step on the clock)."""
+        return self.clock.subscription_count() > 0
+
+    def repeat_clock(self) -> None:
+        """Publish ``/clock`` of the last output again, unrecorded (a lost one stalls a timer)."""
+        if self.last_t_ns >= 0:
+            self.clock.publish(stamp(self.last_t_ns))
 
     def take_writer(self) -> BagWriter | None:
         """Return the run's writer and stop recording (to close it, or at a reset)."""
@@ -181,28 +168,16 @@ class Outputs:
         t_ns = time_ns(sim.t)
         if self.on_output is not None:
             self.on_output(t_ns)
-        encoded = self._encoder.encode(t_ns, sim)
-        for topic, data in zip(self._encoder.topics, encoded):
+        encoder = self._encoder
+        encoded = encoder.encode(t_ns, sim)
+        for topic, data in zip(encoder.topics, encoded):
             self._pubs[topic].publish(data)
-        motion = self._encoder.encode_motion(t_ns, sim)
-        self._pub_motion.publish(motion)
-        forces = self._encoder.encode_forces(t_ns, sim) if self._forces else None
-        if forces is not None:
-            self._pub_forces.publish(forces)
-        wheels = self._encoder.encode_wheelsets(t_ns, sim) if self._wheelsets else None
-        if wheels is not None:
-            self._pub_wheelsets.publish(wheels)
         self.metrics.put(sim)
         clock = self.clock.publish(stamp(t_ns))
         w = self.writer
         if w is not None:
-            for topic, data in zip(self._encoder.topics, encoded):
-                w.write(topic, topics.JOINT_STATE, t_ns, data)
-            w.write(topics.VEHICLE_MOTION_TOPIC, topics.JOINT_STATE, t_ns, motion)
-            if forces is not None:
-                w.write(topics.VEHICLE_FORCES_TOPIC, topics.JOINT_STATE, t_ns, forces)
-            if wheels is not None:
-                w.write(topics.WHEELSETS_TOPIC, topics.JOINT_STATE, t_ns, wheels)
+            for topic, msgtype, data in zip(encoder.topics, encoder.msgtypes, encoded):
+                w.write(topic, msgtype, t_ns, data)
             if clock is not None:
                 w.write(self.clock.topic, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
         self.published += 1

@@ -6,13 +6,19 @@ Topics are recorded under the node's resolved names (namespace and remapping app
 received, bag time = simulation time of the step at which the message took
 effect, so ``train-dynamics simulate --input BAG`` replays the run) and outputs (bag time =
 header stamp) go to a rosbag2 (MCAP) written by :class:`BagWriter` on its own thread: bag I/O
-never delays the simulation. The MCAP file is finished every ``record_flush_period`` s (wall):
-a SIGKILL loses at most that much; in ``sync_mode`` lockstep every ``record_flush_period`` s of
-simulation time instead (at the first message at or after each multiple), so that the files of a
+never delays the simulation. The MCAP file is finished ``record_flush_period`` s (wall) after
+the previous one was (the period counts from the end of a flush, so flushes never follow each
+other back to back however long one takes, and messages are written in between): a SIGKILL
+loses about that much; in ``sync_mode`` lockstep every ``record_flush_period`` s of simulation
+time instead (at the first message at or after each multiple), so that the files of a
 lock-step run are the same on every run, whatever the machine's speed. SIGINT and SIGTERM
-close the bag completely. When writing fails (a full disk), nothing more is recorded; the bag
-keeps its finished files, the node reports how many messages it holds
-(:meth:`BagWriter.closed_message`, never more than what is on disk) and exits with status 1.
+close the bag completely: :meth:`BagWriter.close` waits until every message given is written
+(as long as the writer makes progress). When writing fails (a full disk), or the writer stops
+making progress while closing, or the bag holds fewer messages than it was given, nothing more
+is recorded; the bag keeps its finished files (no ``.staging`` left), the node reports how many
+messages it holds of those recorded (:meth:`BagWriter.closed_message`, the offline command's
+wording: :func:`~train_dynamics.recording.bags.recording_failed`; never more than what is on
+disk) and exits with status 1.
 A ``reset`` continues in a new bag ``<record_bag>_reset<k>`` (:func:`reset_bag_path`; each bag
 is one run from t = 0).
 """
@@ -25,9 +31,9 @@ import threading
 import time
 from typing import Any, Callable, Mapping
 
-from train_dynamics import topics
 from train_dynamics.physics.config import SimConfig
-from train_dynamics.recording.bags import BagRecorder
+from train_dynamics.recording.bags import BagRecorder, recording_failed
+from train_dynamics.recording.output_specs import output_type
 from train_dynamics.recording.outputs import output_topics, parameters_json, run_metadata
 from train_dynamics.ros.scheduling import normal_priority
 
@@ -36,6 +42,9 @@ MAX_RECORD_BACKLOG = 20000
 #: [bytes] queued for the bag writer before the simulation waits: 64 MiB, ~1 s of the outputs
 #: of 20000 coaches at 100 Hz (~0.8 MB per output instant)
 MAX_RECORD_BACKLOG_BYTES = 64 << 20
+#: [s] wall time without a message written or a file finished after which closing gives up
+#: (a disk that no longer answers); the bag is then reported incomplete (exit 1)
+CLOSE_STALL_TIMEOUT = 60.0
 
 
 def check_bag_path(path: str) -> None:
@@ -74,7 +83,7 @@ def open_bag(path: Path, cfg: SimConfig, node_name: str, logger: Any,
         for key, value in info.items():
             rec.set_custom_data(key, value)
         for topic in output_topics(cfg):
-            rec.add_topic(resolve(topic), topics.JOINT_STATE, offered.get(topic))
+            rec.add_topic(resolve(topic), output_type(topic), offered.get(topic))
     except Exception:
         rec.abort()
         raise
@@ -110,7 +119,10 @@ class BagWriter:
         self._offered = dict(offered or {})
         self._names: dict[str, str] = {}      # topic as written -> as recorded
         self.path = Path(recorder.path)
-        self.written = 0
+        self.given = 0                        # messages given to write() (the run's record)
+        self.written = 0                      # of those, handed to the recorder
+        self.late = 0                         # messages given after close() began (dropped)
+        self.flushes = 0                      # files finished by the writer thread
         self.error: str | None = None
         self._logger = logger
         self._flush_period = float(flush_period)
@@ -124,15 +136,23 @@ class BagWriter:
         self._thread.start()
 
     def write(self, topic: str, msgtype: str, t_ns: int, data: bytes) -> None:
-        """Queue raw CDR bytes; wait while the backlog is full (the writer catches up)."""
+        """
+        Queue raw CDR bytes; wait while the backlog is full (the writer catches up).
+
+        After :meth:`close` began, a message is not recorded (counted in :attr:`late`).
+        """
         size = len(data)
         with self._cond:
             while self._items and not self._stop and self._thread.is_alive() and (
                     self._bytes + size > MAX_RECORD_BACKLOG_BYTES
                     or len(self._items) >= MAX_RECORD_BACKLOG):
                 self._cond.wait(0.5)
+            if self._stop:          # also when close() began while this call waited
+                self.late += 1
+                return
             self._items.append((topic, msgtype, t_ns, data))
             self._bytes += size
+            self.given += 1
             self._cond.notify_all()
 
     @property
@@ -145,13 +165,33 @@ class BagWriter:
         """Return the bytes queued, not yet written."""
         return self._bytes
 
-    def close(self, timeout: float | None = 30.0) -> None:
-        """Write what is queued, finish the bag (idempotent)."""
+    def close(self, stall_timeout: float = CLOSE_STALL_TIMEOUT) -> None:
+        """
+        Write everything queued, finish the bag (idempotent); check that it holds it all.
+
+        Waits as long as the writer makes progress (messages written, files finished); after
+        ``stall_timeout`` s [wall] without any, gives up. Either way, a bag that does not hold
+        every message given sets :attr:`error` (the node then exits 1).
+        """
         with self._cond:
             self._stop = True
             self._cond.notify_all()
-        if self._thread.is_alive():
-            self._thread.join(timeout)
+        progress = None
+        last = time.monotonic()
+        while self._thread.is_alive():
+            self._thread.join(0.2)
+            now = time.monotonic()
+            state = (self.written, self.flushes, self.backlog)
+            if state != progress:
+                progress, last = state, now
+            elif now - last >= stall_timeout:
+                if self.error is None:
+                    self._fail(TimeoutError(
+                        f'closing: no progress for {stall_timeout:g} s with {self.backlog} '
+                        'message(s) still queued'), '; gave up on them')
+                return
+        if self.error is None and not self._discard and self.saved != self.given:
+            self._fail(RuntimeError(f'{self.given - self.saved} message(s) not written'))
 
     def discard(self) -> None:
         """Stop without writing what is queued and remove the bag (a run that never started)."""
@@ -170,10 +210,12 @@ class BagWriter:
     def closed_message(self) -> str:
         """Return the line that reports the closed bag: its messages, or the failure."""
         saved = self.saved
+        late = (f'; {self.late} message(s) given after closing were not recorded'
+                if self.late else '')
         if self.error is None:
-            return f'bag closed: {self.path} ({saved} messages)'
-        return (f'recording to {self.path} failed ({self.error[:200]}): the bag holds {saved} '
-                f'of the {self.written} messages recorded')
+            return f'bag closed: {self.path} ({saved} messages){late}'
+        return recording_failed(self.path, self.error[:200], saved, self.given,
+                                self.recorder.saved_until_ns) + late
 
     def _fail(self, exc: Exception, more: str = '') -> None:
         self.error = f'{type(exc).__name__}: {exc}'.splitlines()[0]
@@ -206,7 +248,7 @@ class BagWriter:
 
     def _run(self) -> None:
         normal_priority()     # started by a real-time thread (reset): bag I/O stays normal
-        last_flush = time.monotonic()
+        last_flush = time.monotonic()         # the end of the last flush
         unflushed = False
         try:
             while True:
@@ -219,23 +261,28 @@ class BagWriter:
                             if unflushed:
                                 self.recorder.flush()
                                 unflushed = False
+                                self.flushes += 1
                             self._next_split_ns = (item[2] // self._split_ns + 1) * self._split_ns
                         self._store(item)
                         unflushed = True
                     except Exception as exc:  # noqa: BLE001 - disk full, closed bag, ...
                         self._fail(exc, '; no further messages are recorded')
-                now = time.monotonic()
                 if (unflushed and self.error is None and not self._split_ns
-                        and now - last_flush >= self._flush_period):
+                        and time.monotonic() - last_flush >= self._flush_period):
                     try:
                         self.recorder.flush()
                     except Exception as exc:  # noqa: BLE001
-                        self._fail(exc)
-                    last_flush, unflushed = now, False
+                        self._fail(exc, '; no further messages are recorded')
+                    # from the END of this flush: a flush longer than the period is followed
+                    # by a period of writing, never by another flush at the next message
+                    last_flush, unflushed = time.monotonic(), False
+                    self.flushes += 1
         finally:
             try:
                 if self._discard:
                     self.recorder.abort()
+                elif self.error is not None:      # the file being written may be damaged
+                    self.recorder.keep(self.error[:200])
                 else:
                     self.recorder.close()
             except Exception as exc:  # noqa: BLE001 - e.g. ENOSPC finishing the last file

@@ -9,15 +9,17 @@ behaviour and owns its state:
   rejection counts, staleness and the fail-safe, the graph scan, ``wait_for_input``;
 - :mod:`train_dynamics.ros.pacing`: the simulation thread (pacing at ``real_time_factor``,
   the lag policy, chunking), ``duration``, numerical faults;
-- :mod:`train_dynamics.ros.publishers`: ``couplers``, ``coaches``, ``brake_cylinders`` and
-  ``/clock`` at ``publish_rate`` in simulation time;
+- :mod:`train_dynamics.ros.publishers`: the output topics of the run (the table
+  :data:`train_dynamics.recording.output_specs.OUTPUTS`) and ``/clock`` at ``publish_rate``
+  in simulation time; :mod:`train_dynamics.ros.stop_target`: the stopping target's input;
 - :mod:`train_dynamics.ros.recorder`: ``record_bag`` (inputs and outputs, a rosbag2 MCAP
   written on its own thread);
 - :mod:`train_dynamics.ros.diagnostics`: ``/diagnostics`` (~1 Hz wall);
 - :mod:`train_dynamics.ros.parameters`: descriptors and the set callbacks;
 - :mod:`train_dynamics.ros.run_control`: the ``~/pause``, ``~/resume`` and ``~/step``
   services and the lock-step with a controller (``sync_mode``, ``lockstep_inputs``,
-  ``lockstep_timeout``); ``input_timing`` is the brake inputs'.
+  ``lockstep_answer``, ``lockstep_timeout``; what answers and what is refused:
+  :mod:`train_dynamics.ros.lockstep_inputs`); ``input_timing`` is the brake inputs'.
 
 Threads and locks: the executor thread runs the subscription callbacks, the timers, the
 parameter callbacks and the ``reset`` service; the simulation thread (:class:`Pacer`) runs the
@@ -44,7 +46,8 @@ response (and the log) what changed; a recording continues in a new bag
 ``<record_bag>_reset<k>``.
 
 Exit status of ``main``: 0; 2 invalid parameters; 3 numerical fault (with ``duration``);
-4 lock-step timeout (``lockstep_on_timeout`` stop);
+4 lock-step timeout (``lockstep_on_timeout`` stop) or refused (a second or best-effort
+publisher on a lock-step input);
 1 other errors (e.g. the bag cannot be created, or writing it failed: a full disk).
 """
 from __future__ import annotations
@@ -70,6 +73,7 @@ from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.quoting import quote
 from train_dynamics.recording.bags import BagError, offered_qos
+from train_dynamics.recording.output_specs import OUTPUTS, target_of
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
 from train_dynamics.ros import parameters as ros_parameters
 from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INPUT_QOS,
@@ -77,12 +81,14 @@ from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INP
 from train_dynamics.ros.diagnostics import (BrakeSystemReport, diagnostic_array, InputReport,
                                             SimulationReport)
 from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
+from train_dynamics.ros.lockstep_inputs import lockstep_input_error
 from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
 from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
                                          open_bag, reset_bag_path)
 from train_dynamics.ros.run_control import RunControl
 from train_dynamics.ros.scheduling import CpuWakeLatency, freeze_startup_heap, normal_priority
+from train_dynamics.ros.stop_target import StopTargetInput
 
 __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
            'MAX_ABSOLUTE_PRESSURE', 'MAX_RECORD_BACKLOG', 'REJECT_REASONS']
@@ -95,7 +101,8 @@ EXIT_RECORD_FAILED = 1
 SPECS = {**PARAMETERS, **SIM_NODE_PARAMETERS}
 #: the node parameters of the run control (pause/step, lock-step, input timing)
 CONTROL_PARAMETERS = frozenset({'sync_mode', 'input_timing', 'lockstep_timeout',
-                                'lockstep_on_timeout', 'step_periods', 'lockstep_inputs'})
+                                'lockstep_on_timeout', 'step_periods', 'lockstep_inputs',
+                                'lockstep_answer', 'lockstep_period'})
 
 
 #: the most values of an array a log line, the reset reply or /diagnostics shows
@@ -126,6 +133,7 @@ class SimNode(Node):
         self.parameter_file_warnings: list[str] = []
         ros_parameters.declare_parameters(self, SPECS)
         cfg = SimConfig.from_dict(self._parameter_values())   # raises ConfigError (main: 2)
+        self._check_lockstep(cfg)
         #: the configuration of the node's current parameter values (the running one plus
         #: the pending changes); sets derive it from the last one (a consist is read only
         #: when a value it is built from changes), the reset service builds it anew
@@ -139,6 +147,8 @@ class SimNode(Node):
         self._inputs = BrakeInputs(self)
         self._outputs = Outputs(self)
         self._outputs.on_output = self._inputs.output_published    # lock-step: Float64 answers
+        self._stop_target = StopTargetInput(self, INPUT_QOS, self._lock, self._target_run,
+                                            self._outputs.record)
         self._pacer = Pacer(self._lock, self.get_logger(), self.context, self._inputs,
                             self._outputs)
         self._pacer.duration = float(self.get_parameter('duration').value)
@@ -181,7 +191,9 @@ class SimNode(Node):
         sync_mode = value('sync_mode').value
         self._control.configure(sync_mode, value('lockstep_timeout').value,
                                 value('lockstep_on_timeout').value, value('step_periods').value,
-                                tuple(value('lockstep_inputs').value))
+                                tuple(value('lockstep_inputs').value),
+                                value('lockstep_answer').value, value('lockstep_period').value)
+        self._outputs.publish_clock = self._publish_clock()
         self._inputs.by_stamp = value('input_timing').value == 'stamp'
         # wake the simulation thread on each input only where it waits for them
         self._inputs.on_input = (self._pacer.wake if sync_mode == 'lockstep'
@@ -191,6 +203,23 @@ class SimNode(Node):
         """Warn when another node publishes on our clock topic (``ros/clock.py``)."""
         with self._lock.held():
             self._outputs.clock.check_publishers()
+
+    def _publish_clock(self) -> bool:
+        """Return True if /clock goes out: publish_clock, or lock-step on the clock."""
+        cfg = getattr(self, '_cfg', None)
+        return bool(cfg is not None and cfg.publish_clock) or (
+            self.get_parameter('sync_mode').value == 'lockstep'
+            and self.get_parameter('lockstep_answer').value == 'clock')
+
+    def _check_lockstep(self, cfg: SimConfig, changes: dict[str, Any] | None = None) -> None:
+        """Raise ConfigError if the lock-step declares an input the train of ``cfg`` lacks."""
+        changes = changes or {}
+        value = {name: changes.get(name, self.get_parameter(name).value)
+                 for name in ('sync_mode', 'lockstep_inputs')}
+        why = (lockstep_input_error(cfg, tuple(value['lockstep_inputs']))
+               if value['sync_mode'] == 'lockstep' else None)
+        if why is not None:
+            raise ConfigError(why)
 
     def _request_wake_latency(self, limit_us: int) -> None:
         """Hold a CPU wake-up latency request of ``limit_us`` (-1: none) instead of the last."""
@@ -213,6 +242,8 @@ class SimNode(Node):
         bag = changes.get('record_bag')
         if bag and bag != self._cfg.record_bag:
             check_bag_path(bag)
+        if {'sync_mode', 'lockstep_inputs'} & set(changes):
+            self._check_lockstep(self._cfg, changes)
         self._checked = (self._params_cfg, sim_changes, cfg)   # what post-set adopts
 
     def _apply_parameters(self, changes: dict[str, Any]) -> None:
@@ -243,7 +274,7 @@ class SimNode(Node):
                                                    cfg.track_adhesion)
             if 'real_time_factor' in changes:
                 self._pacer.set_real_time_factor(cfg.real_time_factor)
-            self._outputs.publish_clock = cfg.publish_clock
+            self._outputs.publish_clock = self._publish_clock()
             self._inputs.set_policy(cfg.input_timeout, cfg.on_input_timeout)
             if 'duration' in changes:
                 self._pacer.set_duration(changes['duration'])
@@ -283,9 +314,9 @@ class SimNode(Node):
         sim = TrainSimulator(cfg)
         self._cfg = cfg
         self._outputs.start(OutputEncoder.for_config(cfg), cfg.publish_rate, sim.h,
-                            cfg.publish_clock, writer, forces=cfg.external_forces,
-                            metrics=RunMetrics.for_run(cfg, sim), wheelsets=sim.wheelsets)
+                            self._publish_clock(), writer, metrics=RunMetrics.for_run(cfg, sim))
         self._inputs.start(cfg, sim.n, recording=writer is not None)
+        self._stop_target.start(target_of(cfg) is not None)
         self._control.start(sim)
         self._pacer.start(sim, cfg.real_time_factor)
         rtf, duration = cfg.real_time_factor, self._pacer.duration
@@ -296,6 +327,11 @@ class SimNode(Node):
             f's/m), step {sim.h:g} s, outputs at {self._outputs.rate:g} Hz, real_time_factor '
             f'{rtf:g}{" (as fast as possible)" if rtf == 0 else ""}'
             f'{f", duration {duration:g} s" if duration > 0 else ""}{where}')
+
+    def _target_run(self) -> tuple[Any, float] | None:
+        """Return the outputs' run state and the time [s] (simulation lock held)."""
+        run = self._outputs.run
+        return None if run is None else (run, self._pacer.sim.t)
 
     def _open_bag(self, cfg: SimConfig, first: bool) -> BagWriter | None:
         """
@@ -315,11 +351,8 @@ class SimNode(Node):
     def _offered() -> dict[str, Any]:
         """Return topic -> the QoS the node offers on it (what a bag records)."""
         qos = offered_qos(OUTPUT_QOS.reliability == ReliabilityPolicy.RELIABLE, OUTPUT_QOS.depth)
-        return dict.fromkeys(topics.OUTPUT_TOPICS + (
-            topics.BRAKE_RESERVOIRS_TOPIC, topics.BRAKE_EP_STATE_TOPIC,
-            topics.RADIO_STATE_TOPIC, topics.VEHICLE_FORCES_TOPIC,
-            topics.VEHICLE_MOTION_TOPIC, topics.CLOCK_TOPIC,
-            topics.DIAGNOSTICS_TOPIC), qos)
+        return dict.fromkeys(tuple(spec.topic for spec in OUTPUTS) + (
+            topics.CLOCK_TOPIC, topics.DIAGNOSTICS_TOPIC), qos)
 
     def _on_reset(self, request: Trigger.Request, response: Trigger.Response):
         """``reset``: restart from t = 0 with the current (incl. pending) parameter values."""
@@ -330,6 +363,7 @@ class SimNode(Node):
         log = self.get_logger()
         try:
             cfg = SimConfig.from_dict(self._parameter_values())
+            self._check_lockstep(cfg)
             TrainSimulator(cfg).advance(1)     # what cannot run fails before anything changed
             self._resets += 1
             writer = self._open_bag(cfg, first=False)
@@ -490,7 +524,8 @@ def main(args: list[str] | None = None) -> int:
     Run ``ros2 run train_dynamics sim_node``; SIGINT/SIGTERM stop it with the bag closed.
 
     Exit status: 0, 2 invalid parameters, 3 numerical fault (with ``duration``), 4 lock-step
-    timeout (``lockstep_on_timeout`` stop), 1 other errors (a recording that failed included).
+    timeout (``lockstep_on_timeout`` stop) or refused, 1 other errors (a recording that failed
+    included).
     """
     def create() -> SimNode:
         node = SimNode()

@@ -110,6 +110,10 @@ class TractionInputs:
         self._stale: set[int] = set()              # simulation lock: stale locomotives
         self._zeroed: set[int] = set()             # stale ones the fail-safe holds at 0
         self.accepted = 0
+        #: lock-step on these commands: a second command after one output is not used
+        self.dedupe = False
+        self.duplicates = 0
+        self.on_duplicate: Callable[[str], None] | None = None   # (resolved topic): warn
 
     def start(self, locomotives: list[int]) -> None:
         """Subscribe to the commands of ``locomotives`` (0-based) for a new run."""
@@ -121,9 +125,26 @@ class TractionInputs:
             self._raw = {}
             self._period_ns = -1
             self._tag = {}
+        self.duplicates = 0
         self._applied_tag = {}
         self._stale = set()
         self._zeroed = set()
+        self._subscribe_all()
+
+    def set_qos(self, qos: Any) -> None:
+        """Subscribe with ``qos`` from now on (reliable in lock-step)."""
+        if qos == self._qos:
+            return
+        self._qos = qos
+        for name in list(self._subs):
+            self._node.destroy_subscription(self._subs.pop(name))
+        self._subscribe_all()
+
+    def subscriptions(self) -> list[Any]:
+        """Return the subscriptions of the run's command topics."""
+        return list(self._subs.values())
+
+    def _subscribe_all(self) -> None:
         wanted = {self._node.resolve_topic_name(self.topic(i + 1)): i
                   for i in self._locos}
         for name in list(self._subs):
@@ -154,10 +175,18 @@ class TractionInputs:
         with self._lock:
             if index not in self._value:        # a reset changed the train meanwhile
                 return
-            self._value[index] = value
-            self._arrival[index] = time.monotonic()
-            self._dirty[index] = self._raw[index] = bytes(data)
-            self._tag[index] = self._period_ns
+            duplicate = (self.dedupe and self._period_ns >= 0
+                         and self._tag.get(index) == self._period_ns)
+            if not duplicate:
+                self._value[index] = value
+                self._arrival[index] = time.monotonic()
+                self._dirty[index] = self._raw[index] = bytes(data)
+                self._tag[index] = self._period_ns
+        if duplicate:          # lock-step: the first command after the output answers it
+            self.duplicates += 1
+            if self.on_duplicate is not None:
+                self.on_duplicate(resolved)
+            return
         self.accepted += 1
         self._notify()
 

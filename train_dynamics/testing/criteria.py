@@ -2,21 +2,31 @@
 Acceptance criteria of a scenario file, checked against a run's metrics.
 
 A criterion names a metric of ``train-dynamics report`` (a key of ``summary.json``'s
-``train``: ``stopping_distance`` [m], ``max_compression`` and ``max_tension`` [N, positive],
-``max_jerk`` [m/s^3], ``max_deceleration`` [m/s^2], ``stopped``, ``blocking_count``, ...) and
-bounds it: ``{max: X}``, ``{min: X}``, both, or ``{equals: X}``. A metric the run did not
-produce (None, or absent, e.g. ``stopping_distance`` of a train that did not stop) fails the
-criterion and says so.
+``train``, :data:`METRICS`: ``stopping_distance`` [m], ``max_compression`` and ``max_tension``
+[N, positive], ``max_jerk`` [m/s^3], ``max_deceleration`` [m/s^2], ``stopped``,
+``blocking_count``, ...) and bounds it: ``{max: X}``, ``{min: X}``, both (``min <= max``), or
+``{equals: X}`` alone. Bounds are finite numbers; ``equals`` is ``true``/``false`` for the
+yes/no metrics (:data:`BOOLEAN_METRICS`) and a finite number for the others. Anything else
+is refused when the scenario is read (:class:`ConfigError` naming the criterion): a criterion
+that could never fail, or never pass, tests nothing. A metric the run did not produce (None,
+e.g. ``stopping_distance`` of a train that did not stop) fails the criterion and says so.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass
+import difflib
 import math
 from typing import Any, Mapping
 
 from train_dynamics.physics.config import ConfigError
+from train_dynamics.physics.metrics import FLAT_KEYS, SLIDING_KEYS
+from train_dynamics.quoting import quote
 
 BOUNDS = ('min', 'max', 'equals')
+#: the run metrics a criterion may name: ``summary.json``'s ``train`` keys
+METRICS = FLAT_KEYS + SLIDING_KEYS
+#: the metrics that are true or false (``equals`` only)
+BOOLEAN_METRICS = ('stopped',)
 
 
 @dataclass(frozen=True)
@@ -38,14 +48,44 @@ class Criterion:
     high: float | None = None
     equals: Any = None
 
+    def __post_init__(self) -> None:
+        """Refuse a criterion that cannot be meant (raises :class:`ConfigError`)."""
+        name = f'criterion {self.metric}'
+        if self.metric not in METRICS:
+            close = difflib.get_close_matches(str(self.metric), METRICS, n=1)
+            raise ConfigError(f'{name}: no such run metric'
+                              + (f' (did you mean {close[0]}?)' if close else
+                                 f' (known: {", ".join(METRICS)})'))
+        for which, bound in (('min', self.low), ('max', self.high)):
+            if bound is not None:
+                _finite(name, which, bound)
+        if self.equals is not None:
+            if self.low is not None or self.high is not None:
+                raise ConfigError(f'{name}: equals cannot be combined with min or max '
+                                  '(give either equals or bounds)')
+            if self.metric in BOOLEAN_METRICS:
+                if not isinstance(self.equals, bool):
+                    raise ConfigError(f'{name}: equals must be true or false, got '
+                                      f'{quote(self.equals)}')
+            else:
+                _finite(name, 'equals', self.equals)
+        elif self.low is None and self.high is None:
+            raise ConfigError(f'{name}: no bound (give min, max or equals)')
+        elif self.metric in BOOLEAN_METRICS:
+            raise ConfigError(f'{name}: a true/false metric takes equals, not min or max')
+        if self.low is not None and self.high is not None and self.low > self.high:
+            raise ConfigError(f'{name}: min {self.low:g} > max {self.high:g}: no value passes')
+
     @classmethod
     def parse(cls, metric: str, spec: Any) -> Criterion:
         """Return the criterion of a scenario file's ``metric: {max: X, ...}``."""
         if not isinstance(spec, Mapping) or not spec or set(spec) - set(BOUNDS):
             raise ConfigError(f'criterion {metric}: expected a mapping of {", ".join(BOUNDS)}, '
-                              f'got {spec!r}')
-        return cls(metric, low=_number(metric, spec.get('min')),
-                   high=_number(metric, spec.get('max')), equals=spec.get('equals'))
+                              f'got {quote(spec)}')
+        for key in BOUNDS:
+            if key in spec and spec[key] is None:
+                raise ConfigError(f'criterion {metric}: {key}: null is no value')
+        return cls(metric, low=spec.get('min'), high=spec.get('max'), equals=spec.get('equals'))
 
     def describe(self) -> str:
         """Return e.g. ``stopping_distance <= 120``."""
@@ -62,9 +102,12 @@ class Criterion:
             return CriterionResult(self, None, False,
                                    f'FAIL {self.describe()}: the run has no {self.metric}')
         if self.equals is not None:
-            ok = value == self.equals
+            ok = type(value) is type(self.equals) or (
+                not isinstance(value, bool) and not isinstance(self.equals, bool))
+            ok = ok and value == self.equals
         else:
-            ok = isinstance(value, (int, float)) and math.isfinite(value) and \
+            ok = isinstance(value, (int, float)) and not isinstance(value, bool) and \
+                math.isfinite(value) and \
                 (self.low is None or value >= self.low) and \
                 (self.high is None or value <= self.high)
         shown = f'{value:.6g}' if isinstance(value, float) else repr(value)
@@ -72,12 +115,16 @@ class Criterion:
                                f'{"pass" if ok else "FAIL"} {self.describe()}: {shown}')
 
 
-def _number(metric: str, value: Any) -> float | None:
-    if value is None:
-        return None
+def _finite(name: str, which: str, value: Any) -> None:
+    """Refuse a bound that is not a finite number (true/false, text, NaN, infinity)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ConfigError(f'criterion {metric}: bound {value!r} is not a number')
-    return float(value)
+        raise ConfigError(f'{name}: {which} {quote(value)} is not a number')
+    try:
+        finite = math.isfinite(value)
+    except OverflowError:
+        finite = False
+    if not finite:
+        raise ConfigError(f'{name}: {which} {quote(value)} is not a finite number')
 
 
 def parse_criteria(spec: Any) -> list[Criterion]:
@@ -85,5 +132,5 @@ def parse_criteria(spec: Any) -> list[Criterion]:
     if spec is None:
         return []
     if not isinstance(spec, Mapping):
-        raise ConfigError(f'criteria: expected a mapping metric -> bounds, got {spec!r}')
+        raise ConfigError(f'criteria: expected a mapping metric -> bounds, got {quote(spec)}')
     return [Criterion.parse(str(metric), bounds) for metric, bounds in spec.items()]

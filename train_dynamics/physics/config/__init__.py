@@ -11,15 +11,14 @@ One concern per module, no rclpy:
 - :mod:`.files`: ROS 2 parameter files (node and offline alike) and the rule for relative
   paths;
 - :mod:`.consist`: consist files, the vehicle library and the connection rules;
-- :mod:`.budgets`: memory and disk a run needs; :mod:`.inputs`: the rejection rules of brake
+- :mod:`.budgets`: the memory a run needs; :mod:`.inputs`: the rejection rules of brake
   inputs and traction commands; :mod:`.docs`: the documentation's parameter table (not
   imported here: ``python -m train_dynamics.physics.config.docs`` prints it).
 
 The modules import each other in that order upwards (spec, table, files, consist, budgets,
 simconfig); this package re-exports their public names.
 """
-from train_dynamics.physics.config.budgets import (fmt_bytes, MAX_SIMULATOR_MEMORY, output_disk,
-                                                   simulator_memory)
+from train_dynamics.physics.config.budgets import fmt_bytes, MAX_SIMULATOR_MEMORY, simulator_memory
 from train_dynamics.physics.config.consist import Consist, CONSIST_PARAMETERS
 from train_dynamics.physics.config.files import (KNOWN_NODE_NAMES, node_sections, read_param_file,
                                                  read_param_sections, resolve_path,
@@ -47,7 +46,7 @@ __all__ = [
     'fmt_bytes', 'FULL_SERVICE_PRESSURE',
     'G_FILL_TIME', 'G_RELEASE_TIME', 'input_rejection', 'INPUT_VALUE_REASONS', 'INTEGER',
     'INTEGRATION_TOLERANCE', 'KNOWN_NODE_NAMES', 'load_param_file',
-    'MAX_SIMULATOR_MEMORY', 'node_sections', 'output_disk', 'P_FILL_FRACTION', 'P_FILL_TIME',
+    'MAX_SIMULATOR_MEMORY', 'node_sections', 'P_FILL_FRACTION', 'P_FILL_TIME',
     'P_RELEASE_FRACTION', 'P_RELEASE_TIME', 'PARAMETERS', 'ParamSpec', 'PIPE_NOMINAL_PRESSURE',
     'read_param_file', 'read_param_sections', 'resolve_path', 'ROS_BUILTIN_PARAMETERS',
     'SIM_NODE_PARAMETERS', 'SimConfig', 'simulator_memory', 'simulator_params', 'STRING',

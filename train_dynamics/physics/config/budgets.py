@@ -1,9 +1,9 @@
 """
-What a run costs: memory of the simulator, disk of its outputs; estimates checked before a run.
+What a run costs in memory: the simulator's arrays, estimated before a run.
 
 The configuration refuses a train whose simulator would need more than
-:data:`MAX_SIMULATOR_MEMORY`; the offline command compares :func:`output_disk` with the free
-space before it writes.
+:data:`MAX_SIMULATOR_MEMORY`. (The disk of its outputs is estimated beside the outputs:
+:func:`train_dynamics.recording.output_specs.output_disk`.)
 """
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import math
 from typing import Any
 
 import numpy as np
-from train_dynamics import topics
+
 from train_dynamics.physics.kernel import layout
 from train_dynamics.physics.kernel import pneumatic as pneumatic_kernel
 from train_dynamics.physics.pneumatic import PneumaticSpec
@@ -45,15 +45,6 @@ MAX_PERIOD_SECONDS = 0.25
 #: vehicle (measured ~5 us + 0.3 us per vehicle on one core of the development machine)
 STEP_SECONDS = 1.0e-5
 STEP_SECONDS_PER_VEHICLE = 5.0e-7
-#: [bytes] MCAP record and index overhead per message (opcode, length, channel, sequence,
-#: two times; message-index entry)
-BAG_BYTES_PER_MESSAGE = 48
-#: [bytes] a recorded head brake-pipe pressure (FluidPressure) per output instant
-HEAD_INPUT_BYTES = 40 + BAG_BYTES_PER_MESSAGE
-#: [bytes] a recorded traction command (Float64)
-TRACTION_COMMAND_BYTES = 12 + BAG_BYTES_PER_MESSAGE
-#: [bytes] a recorded /clock (rosgraph_msgs/Clock)
-CLOCK_BYTES = 12 + BAG_BYTES_PER_MESSAGE
 
 
 def max_period_steps(n_vehicles: int) -> int:
@@ -108,96 +99,6 @@ def config_memory(cfg: Any) -> int:
     cells = (int(math.ceil(float(np.sum(lengths)) / PneumaticSpec.cell_length)) + n
              if cfg.brake_model == 'pneumatic' else 0)
     return simulator_memory(n, ahead, float(cfg.brake_propagation_speed), h, period, cells)
-
-
-def _joint_state_bytes(joints: int, name_len: int) -> int:
-    """Return the CDR size [bytes] of a JointState of ``joints`` names of ~``name_len``."""
-    name = 4 + (name_len + 1 + 3) // 4 * 4
-    return 32 + joints * name + 3 * (8 + 8 * joints)
-
-
-def has_reservoirs(cfg: Any) -> bool:
-    """Return whether a run of ``cfg`` has reservoirs to publish (pneumatic brake)."""
-    return (getattr(cfg, 'brake_model', 'empirical') == 'pneumatic'
-            and cfg.brake_input != topics.CYLINDER_PER_COACH)
-
-
-def has_ep_state(cfg: Any) -> bool:
-    """Return whether a run of ``cfg`` publishes ``brake_ep/state`` (brake_system ep, ecp)."""
-    return has_reservoirs(cfg) and getattr(cfg, 'brake_system', 'pneumatic') != 'pneumatic'
-
-
-def radio_remotes(cfg: Any) -> tuple[int, ...]:
-    """Return the remotes (0-based) whose ``distributed_power/state`` a run of ``cfg`` has."""
-    if not (has_reservoirs(cfg) and getattr(cfg, 'consist_file', '')):
-        return ()
-    return tuple(cfg.consist.remotes)
-
-
-def state_topics(cfg: Any) -> tuple[str, ...]:
-    """
-    Return the JointState outputs of a run of ``cfg``: those :class:`OutputEncoder` encodes.
-
-    couplers, coaches, brake_cylinders; ``brake_reservoirs`` with the pneumatic brake;
-    ``brake_ep/state`` with brake_system ep or ecp; ``distributed_power/state`` with remote
-    locomotives.
-    """
-    return (topics.OUTPUT_TOPICS
-            + ((topics.BRAKE_RESERVOIRS_TOPIC,) if has_reservoirs(cfg) else ())
-            + ((topics.BRAKE_EP_STATE_TOPIC,) if has_ep_state(cfg) else ())
-            + ((topics.RADIO_STATE_TOPIC,) if radio_remotes(cfg) else ()))
-
-
-def sample_topics(cfg: Any) -> tuple[str, ...]:
-    """
-    Return the JointState topics a run of ``cfg`` records at every output instant.
-
-    The outputs of :func:`state_topics`, ``vehicle_motion``, ``vehicle_forces`` for a train
-    with external forces, ``wheelsets`` for a train with rotating wheelsets.
-    """
-    out = state_topics(cfg) + (topics.VEHICLE_MOTION_TOPIC,)
-    if cfg.external_forces:
-        out += (topics.VEHICLE_FORCES_TOPIC,)
-    if getattr(cfg, 'has_wheelsets', False):
-        out += (topics.WHEELSETS_TOPIC,)
-    return out
-
-
-def output_bytes_per_sample(n_coaches: int, joint_topics: tuple[str, ...] = topics.OUTPUT_TOPICS
-                            ) -> int:
-    """
-    Return the bag bytes of one output instant: a JointState per topic of ``joint_topics``.
-
-    Each carries the frame_id ``track`` (:data:`~train_dynamics.topics.TRACK_FRAME`, up to 8
-    bytes more with its alignment).
-    """
-    digits = len(str(n_coaches))
-    total = 8 * len(joint_topics)
-    for topic in joint_topics:
-        if topic == topics.COUPLERS_TOPIC:
-            total += _joint_state_bytes(n_coaches - 1, 8 + digits)
-        else:
-            total += _joint_state_bytes(n_coaches, 6 + digits)
-    return total + len(joint_topics) * BAG_BYTES_PER_MESSAGE
-
-
-def output_disk(cfg: Any, duration: float, head_input: bool = True,
-                traction_commands: int = 0, clock: bool = False) -> int:
-    """
-    Return an estimate [bytes] of the bag of ``duration`` [s] of ``cfg``.
-
-    Every recorded topic: at each output instant the JointState topics of
-    :func:`sample_topics`, the head brake-pipe pressure when ``head_input`` (the brake valve
-    drives it), ``/clock`` when ``clock``; and ``traction_commands`` Float64 commands.
-    Messages of an input bag are the caller's to add (their sizes are known).
-    """
-    samples = math.floor(duration * float(cfg.publish_rate) + 1e-9) + 1
-    per_sample = output_bytes_per_sample(cfg.n_coaches, sample_topics(cfg))
-    if head_input:
-        per_sample += HEAD_INPUT_BYTES
-    if clock:
-        per_sample += CLOCK_BYTES
-    return int(samples * per_sample + traction_commands * TRACTION_COMMAND_BYTES)
 
 
 def fmt_bytes(n: float) -> str:

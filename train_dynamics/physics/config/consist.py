@@ -44,6 +44,9 @@ import numpy as np
 from train_dynamics.physics import characteristics
 from train_dynamics.physics.config import spec
 from train_dynamics.physics.config.budgets import fmt_bytes
+from train_dynamics.physics.config.ends import (CURVE_FIELDS, Curves, curves_of, END_KEYS,
+                                                ends_resolved, pretension_strokes,
+                                                resistance_laws)
 from train_dynamics.physics.config.files import config_dirs, FastRosParamLoader, resolve_path
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (MAX_VEHICLES, PARAMETERS, validate_value,
@@ -63,17 +66,16 @@ PARAM_OF = {f: s.name for f, s in VEHICLE_PARAMETERS.items() if f != s.name}
 SERIES = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.SERIES)
 ADDED = tuple(f for f, s in VEHICLE_PARAMETERS.items() if s.connection == spec.ADDED)
 
-#: the keys of a type or vehicle entry that hold one end's own fields
-END_KEYS = ('front', 'rear')
-
 #: per-coupler constants in the order the kernel stores them
 COUPLER_FIELDS = ('buffer_stiffness', 'buffer_friction', 'draw_gear_stiffness',
                   'draw_gear_friction', 'draw_gear_slack', 'buffer_slack', 'draw_gear_stroke',
                   'buffer_stroke', 'blocked_stiffness')
 
-#: the fields of a preloaded or progressive end (a coupling of such ends is tabled)
+#: the fields of a preloaded, progressive or tabulated end and the screw coupling's
+#: pretension (a coupling of such ends is tabled)
 CHARACTERISTIC_FIELDS = tuple(f'{device}_{what}' for device in ('buffer', 'draw_gear')
-                              for what in ('preload', 'final_force', 'energy'))
+                              for what in ('preload', 'final_force', 'energy',
+                                           'characteristic')) + ('coupling_pretension',)
 
 #: the fields one vehicle end may have of its own (``front:`` / ``rear:``)
 END_FIELDS = COUPLER_FIELDS + CHARACTERISTIC_FIELDS
@@ -206,6 +208,13 @@ def library_types() -> dict[str, dict[str, Any]]:
     path = resolve_path(LIBRARY, str(config_dirs()[0]))
     doc = _read_yaml(path) or {}
     return _types_of(doc.get('vehicle_types'), str(path))
+
+
+def library_curves() -> dict[str, dict]:
+    """Return the shipped tabulated curves (``characteristics:`` of ``config/vehicles.yaml``)."""
+    path = resolve_path(LIBRARY, str(config_dirs()[0]))
+    doc = _read_yaml(path) or {}
+    return curves_of(doc.get('characteristics'), str(path))
 
 
 def end_of_coupling(field: str, value: float) -> float:
@@ -354,7 +363,7 @@ def _number(field: str, value: Any) -> float:
 
 
 def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
-          whole: Mapping[str, float] | None = None) -> Consist:
+          whole: Mapping[str, float] | None = None, curves=(), gravity: float = 9.81) -> Consist:
     """
     Build a Consist from (type, complete field dict, count) entries of a file.
 
@@ -382,6 +391,7 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
     n = int(counts.sum())
     if n < 2:
         raise ConfigError(f'{source}: a train needs at least 2 vehicles, got {n}')
+    resistance_laws(per_entry, counts, gravity)
     fields = {f: np.repeat(a, counts) for f, a in per_entry.items()}
     types = [name for name, _, c in entries for _ in range(c)]
     regimes = [f['brake_regime'] for _, f, c in entries for _ in range(c)]
@@ -394,7 +404,10 @@ def _make(entries: list[tuple[str, dict[str, Any], int]], source: str,
         check_friction_below_stiffness(couplings, f'{source}: couplings: ')
         tables = np.zeros((len(layout.TABLE_ROWS), n - 1))
     else:
-        tables = coupling_tables(ends['rear'], ends['front'], entry_of[:-1], entry_of[1:])
+        tables = coupling_tables(ends['rear'], ends['front'], entry_of[:-1], entry_of[1:],
+                                 curves, source)
+        pretension_strokes(couplings, tables, ends['rear'], ends['front'], entry_of[:-1],
+                           entry_of[1:], source)
     return Consist(types, fields, regimes, couplings, tables)
 
 
@@ -414,7 +427,8 @@ def _check_characteristic(end: Mapping[str, float], where: str) -> None:
 
 
 def coupling_tables(rear: Mapping[str, np.ndarray], front: Mapping[str, np.ndarray],
-                    rear_of: np.ndarray, front_of: np.ndarray) -> np.ndarray:
+                    rear_of: np.ndarray, front_of: np.ndarray, curves=(),
+                    source: str = 'parameters') -> np.ndarray:
     """
     Return the table rows (``layout.TABLE_ROWS``) of every coupling: (len, N-1).
 
@@ -422,7 +436,9 @@ def coupling_tables(rear: Mapping[str, np.ndarray], front: Mapping[str, np.ndarr
     ``rear_of[j]`` to the front end of entry ``front_of[j]``. A coupling whose two ends have
     no preload and no final force keeps the linear law (rows 0); the others get
     :func:`~train_dynamics.physics.characteristics.coupling_table` (the ends' characteristics in
-    series: equal force, strokes add), computed once per distinct pair of ends.
+    series: equal force, strokes add), computed once per distinct pair of ends. ``curves``:
+    the tabulated curves the ends' codes number; ConfigError (naming ``source``) for a
+    pretension more than a device carries.
     """
     out = np.zeros((len(layout.TABLE_ROWS), rear_of.shape[0]))
     done: dict[tuple[int, int], np.ndarray] = {}
@@ -432,7 +448,11 @@ def coupling_tables(rear: Mapping[str, np.ndarray], front: Mapping[str, np.ndarr
             b = {f: float(v[pair[1]]) for f, v in front.items()}
             if any(characteristics.has_characteristic(e, dev) for e in (a, b)
                    for dev in ('buffer', 'draw_gear')):
-                done[pair] = characteristics.coupling_table(a, b, layout.TABLE_KNOTS)
+                try:
+                    done[pair] = characteristics.coupling_table(a, b, layout.TABLE_KNOTS,
+                                                                curves)
+                except ValueError as exc:
+                    raise ConfigError(f'{source}: coupling {j + 1}: {exc}') from None
             else:
                 done[pair] = None
         if done[pair] is not None:
@@ -480,13 +500,15 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
     if not isinstance(doc, dict):
         raise ConfigError(f'{source}: a consist file is a mapping with vehicles: (and '
                           'optionally vehicle_types:)')
-    unknown = set(doc) - {'vehicle_types', 'vehicles', 'couplings'}
+    unknown = set(doc) - {'vehicle_types', 'vehicles', 'couplings', 'characteristics'}
     if unknown:
         raise ConfigError(clip(f'{source}: unknown key(s) '
                                f'{", ".join(sorted(quote(k) for k in unknown))} '
-                               '(expected vehicle_types, vehicles, couplings)'))
+                               '(expected vehicle_types, vehicles, couplings, '
+                               'characteristics)'))
     types = library_types()
     types.update(_types_of(doc.get('vehicle_types'), source))
+    curves = Curves({**library_curves(), **curves_of(doc.get('characteristics'), source)})
     vehicles = doc.get('vehicles')
     if not isinstance(vehicles, list) or not vehicles:
         raise ConfigError(f'{source}: vehicles: must be a non-empty list, front to rear')
@@ -514,8 +536,11 @@ def load_consist(path: str, values: dict[str, Any], base_dir: str | None = None)
         merged = {**defaults, **types[name], **overrides}
         for key in END_KEYS:     # an end's own fields: the type's, then the entry's
             merged[key] = {**(types[name].get(key) or {}), **(overrides.get(key) or {})}
+        own = {**types[name], **overrides, **{k: merged[k] for k in END_KEYS}}
+        merged = ends_resolved(merged, own, curves, f'{where} ({name})')
         entries.append((name, merged, count))
-    return _make(entries, source, _whole_couplings(doc.get('couplings'), source))
+    return _make(entries, source, _whole_couplings(doc.get('couplings'), source),
+                 curves.arrays, float(values.get('gravity', 9.81)))
 
 
 def uniform_consist(values: dict[str, Any]) -> Consist:
@@ -531,14 +556,19 @@ def uniform_consist(values: dict[str, Any]) -> Consist:
     n = len(masses)
     if n < 2:
         raise ConfigError(f'parameters: a train needs at least 2 vehicles, got {n}')
+    curves = Curves(library_curves() if any(defaults[f] for f in CURVE_FIELDS) else {})
+    defaults = ends_resolved({**defaults, 'buffers_per_end': 1}, {}, curves, 'parameters')
     fields = {f: np.full(n, _number(f, v)) for f, v in defaults.items() if f != 'brake_regime'}
     fields['mass'] = np.array([float(m) for m in masses])
+    resistance_laws(fields, np.ones(n, int), float(values.get('gravity', 9.81)))
     ends = {f: fields[f][1:] for f in COUPLER_FIELDS}
     one = {f: fields[f][:1] for f in END_FIELDS}
     _check_characteristic({f: float(v[0]) for f, v in one.items()}, 'parameters: ')
-    return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n,
-                   coupling_of_ends(ends, ends),
-                   coupling_tables(one, one, np.zeros(n - 1, int), np.zeros(n - 1, int)))
+    zeros = np.zeros(n - 1, int)
+    couplings = coupling_of_ends(ends, ends)
+    tables = coupling_tables(one, one, zeros, zeros, curves.arrays)
+    pretension_strokes(couplings, tables, one, one, zeros, zeros, 'parameters')
+    return Consist(['coach'] * n, fields, [defaults['brake_regime']] * n, couplings, tables)
 
 
 def consist_of(values: dict[str, Any], base_dir: str | None = None) -> Consist:

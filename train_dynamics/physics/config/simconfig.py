@@ -96,7 +96,7 @@ class SimConfig:
     brake_pipe_diameter: float = 0.032                # inner diameter [m]
     main_reservoir_pressure: float = 900000.0         # gauge [Pa]
     brake_system: str = 'pneumatic'                   # 'pneumatic', 'ep' or 'ecp'
-    emergency_accelerator: bool = False               # vehicle field: accelerator fitted
+    emergency_accelerator: bool = True                # vehicle field: accelerator fitted
     inshot_pressure: float = 0.0                      # vehicle field: first stage [Pa]
     cylinder_dead_volume: float = 0.008               # vehicle field: pistons in [m^3]
     piston_stroke: float = 0.0                        # vehicle field: [m]; 0 = fixed volume
@@ -148,6 +148,7 @@ class SimConfig:
     load_empty_ratio: float = 1.0                     # empty / loaded pressure [-]
     # the line
     initial_position: float = 0.0                     # front of vehicle 1 at t = 0 [m]
+    target_stop_position: list[float] = field(default_factory=list)   # [] or [x] [m]
     track_gradient_positions: list[float] = field(default_factory=list)   # [m], increasing
     track_gradients: list[float] = field(default_factory=list)            # [per mille]
     track_curve_starts: list[float] = field(default_factory=list)         # [m]
@@ -172,6 +173,16 @@ class SimConfig:
     integration_max_steps: int = 100                  # steps per output period
     multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = plain fixed step
     multirate_reversal_weight: float = MULTIRATE_REVERSAL_WEIGHT  # [-]; 0 = off
+    # vehicle ends and resistance laws (config/table_ends.py)
+    buffers_per_end: int = 1                          # side buffers per end, in parallel
+    coupling_pretension: float = 0.0                  # screw coupling at rest [N]; 0 = none
+    buffer_characteristic: str = ''                   # tabulated buffer curve; '' = none
+    draw_gear_characteristic: str = ''                # tabulated draw-gear curve; '' = none
+    resistance_law: str = 'davis'                     # davis, strahl or sauthoff
+    strahl_k: float = 0.05                            # Strahl speed factor k [-]
+    sauthoff_c: float = 0.0024                        # Sauthoff c [per mille per km/h]
+    sauthoff_area: float = 1.45                       # Sauthoff area f [m^2]
+    resistance_wind: float = 15.0                     # wind allowance dV [km/h]
 
     #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
     _consist = None
@@ -251,7 +262,8 @@ class SimConfig:
     @property
     def external_forces(self) -> bool:
         """Return True when the train has resistance, gradients, curves or traction."""
-        if self.consist_file or self.davis_a or self.davis_b or self.davis_c:
+        if (self.consist_file or self.davis_a or self.davis_b or self.davis_c
+                or self.resistance_law != 'davis'):
             return True
         return bool(self.track_gradients or self.track_curve_starts
                     or self.max_tractive_force or self.max_dynamic_brake_force)

@@ -18,6 +18,7 @@ from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, Config
                                                 SERIES, STRING, STRING_ARRAY)
 # the friction materials in the order of their codes in the kernel (the models and their
 # sources: physics/friction.py)
+from train_dynamics.physics.config.table_ends import END_AND_RESISTANCE_PARAMS
 from train_dynamics.physics.kernel.friction import MATERIALS as FRICTION_MATERIALS
 from train_dynamics.quoting import quote
 
@@ -196,11 +197,12 @@ _PARAMS = [
               'brakes through the pipe) or "ecp" (car control devices fill each cylinder to '
               'brake_ep/command x p_max; a lost train line or pipe is a full penalty '
               'application).', choices=('pneumatic', 'ep', 'ecp')),
-    ParamSpec('emergency_accelerator', False, BOOL,
+    ParamSpec('emergency_accelerator', True, BOOL,
               'Pneumatic: the vehicle has an emergency accelerator (a pipe falling more than '
               '1 bar below its control reservoir at over 1 bar/s opens a 32 mm local vent: '
-              'the emergency carries along the train at >= 250 m/s).',
-              vehicle='emergency_accelerator'),
+              'the emergency carries along the train at >= 250 m/s, as UIC 540 asks). On by '
+              'default: UIC passenger and freight distributors carry one in service; false '
+              'for a vehicle without.', vehicle='emergency_accelerator'),
     # Cylinders and distributor first stage of the pneumatic brake (physics/pneumatic.py).
     ParamSpec('inshot_pressure', 0.0, DOUBLE,
               'Pneumatic: distributor first stage (inshot; UIC 540 / EN 15355 "first stage" of '
@@ -391,6 +393,11 @@ _PARAMS = [
     ParamSpec('initial_position', 0.0, DOUBLE,
               'Position along the track [m] of the front of vehicle 1 at t = 0.',
               low=-1.0e7, high=1.0e7),
+    ParamSpec('target_stop_position', [], DOUBLE_ARRAY,
+              'Target stopping point [m, track position] of the front of vehicle 1: [] none, '
+              'or [x]. Sets the distance_to_go output and the stop_error metric; the '
+              'target_stop_position topic (std_msgs/Float64) moves it while running.',
+              low=-1.0e7, high=1.0e7, max_items=1),
     ParamSpec('track_gradient_positions', [], DOUBLE_ARRAY,
               'Track positions [m] (increasing) where a gradient starts; 0 before the first.',
               low=-1.0e7, high=1.0e7),
@@ -489,6 +496,8 @@ _PARAMS = [
               'reversal [-] (outside the friction band the estimate does not see velocity '
               'errors that shift the reversal). 0 = off.', low=0.0, high=100.0),
 ]
+# side buffers, screw-coupling pretension, tabulated curves, resistance laws: table_ends.py
+_PARAMS += END_AND_RESISTANCE_PARAMS
 
 PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
 
@@ -522,8 +531,19 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'takes one, ep: brake_ep/command (brake_system ep or ecp), wsp: every '
               "vehicle's coach_<i>/wsp/valve (wsp external), each answered by one "
               'command received after the output was published (std_msgs/Float64 and Int8 '
-              'have no stamp). A listed input the train does not have is skipped (logged).',
+              'have no stamp). A listed input the train does not have is a configuration '
+              'error in lockstep.',
               choices=('brake', 'traction', 'ep', 'wsp'), dynamic=True, min_items=1),
+    ParamSpec('lockstep_answer', 'echo', STRING,
+              "lockstep: what answers a period. echo: a brake input stamped with the output's "
+              'stamp; clock: the node publishes /clock at every output (whatever publish_clock '
+              'says) and a period waits for inputs stamped at or after its time, from a '
+              'controller on use_sim_time with its own timer (no wait at t = 0).',
+              choices=('echo', 'clock'), dynamic=True),
+    ParamSpec('lockstep_period', 0.0, DOUBLE,
+              'lockstep_answer clock: simulation seconds between two waits for the controller '
+              '(its timer period), rounded to whole output periods; 0 = every output period.',
+              low=0.0, high=3600.0, dynamic=True),
     ParamSpec('input_timing', 'arrival', STRING,
               'arrival: a brake input takes effect at the next integration step after it '
               'arrives; stamp: at its header stamp (simulation time), exactly with '
