@@ -1,14 +1,18 @@
 """
 ament_python build of train_dynamics (colcon build) and pip editable install (make venv).
 
-``build`` also compiles the numba kernels into the built package
-(``train_dynamics/physics/kernel/_prebuilt/numba-<code version>``, see
-``physics/kernel/compiler.py``) so the first ``ros2 run`` after ``colcon build`` loads machine
-code instead of compiling for 10-60 s.
+``build`` also compiles the numba kernels of the default configuration (the variant group
+``paper``: fixed step, brake pipe, run metrics; ~70 s of one core when nothing is cached)
+into the built package (``train_dynamics/physics/kernel/_prebuilt/numba-<code version>``, see
+``physics/kernel/compiler.py``), so that the first ``ros2 run`` of such a scenario loads
+machine code instead of compiling; the others (``integration_tolerance`` > 0, the pneumatic
+brake) compile at their first use, into the user cache.
 ``develop`` (``colcon build --symlink-install``, which runs the sources) compiles them into
 the user cache instead, as ``make venv`` does (``python -m train_dynamics.cli.prebuild``).
-``TRAIN_DYNAMICS_PREBUILD=0`` skips that; without numba, or when it fails, the build goes on
-and the kernels compile at the first start as before.
+``TRAIN_DYNAMICS_PREBUILD``: unset or ``paper`` that group, ``all`` every group, ``0``
+nothing (``train_dynamics.cli.prebuild.build_groups``). Each compiled function is printed as it
+ends (``colcon build --event-handlers console_direct+`` shows it live). Without numba, or when
+it fails, the build goes on and the kernels compile at the first start.
 """
 from glob import glob
 import os
@@ -26,14 +30,13 @@ package_name = 'train_dynamics'
 
 def prebuild(lib: str, into: str | None) -> None:
     """Run ``train_dynamics.cli.prebuild`` on the package in ``lib`` (never fails the build)."""
-    if os.environ.get('TRAIN_DYNAMICS_PREBUILD', '1') == '0':
+    if os.environ.get('TRAIN_DYNAMICS_PREBUILD') == '0':     # no need to import anything
+        print('TRAIN_DYNAMICS_PREBUILD=0: the numba kernels compile at the first start')
         return
     env = dict(os.environ, PYTHONPATH=os.pathsep.join(
         [lib] + [p for p in os.environ.get('PYTHONPATH', '').split(os.pathsep) if p]))
-    where = into or 'the user cache'
-    print(f'compiling the numba kernels into {where} (TRAIN_DYNAMICS_PREBUILD=0 skips)',
-          flush=True)
-    result = subprocess.run([sys.executable, '-m', f'{package_name}.cli.prebuild']
+    # --build: the groups TRAIN_DYNAMICS_PREBUILD names (the rule: cli/prebuild.py)
+    result = subprocess.run([sys.executable, '-m', f'{package_name}.cli.prebuild', '--build']
                             + (['--into', into] if into else []),
                             cwd=lib, env=env, check=False)
     if result.returncode != 0:

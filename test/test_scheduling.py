@@ -157,3 +157,22 @@ def test_startup_heap_frozen_out_of_full_collections():
         gc.enable()
         gc.collect()
     assert before() is None
+
+
+def test_machine_wide_wake_latency_request_is_opt_in(monkeypatch):
+    """The default asks nothing of the kernel: /dev/cpu_dma_latency acts on every CPU."""
+    from train_dynamics.physics.config import SIM_NODE_PARAMETERS
+    from train_dynamics.ros import scheduling
+
+    opened = []
+
+    def record_open(path, *args, **kwargs):
+        opened.append(path)
+        raise PermissionError(13, 'Permission denied')
+
+    monkeypatch.setattr(scheduling.os, 'open', record_open)
+    default = SIM_NODE_PARAMETERS['cpu_wake_latency'].default
+    req = scheduling.CpuWakeLatency(default)
+    assert opened == [] and not req.held and req.status == 'none'
+    scheduling.CpuWakeLatency(0)               # asked for explicitly: the request is made
+    assert opened == [scheduling.CPU_DMA_LATENCY]

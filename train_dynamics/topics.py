@@ -86,6 +86,8 @@ WHEELSETS_TOPIC = 'wheelsets'
 BRAKE_EP_STATE_TOPIC = 'brake_ep/state'
 RADIO_STATE_TOPIC = 'distributed_power/state'
 CLOCK_TOPIC = '/clock'
+#: ``namespaced_clock``: the clock relative to the node's namespace instead of ``/clock``
+NAMESPACED_CLOCK_TOPIC = 'clock'
 
 # -- multiple units, blending builtin (std_msgs/Float64 inputs; physics/blending.py) -------------
 #: the train-wide brake demand: a fraction of full service in [0, 1] or a deceleration
@@ -95,13 +97,8 @@ BRAKE_DEMAND_TOPIC = 'brake_demand'
 BRAKE_EMERGENCY_TOPIC = 'brake_emergency'
 #: the ED brake of every motor car lost (line breaker trip): >= 0.5 tripped, < 0.5 restored
 ED_TRIP_TOPIC = 'ed_brake/trip'
-#: blending builtin: JointState ``coach_1..N``: position = achieved ED force [N, >= 0
-#: braking; 0 for trailers], velocity = friction brake force [N, >= 0], effort = friction
-#: force the brake control unit asks of the car [N]
+#: the brake control unit's outputs (fields: recording/output_specs.py)
 BRAKE_BLENDING_TOPIC = 'brake_blending'
-#: blending builtin: JointState ``demand``, ``achieved``: position = deceleration [m/s^2]
-#: (demanded after the jerk limit; achieved = the brake forces over the inertial mass),
-#: velocity = brake force [N] (demanded; ED + friction), effort = ED force of the train [N]
 BRAKE_DEMAND_STATE_TOPIC = 'brake_demand/state'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 

@@ -13,10 +13,12 @@ functions they call). Variants are grouped by what runs them (:data:`VARIANTS`):
 ``make venv`` compiles ``paper`` now and the rest in a detached background process
 (``--rest-in-background``), so that the first ``make run`` waits only for what it runs; a
 variant not yet compiled compiles at its first use. ``setup.py build`` (so ``colcon build``
-and ``pip install``) compiles all of them with ``--into
-<build>/train_dynamics/physics/kernel/_prebuilt`` so the installed package carries the
+and ``pip install``) compiles the groups :func:`build_groups` names (``paper`` unless
+``TRAIN_DYNAMICS_PREBUILD`` says otherwise) with ``--into
+<build>/train_dynamics/physics/kernel/_prebuilt``, so that the installed package carries the
 compiled kernels of its own code version (see ``physics/kernel/compiler.py``). Kernels are
-loaded from or compiled into the user cache, then this version's folder is copied.
+loaded from or compiled into the user cache, then this version's folder is copied. Each
+compiled function is reported on stdout as it ends (name, seconds).
 """
 from __future__ import annotations
 
@@ -38,6 +40,28 @@ VARIANTS = {
     'adaptive': ({'integration_tolerance': 1e-3},),
     'pneumatic': ({'brake_model': 'pneumatic'},),
 }
+
+
+#: ``TRAIN_DYNAMICS_PREBUILD`` (build time): what ``setup.py build`` / ``develop`` compile
+PREBUILD_ENV = 'TRAIN_DYNAMICS_PREBUILD'
+#: compiled at build time unless the variable says otherwise: what every scenario without
+#: ``integration_tolerance`` or the pneumatic brake runs (cold: ~70 s of one core)
+BUILD_DEFAULT = 'paper'
+
+
+def build_groups(value: str | None) -> str:
+    """
+    Return the ``--variants`` a build compiles for ``$TRAIN_DYNAMICS_PREBUILD`` = ``value``.
+
+    Unset, ``1`` or ``paper``: ``paper``; ``all``: every group; a comma-separated list: those;
+    ``0`` (or ``none``, empty): '' (nothing: the first start compiles what it runs).
+    """
+    value = (value if value is not None else BUILD_DEFAULT).strip().lower()
+    if value in ('0', 'none', '', 'no', 'false'):
+        return ''
+    if value in ('1', 'yes', 'true'):
+        return BUILD_DEFAULT
+    return ','.join(_groups(value))
 
 
 def warm(groups) -> None:
@@ -114,12 +138,30 @@ def main(argv: list[str] | None = None) -> int:
                              + ', '.join(VARIANTS))
     parser.add_argument('--rest-in-background', action='store_true',
                         help='then compile the other groups in a detached background process')
+    parser.add_argument('--build', action='store_true',
+                        help=f'the groups ${PREBUILD_ENV} names (setup.py build and develop): '
+                             f'unset {BUILD_DEFAULT}, all, a list, or 0 for none')
     parser.add_argument('--into', metavar='DIR',
                         help='also copy the compiled kernels to DIR/numba-<code version>')
     args = parser.parse_args(argv)
+    if args.build:
+        try:
+            args.variants = [g for g in build_groups(os.environ.get(PREBUILD_ENV)).split(',')
+                             if g]
+        except argparse.ArgumentTypeError as exc:
+            parser.error(f'{PREBUILD_ENV}: {exc}')
+        if not args.variants:
+            print(f'train_dynamics: {PREBUILD_ENV}={os.environ.get(PREBUILD_ENV)}: no kernels '
+                  'compiled now; the first start compiles what it runs', flush=True)
+            return 0
+        print(f'train_dynamics: compiling the numba kernels ({", ".join(args.variants)}) '
+              f'into {args.into or "the user cache"}: ~70 s of one core per group when nothing '
+              f'is cached ({PREBUILD_ENV}=0 skips, =all compiles every group; the others '
+              'compile at their first use)', flush=True)
     if not compiler.HAVE_NUMBA:
         print('train_dynamics: numba is not installed: nothing to compile')
         return 0
+    compiler.report_compilation(lambda line: print(line, flush=True))
     t0 = time.perf_counter()
     warm(args.variants)
     stats = compiler.cache_stats()

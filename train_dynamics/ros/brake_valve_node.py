@@ -165,7 +165,8 @@ class BrakeValveNode(Node):
 def main(args: list[str] | None = None) -> int:
     """Run ``ros2 run train_dynamics brake_valve``; SIGINT/SIGTERM stop it cleanly."""
     return run_node('brake_valve', BrakeValveNode, args, node_name=topics.VALVE_NODE_NAME,
-                    specs=SPECS,
+                    specs=SPECS, summary="The driver's brake valve: publishes the head-end "
+                    'brake_pipe/pressure from a schedule of handle positions, changeable live.',
                     exits=(ExitOn((ValueError, ParameterException), 'invalid parameters', 2),),
                     executor_factory=SingleThreadedExecutor)
 

@@ -7,8 +7,10 @@ stop the spin loop; the node is destroyed and rclpy shut down in order); the exc
 declares (invalid parameters, ...) print one line ``<prog>: error: ...`` and end it with their
 status; anything else is a crash, unless the context went down under a callback (then it is a
 clean stop too). A missing or malformed ``--params-file`` is one line and status 2 before rclpy
-starts; timer callbacks wrapped in :func:`shutdown_safe` stay quiet when a signal shuts the
-context down under them.
+starts, and so is one with no section for the node (its values would be ignored); ``-h`` /
+``--help`` print the usage (:mod:`train_dynamics.ros.usage`) and exit 0 without starting;
+timer callbacks wrapped in :func:`shutdown_safe` stay quiet when a signal shuts the context
+down under them.
 """
 from __future__ import annotations
 
@@ -32,6 +34,7 @@ from train_dynamics.physics.config import (ConfigError, node_sections, read_para
                                            ROS_BUILTIN_PARAMETERS, unknown_sections,
                                            unknown_sections_message)
 from train_dynamics.physics.config.files import resolve_file_inputs
+from train_dynamics.ros.usage import usage_text, wants_help
 
 try:   # rclpy >= 7 (Jazzy); the single-threaded executor otherwise
     from rclpy.experimental import EventsExecutor
@@ -126,7 +129,7 @@ def section_matches(key: str, full_name: str) -> bool:
 
 
 def unmatched_params_files(args: Sequence[str], full_name: str) -> list[str]:
-    """Return a warning for each ``--params-file`` of ``args`` with no section for the node."""
+    """Return a complaint for each ``--params-file`` of ``args`` with no section for the node."""
     out = []
     for path in params_files(args):
         try:
@@ -136,7 +139,7 @@ def unmatched_params_files(args: Sequence[str], full_name: str) -> list[str]:
         if not any(section_matches(k, full_name) for k in keys):
             name = full_name.rsplit('/', 1)[-1]
             out.append(f'parameter file {path}: no section applies to {full_name} (sections: '
-                       f'{", ".join(keys) or "none"}); its values are ignored. A section '
+                       f'{", ".join(keys) or "none"}): rclpy would ignore it; a section '
                        f'/**/{name} applies to the node in any namespace')
     return out
 
@@ -212,15 +215,23 @@ def _shutting_down(context: Any, wait: float = SHUTDOWN_GRACE) -> bool:
 def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = None, *,
              exits: tuple[ExitOn, ...] = (),
              executor_factory: Callable[[], Executor] = make_executor,
-             node_name: str = '', specs: Mapping[str, Any] | None = None) -> int:
+             node_name: str = '', specs: Mapping[str, Any] | None = None,
+             summary: str = '') -> int:
     """
     Create the node, spin it until it is ``finished`` or shut down; return the exit status.
 
     A node may have ``finished`` (bool: stop spinning) and ``exit_code`` (int) attributes.
     ``node_name`` and ``specs`` (its parameters): check the ``--params-file`` files first
-    (:func:`check_params_files`).
+    (:func:`check_params_files`, :func:`check_sections_apply`); ``summary``: the node in one
+    line, for ``--help``.
     """
     argv = list(sys.argv if args is None else args)
+    if wants_help(argv):
+        try:
+            print(usage_text(prog, node_name or prog, summary, specs or {}))
+        except BrokenPipeError:    # `sim_node --help | head`
+            pass
+        return 0
     if node_name:
         status = check_params_files(prog, argv, node_name, specs or {})
         if status:
@@ -242,16 +253,15 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
         text = ' '.join(str(exc).split(', at ')[0].split())
         print(f'{prog}: error: cannot start: {text}', file=sys.stderr)
         return EXIT_BAD_PARAMETERS
+    if node_name and check_sections_apply(prog, argv, node_name):
+        rclpy.try_shutdown()
+        return EXIT_BAD_PARAMETERS
     stop, previous = _stop_on_signals() if main_thread else (threading.Event(), {})
     node = None
     executor = None
     code = 0
     try:
         node = create()
-        for warning in unmatched_params_files(argv, node.get_fully_qualified_name()):
-            node.get_logger().warning(warning)
-            if hasattr(node, 'parameter_file_warnings'):
-                node.parameter_file_warnings.append(warning)
         executor = executor_factory()
         executor.add_node(node)
         while not getattr(node, 'finished', False) and not stop.is_set():
@@ -280,6 +290,29 @@ def run_node(prog: str, create: Callable[[], Node], args: list[str] | None = Non
     if not code and node is not None:
         code = getattr(node, 'exit_code', 0)      # e.g. the bag failed as it was finished
     return code
+
+
+def check_sections_apply(prog: str, args: Sequence[str], node_name: str) -> int:
+    """
+    Refuse a ``--params-file`` with no section for the node; return 0 or the exit status 2.
+
+    rclpy ignores such a file: the node would run its defaults where the user meant the
+    file's values (a section ``train_dynamics:`` applies in the root namespace only). The
+    node's full name (namespace and name after the ``--ros-args`` remappings, rcl's rules) is
+    taken from a probe node of the initialised context, created and destroyed at once, so
+    that the check runs before the node starts anything. Prints one line on stderr.
+    """
+    if not params_files(args):
+        return 0
+    probe = rclpy.create_node(node_name, enable_rosout=False, start_parameter_services=False)
+    try:
+        full_name = probe.get_fully_qualified_name()
+    finally:
+        probe.destroy_node()
+    for complaint in unmatched_params_files(args, full_name):
+        print(f'{prog}: error: {complaint}', file=sys.stderr)
+        return EXIT_BAD_PARAMETERS
+    return 0
 
 
 def _stop_on_signals() -> tuple[threading.Event, dict[int, Any]]:

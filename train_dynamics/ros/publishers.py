@@ -6,8 +6,10 @@ simulation time, at the integration steps nearest to k / publish_rate
 (:func:`train_dynamics.simulation.runner.output_step`, the offline command's grid): the topics
 of the table :data:`train_dynamics.recording.output_specs.OUTPUTS` that the run has (each
 row says what it carries and when a run has it; docs/ros_interface.md shows the table), and
-``/clock`` (``rosgraph_msgs/Clock``) when ``publish_clock``. A topic has a publisher only
-while the run has it: a reset to a run without it destroys its publisher.
+``/clock`` (``rosgraph_msgs/Clock``) when ``publish_clock`` (``clock`` in the node's namespace
+with ``namespaced_clock``: :mod:`train_dynamics.ros.clock`). A topic has a publisher only
+while the run has it: a reset to a run without it destroys its publisher, and the clock's
+exists only while it is published.
 
 Output messages are CDR-encoded once per output (:class:`OutputEncoder`: names and header
 layout computed once), then published and recorded as the same bytes: ~10x cheaper than
@@ -24,13 +26,13 @@ from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import serialize_message
-from rosgraph_msgs.msg import Clock
 
 from train_dynamics import topics
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.output_specs import OutputRun
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
+from train_dynamics.ros.clock import ClockOutput
 from train_dynamics.ros.live_metrics import LiveMetrics
 from train_dynamics.ros.recorder import BagWriter
 from train_dynamics.simulation.runner import output_step
@@ -68,10 +70,10 @@ class Outputs:
     def __init__(self, node: Node) -> None:
         #: topic -> publisher of the run's outputs (:meth:`start` makes and destroys them)
         self._pubs: dict[str, Any] = {}
-        self._pub_clock = node.create_publisher(Clock, topics.CLOCK_TOPIC, OUTPUT_QOS)
+        #: /clock (or the namespaced clock), advertised only while publish_clock
+        self.clock = ClockOutput(node, OUTPUT_QOS)
         self._node = node
         self.writer: BagWriter | None = None
-        self.publish_clock = False
         self.rate = 0.0                 # [Hz] publish_rate of the run
         self.next_step = 0              # integration step of the next output
         self._h = 0.0
@@ -114,6 +116,16 @@ class Outputs:
         self.last_t_ns = -1
 
     @property
+    def publish_clock(self) -> bool:
+        """Return True while the clock is published."""
+        return self.clock.active
+
+    @publish_clock.setter
+    def publish_clock(self, value: bool) -> None:
+        """Publish the clock or not (``namespaced_clock``: where); executor thread."""
+        self.clock.configure(bool(value), bool(self._node.get_parameter('namespaced_clock').value))
+
+    @property
     def run(self) -> OutputRun | None:
         """Return what the run's outputs keep between two (the stopping target), or None."""
         return None if self._encoder is None else self._encoder.run
@@ -124,12 +136,12 @@ class Outputs:
 
     def clock_subscribed(self) -> bool:
         """Return True if a subscriber is matched on ``/clock`` (lock-step on the clock)."""
-        return self._pub_clock.get_subscription_count() > 0
+        return self.clock.subscription_count() > 0
 
     def repeat_clock(self) -> None:
         """Publish ``/clock`` of the last output again, unrecorded (a lost one stalls a timer)."""
         if self.last_t_ns >= 0:
-            self._pub_clock.publish(Clock(clock=stamp(self.last_t_ns)))
+            self.clock.publish(stamp(self.last_t_ns))
 
     def take_writer(self) -> BagWriter | None:
         """Return the run's writer and stop recording (to close it, or at a reset)."""
@@ -161,16 +173,13 @@ class Outputs:
         for topic, data in zip(encoder.topics, encoded):
             self._pubs[topic].publish(data)
         self.metrics.put(sim)
-        clock = None
-        if self.publish_clock:
-            clock = Clock(clock=stamp(t_ns))
-            self._pub_clock.publish(clock)
+        clock = self.clock.publish(stamp(t_ns))
         w = self.writer
         if w is not None:
             for topic, msgtype, data in zip(encoder.topics, encoder.msgtypes, encoded):
                 w.write(topic, msgtype, t_ns, data)
             if clock is not None:
-                w.write(topics.CLOCK_TOPIC, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
+                w.write(self.clock.topic, topics.CLOCK_TYPE, t_ns, serialize_message(clock))
         self.published += 1
         self.last_step = sim.steps
         self.last_t_ns = t_ns

@@ -175,6 +175,8 @@ class SimNode(Node):
                 DIAGNOSTICS_PERIOD, shutdown_safe(self, self._publish_diagnostics), clock=steady)
             self._scan_timer = self.create_timer(
                 GRAPH_SCAN_PERIOD, shutdown_safe(self, self._inputs.scan_graph), clock=steady)
+            self._clock_timer = self.create_timer(   # a second /clock publisher: a warning
+                GRAPH_SCAN_PERIOD, shutdown_safe(self, self._check_clock), clock=steady)
         except BaseException:
             if writer is not None:       # a failed start leaves no bag behind
                 self._outputs.take_writer()
@@ -196,6 +198,11 @@ class SimNode(Node):
         # wake the simulation thread on each input only where it waits for them
         self._inputs.on_input = (self._pacer.wake if sync_mode == 'lockstep'
                                  or self._inputs.by_stamp else None)
+
+    def _check_clock(self) -> None:
+        """Warn when another node publishes on our clock topic (``ros/clock.py``)."""
+        with self._lock.held():
+            self._outputs.clock.check_publishers()
 
     def _publish_clock(self) -> bool:
         """Return True if /clock goes out: publish_clock, or lock-step on the clock."""
@@ -527,7 +534,10 @@ def main(args: list[str] | None = None) -> int:
         freeze_startup_heap()       # no full garbage collection of start-up's objects later
         return node
 
-    return run_node('sim_node', create, args, node_name=NODE_NAME, specs=SPECS, exits=(
+    return run_node('sim_node', create, args, node_name=NODE_NAME, specs=SPECS, summary=(
+        'The train_dynamics simulator: longitudinal dynamics of a braking train, real time or '
+        'any real_time_factor, outputs couplers, coaches, brake_cylinders, /diagnostics.'),
+        exits=(
         ExitOn((ConfigError, ParameterException, FileExistsError, ValueError),
                'invalid parameters', 2),
         ExitOn((BagError, OSError), 'cannot record', 1)))

@@ -504,6 +504,12 @@ PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in _PARAMS}
 
 #: ``sim_node``'s own parameters (not part of the simulator configuration; all live).
 SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
+    ParamSpec('namespaced_clock', False, BOOL,
+              "With publish_clock: publish the simulation time on clock in the node's "
+              'namespace (/<namespace>/clock) instead of the global /clock, so that several '
+              'simulated trains in one ROS graph each have their own clock; their nodes on '
+              'use_sim_time read it with --ros-args -r /clock:=/<namespace>/clock.',
+              dynamic=True),
     ParamSpec('duration', 0.0, DOUBLE,
               'Simulation time [s] after which the node stops by itself (outputs up to and '
               'including t = duration); 0 = run until shut down.',
@@ -564,12 +570,14 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'outputs; 0 = normal scheduling. Needs CAP_SYS_NICE or an rtprio limit (ulimit '
               '-r); without either the thread runs at normal priority (logged).',
               low=0, high=99, dynamic=True),
-    ParamSpec('cpu_wake_latency', 0, INTEGER,
+    # off by default: a machine-wide effect (every CPU of the host), so opt-in
+    ParamSpec('cpu_wake_latency', -1, INTEGER,
               'Longest CPU wake-up latency [us] the node asks the kernel for while it runs '
               '(Linux PM QoS, /dev/cpu_dma_latency): idle CPUs stay in idle states that wake '
-              'within it (in a VM: poll instead of halting), at the cost of their power; -1 = '
-              'no request. Needs write access to /dev/cpu_dma_latency (root by default); '
-              'without it nothing is asked (logged).',
+              'within it (in a VM: poll instead of halting), at the cost of their power; '
+              'machine-wide, so opt-in: -1 (default) = no request, 0 = the lowest latency. '
+              'Needs write access to /dev/cpu_dma_latency (root by default); without it '
+              'nothing is asked (logged).',
               low=-1, high=100000, dynamic=True),
     ParamSpec('record_flush_period', 10.0, DOUBLE,
               'Wall-clock period [s] at which the record_bag MCAP file is finished and a new '

@@ -25,6 +25,13 @@ folder of the system's temporary directory when that is not writable, and nowher
 in memory each start) when none is. The user cache keeps the folders of the few most recently
 used code versions and of all used in the last two weeks. ``NUMBA_CACHE_DIR`` does not apply
 to these kernels (numba's own cache would file them by path).
+
+Progress. Compiling takes minutes the first time a code version runs (numba: seconds per
+kernel function). :func:`report_compilation` prints a line per compiled function (name,
+seconds): on stderr when it is a terminal or ``TRAIN_DYNAMICS_COMPILE_PROGRESS=1`` (0: never),
+and always at build time (``cli/prebuild.py``). Only what a run calls compiles (numba compiles
+a function at its first call with new argument types), so a run of a configuration waits only
+for its own kernels.
 """
 from __future__ import annotations
 
@@ -280,6 +287,74 @@ def cache_stats() -> dict:
     return {'loaded': hits, 'compiled': misses}
 
 
+if HAVE_NUMBA:
+    from numba.core import event as _event
+
+    class CompileProgress(_event.Listener):
+        """
+        Report each kernel compilation as it ends: one line, the function and its seconds.
+
+        numba broadcasts ``numba:compile`` around every compilation that the cache could not
+        serve (numba.core.event, numba >= 0.53); a kernel's callees compile inside it.
+        """
+
+        def __init__(self, write) -> None:
+            self._write = write
+            self._started: list[float] = []
+            self._announced = False
+            self.count = 0
+
+        def on_start(self, event) -> None:
+            """Note the start (and announce the first compilation)."""
+            if not self._announced:
+                self._announced = True
+                self._write('train_dynamics: compiling the numba kernels this run needs (once '
+                            f'per code version; cached in {kernel_cache_dir() or "memory"})')
+            self._started.append(time.perf_counter())
+
+        def on_end(self, event) -> None:
+            """Report the kernel function compiled and how long it took (numba's own: not)."""
+            seconds = time.perf_counter() - self._started.pop()
+            func = event.data['dispatcher'].py_func
+            if not func.__module__.startswith('train_dynamics.'):
+                return          # numba's implementation of a numpy function: in its caller
+            self.count += 1
+            module = func.__module__.rsplit('.', 1)[-1]
+            self._write(f'train_dynamics: compiled {module}.{func.__qualname__} '
+                        f'({seconds:.1f} s; {self.count} so far)')
+
+
+def report_compilation(write=None) -> bool:
+    """
+    Report every kernel compilation of this process with ``write`` (a line each).
+
+    ``write`` None: on stderr, when it is a terminal or ``TRAIN_DYNAMICS_COMPILE_PROGRESS`` is
+    1 (a user waiting at the first start of a code version; tests and logs stay quiet).
+    Returns True if installed; a later call with a ``write`` replaces the reporter.
+    """
+    if not HAVE_NUMBA or ('progress' in _state and write is None):
+        return False
+    if write is None:
+        wanted = os.environ.get('TRAIN_DYNAMICS_COMPILE_PROGRESS')
+        if wanted == '0' or (wanted != '1' and not _isatty(sys.stderr)):
+            return False
+
+        def write(line: str) -> None:
+            print(line, file=sys.stderr, flush=True)
+    if 'progress' in _state:
+        _event.unregister('numba:compile', _state.pop('progress'))
+    _state['progress'] = CompileProgress(write)
+    _event.register('numba:compile', _state['progress'])
+    return True
+
+
+def _isatty(stream) -> bool:
+    try:
+        return stream.isatty()
+    except (AttributeError, ValueError):
+        return False
+
+
 def jit(func=None, *, inline: bool = False):
     """
     Compile ``func`` with numba, cached by content (see the module); without numba keep it.
@@ -304,3 +379,6 @@ def jit(func=None, *, inline: bool = False):
         dispatcher._cache = KernelCache(func)       # what Dispatcher.enable_caching sets
         _dispatchers.append(dispatcher)
     return dispatcher
+
+
+report_compilation()      # a user at a terminal sees what the first start compiles
