@@ -198,7 +198,7 @@ _PARAMS = [
               'application).', choices=('pneumatic', 'ep', 'ecp')),
     ParamSpec('emergency_accelerator', False, BOOL,
               'Pneumatic: the vehicle has an emergency accelerator (a pipe falling more than '
-              '1 bar below its control reservoir at over 1 bar/s opens a 32 mm local vent: '
+              '1 bar below its control reservoir at over 1 bar/s opens a 25 mm local vent: '
               'the emergency carries along the train at >= 250 m/s).',
               vehicle='emergency_accelerator'),
     # Cylinders and distributor first stage of the pneumatic brake (physics/pneumatic.py).
@@ -425,6 +425,13 @@ _PARAMS = [
               'cylinder: none, builtin (the reference controller on slip and deceleration '
               'thresholds) or external (input coach_<i>/wsp/valve).',
               choices=('none', 'builtin', 'external')),
+    ParamSpec('adhesion_limit', True, BOOL,
+              'Braking force at most what the wheel-rail adhesion carries: on a train '
+              'without wheelsets each vehicle brakes with at most mu(v) m g (mu the available '
+              'adhesion: track_adhesion, dry otherwise, falling with speed as '
+              'Curtius-Kniffler), the demand beyond it counted as sliding (sliding time and '
+              'distance); with wheelsets the creep law limits it. false: unlimited (eq. 13 '
+              'and the friction brakes as computed, whatever the adhesion).'),
     ParamSpec('wheelset_inertia', 440.0, DOUBLE,
               'Wheelsets: rotational inertia of all the wheelsets of the vehicle [kg m^2] '
               '(about 110 per passenger wheelset with brake discs, a representative figure; '

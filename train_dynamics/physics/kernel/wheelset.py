@@ -341,3 +341,42 @@ def book_wheelsets(coach, sc, ws):
             coach[OUTPUT.SLIDE_T, i] += h
             coach[OUTPUT.SLIDE_X, i] += abs(coach[STATE.X, i] - x_old[i])
     sc[TOTAL.WCREEP] += wcreep
+
+
+@jit(inline=True)
+def adhesion_limit(coach, out):
+    """
+    Limit each vehicle's braking force ``out`` [N] to what the adhesion carries (in place).
+
+    A train without wheelsets (PARAM.ADHLIM): a braked wheel cannot pass more force to the
+    rail than the available adhesion, Fb_i <= mu(|v_i|) m_i g (mu: Curtius-Kniffler's law
+    from the vehicle's low-speed adhesion OUTPUT.ADH_LOW, the track's or dry, as the
+    wheelsets take it, :func:`~.traction.adhesion`; m_i g = VEHICLE.WEIGHT [N], the
+    vehicle's weight on its wheels; v_i the chain's present speed [m/s]). The demand beyond it
+    goes to OUTPUT.ADH_CUT [N] (0 where the limit does not bind): those wheels slide
+    (:func:`book_adhesion_slide`). Where it does not bind ``out`` is left untouched, bit for
+    bit.
+    """
+    for i in range(out.shape[0]):
+        cap = adhesion(coach[STATE.V, i], coach[OUTPUT.ADH_LOW, i]) * coach[VEHICLE.WEIGHT, i]
+        if out[i] > cap:
+            coach[OUTPUT.ADH_CUT, i] = out[i] - cap
+            out[i] = cap
+        else:
+            coach[OUTPUT.ADH_CUT, i] = 0.0
+
+
+@jit(inline=True)
+def book_adhesion_slide(coach, h):
+    """
+    Count the sliding of a train without wheelsets over a step of h [s] (adhesion limit).
+
+    A moving vehicle whose braking force the adhesion limited (OUTPUT.ADH_CUT > 0,
+    :func:`adhesion_limit`) slides: h to OUTPUT.SLIDE_T [s] and h |v| (its speed at the
+    step's end) to OUTPUT.SLIDE_X [m], as the wheelsets book a sliding wheel.
+    """
+    for i in range(coach.shape[1]):
+        s = abs(coach[STATE.V, i])
+        if coach[OUTPUT.ADH_CUT, i] > 0.0 and s > 0.0:
+            coach[OUTPUT.SLIDE_T, i] += h
+            coach[OUTPUT.SLIDE_X, i] += h * s
