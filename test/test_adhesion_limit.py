@@ -48,10 +48,11 @@ def test_absurd_force_chain_brakes_at_the_adhesion_and_counts_the_sliding():
     assert np.all(sim.sliding_time == pytest.approx(0.5, abs=2 * sim.h))
     travelled = sim.x
     assert sim.sliding_distance == pytest.approx(travelled, rel=1e-3)
+    # unlimited: the force as computed (~5e8 N) stops the train from 100 km/h within 0.1 s
     unlimited = _sim(adhesion_limit=False, **ABSURD_CHAIN)
     unlimited.set_cylinder_pressure(P_FULL)
-    unlimited.advance_to(0.01)
-    assert unlimited.brake_force[0] > 1000.0 * MASS * G        # the input as computed: ~1e9 N
+    unlimited.advance_to(0.1)
+    assert np.all(unlimited.v == 0.0)
     assert np.all(unlimited.sliding_time == 0.0)
 
 
