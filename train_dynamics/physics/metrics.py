@@ -41,7 +41,8 @@ slide-protection's vent threshold, :func:`train_dynamics.physics.kernel.wheelset
 or, without wheelsets, while its brake asks for more than the adhesion carries,
 :func:`train_dynamics.physics.kernel.wheelset.adhesion_limit`; wheel-flat risk); the
 train's largest of each (``max_sliding_time``, ``max_sliding_distance`` and their vehicles,
-present in :meth:`RunMetrics.flat` only then).
+present in :meth:`RunMetrics.flat` only with wheelsets or once the adhesion limit slid a
+wheel).
 
 Train: stopping time and distance, the first sample at which every |v_i| <= ``stop_speed``
 (0.01 m/s), from the first sample (x of the leading vehicle) and from the brake onset (the

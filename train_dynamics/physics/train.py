@@ -100,8 +100,6 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         #: rotating wheelsets with the creep law (kernel/wheelset.py), and the WSP mode
         self.wheelsets = cfg.has_wheelsets
         self.wsp = wheelset.WSP_MODES.index(cfg.wsp)
-        #: the sliding time and distance are counted: wheelsets, or the adhesion limit
-        self.counts_sliding = bool(self.wheelsets or cfg.adhesion_limit)
         self.ws = make_workspace(n)
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
@@ -444,6 +442,11 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             self._settle()
         if self.remotes and index == self.lead:
             self.pneu.set_traction(c)
+
+    @property
+    def counts_sliding(self) -> bool:
+        """Tell whether the run metrics take the sliding: wheelsets, or the limit slid a wheel."""
+        return bool(self.wheelsets or np.any(self.coach[OUTPUT.SLIDE_T] > 0.0))
 
     @property
     def remotes(self) -> list[int]:
