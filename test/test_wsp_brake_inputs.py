@@ -102,3 +102,56 @@ def test_vent_valve_empties_an_input_cylinder_whatever_the_input_repeats():
     p1 = sim.cylinder_pressure
     assert p[0] < p1[0] < P_FULL * 0.9
     assert p1[1] == P_FULL * 0.9
+
+
+def test_offline_command_wsp_on_cylinder_inputs_repeated_every_0_1_s(tmp_path):
+    """
+    The offline command, an input bag of full cylinder pressure every 0.1 s, 0.05 adhesion.
+
+    The recorded ``wheelsets`` and ``coaches``: no wheel at rest for over 0.5 s while its
+    vehicle moves (the same run without slide protection locks every wheel for most of it).
+    """
+    from train_dynamics import topics
+    from train_dynamics.cli import offline as cli
+    from train_dynamics.recording.bags import BagRecorder, read_topics
+    from train_dynamics.recording.cdr import encode_fluid_pressure
+    atm = 101325.0
+    inp = tmp_path / 'in'
+    rec = BagRecorder(inp)
+    for i in (1, 2, 3):
+        rec.add_topic(f'coach_{i}/brake_cylinder/pressure', topics.FLUID_PRESSURE)
+    for k in range(300):                         # 30 s
+        t_ns = k * 100_000_000
+        for i in (1, 2, 3):
+            rec.write(f'coach_{i}/brake_cylinder/pressure', t_ns,
+                      encode_fluid_pressure(t_ns, atm + P_FULL))
+    rec.close()
+    longest = {}
+    for wsp in ('builtin', 'none'):
+        p = tmp_path / f'{wsp}.yaml'
+        p.write_text(f"""train_dynamics:
+  ros__parameters:
+    num_coaches: 3
+    initial_speed: {40 / 3.6}
+    brake_input: cylinder_per_coach
+    track_adhesion_positions: [-1000000.0]
+    track_adhesion: [0.05]
+    wsp: {wsp}
+""")
+        out = tmp_path / f'out_{wsp}'
+        assert cli.main(['simulate', '--params', str(p), '--input', str(inp), '--duration',
+                         '30', '--output', str(out), '-q']) == 0
+        msgs = {topics.COACHES_TOPIC: [], topics.WHEELSETS_TOPIC: []}
+        for topic, t_ns, m in read_topics(str(out), list(msgs)):
+            msgs[topic].append((t_ns, np.array(m.velocity)))
+        v = np.array([m for _, m in msgs[topics.COACHES_TOPIC]])
+        u = np.array([m for _, m in msgs[topics.WHEELSETS_TOPIC]])
+        dt = 1e-9 * (msgs[topics.COACHES_TOPIC][1][0] - msgs[topics.COACHES_TOPIC][0][0])
+        run = np.zeros(3)
+        worst = np.zeros(3)
+        for vk, uk in zip(v, u):
+            run = np.where((vk > 0.05) & (uk == 0.0), run + dt, 0.0)
+            worst = np.maximum(worst, run)
+        longest[wsp] = worst
+    assert np.all(longest['builtin'] <= 0.5), longest
+    assert np.all(longest['none'] > 5.0), longest
