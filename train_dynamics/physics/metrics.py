@@ -34,12 +34,15 @@ acceleration as a 1 s moving average and the jerk as the difference of two such 
 application and release. Before the first sample the train is taken to run at constant
 speed (a = 0), so a brake applied at t = 0 still shows its jerk.
 
-Wheel slide (a simulator with rotating wheelsets as the source, :meth:`RunMetrics.set_sliding`):
-per vehicle the time its wheels slid and the distance it ran on sliding wheels (every
-integration step: a wheel is sliding while its slip exceeds the slide-protection's vent
-threshold, :func:`train_dynamics.physics.kernel.wheelset.sliding`; wheel-flat risk); the
+Wheel slide (a simulator with rotating wheelsets or the adhesion limit as the source,
+:meth:`RunMetrics.set_sliding`): per vehicle the time its wheels slid and the distance it ran
+on sliding wheels (every integration step: a wheel is sliding while its slip exceeds the
+slide-protection's vent threshold, :func:`train_dynamics.physics.kernel.wheelset.sliding`,
+or, without wheelsets, while its brake asks for more than the adhesion carries,
+:func:`train_dynamics.physics.kernel.wheelset.adhesion_limit`; wheel-flat risk); the
 train's largest of each (``max_sliding_time``, ``max_sliding_distance`` and their vehicles,
-present in :meth:`RunMetrics.flat` only then).
+present in :meth:`RunMetrics.flat` only with wheelsets or once the adhesion limit slid a
+wheel).
 
 Train: stopping time and distance, the first sample at which every |v_i| <= ``stop_speed``
 (0.01 m/s), from the first sample (x of the leading vehicle) and from the brake onset (the
@@ -252,7 +255,7 @@ class RunMetrics:
         b['f'][k], b['fb'][k] = sim.coupler_force, sim.brake_force
         self._derive[k] = True                 # y, ydot from x, v at the flush (eq. 9)
         self.set_envelope(*sim.coupler_force_envelope)
-        if getattr(sim, 'wheelsets', False):
+        if getattr(sim, 'counts_sliding', False):
             self.set_sliding(sim.sliding_time, sim.sliding_distance)
         self._next()
 

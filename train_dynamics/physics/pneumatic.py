@@ -49,6 +49,14 @@ p_max: filling from AR through the application choke (P or G), venting through t
 choke (graduated release as the pipe rises); back in release once the gap is below
 ``release_threshold``. AR charges from the pipe through a check valve and choke.
 
+**Emergency accelerator** (``_accelerator``, where a vehicle has one): a pipe falling fast
+and deep (thresholds of :class:`PneumaticSpec`) opens a vent of ``accelerator_area`` to
+atmosphere at the vehicle until the local pipe is below ``accelerator_close``. The area is a
+guess, 4.9e-4 m^2 (25 mm, the brake valve's emergency vent): the orifice law takes the air
+upstream at rest, so a vent as wide as the pipe (8e-4 m^2) emptied its cell faster than the
+pipe's column could follow, and the column's inertia drew the pipe below atmospheric behind
+it (-15 kPa for some 0.2 s in a 1 km passenger train; docs/brakes.md).
+
 **Brake cylinder** (``cylinder_pressure``): dead volume V0 [m^3] (pistons released), stroke
 volume Vs (pistons' area x stroke) and return-spring pressure p_s (spring force / piston
 area) per vehicle; isothermal (Boyle): p = m R T / V0 while the pistons rest, p = patm + p_s
@@ -120,7 +128,7 @@ class PneumaticSpec:
     accelerator_rate: float = 100000.0   # [Pa/s] filtered pipe drop rate that opens it
     accelerator_drop: float = 100000.0   # [Pa] ... with the pipe this far below the CR
     accelerator_filter: float = 0.05     # [s] time constant of the rate filter
-    accelerator_area: float = 8.0e-4     # vent to atmosphere (the 32 mm bore)
+    accelerator_area: float = 4.9e-4     # vent to atmosphere: 25 mm, a guess (module docstring)
     accelerator_close: float = 30000.0   # [Pa] local pipe below it: closes and re-arms
     # distributor first stage (inshot): fast filling up to inshot_pressure (the default of
     # the vehicle field of the same name); 0 = none

@@ -208,6 +208,8 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         sc[PARAM.FRICTION] = float(np.any(c[VEHICLE.MATERIAL] != friction.PAPER))
         sc[PARAM.MRTOL] = float(cfg.multirate_tolerance)
         sc[PARAM.MRVW] = float(cfg.multirate_reversal_weight)
+        # braking force <= mu(v) m g; with wheelsets the creep law carries the limit
+        sc[PARAM.ADHLIM] = float(bool(cfg.adhesion_limit) and not self.wheelsets)
         # the pneumatic brake hands the chain its cylinder pressures (cylinder_per_coach)
         iv[OPTION.MODE] = brakes.CYLINDER_PER_COACH if self.pneu is not None else self.mode
         iv[OPTION.EXT] = int(cfg.external_forces)
@@ -373,7 +375,13 @@ class TrainSimulator(TrainOutputs, TrainBalances):
         self._cylinders_set = False
         self._sync()
         c = self.coach
-        c[STATE.PCYL] = c[INPUT.CYL]
+        if self.wheelsets:
+            # the slide protection's valves sit between the input and the cylinder: one they
+            # hold, vent or refill (STATE.WSP_CUT) keeps its pressure, the next step's valve
+            # acts on it (kernel/wheelset.py, wsp_valves)
+            c[STATE.PCYL] = np.where(c[STATE.WSP_CUT] != 0.0, c[STATE.PCYL], c[INPUT.CYL])
+        else:
+            c[STATE.PCYL] = c[INPUT.CYL]
         available_braking_force(c, self.sc, c[STATE.FB_AVAIL])
         if self.adaptive and self.iv[CACHE.WS_VALID]:
             self.tick_fb[self.iv[CLOCK.TICK] % self.tick_fb.shape[0]] = c[STATE.FB_AVAIL]
@@ -443,6 +451,11 @@ class TrainSimulator(TrainOutputs, TrainBalances):
             self._settle()
         if self.remotes and index == self.lead:
             self.pneu.set_traction(c)
+
+    @property
+    def counts_sliding(self) -> bool:
+        """Tell whether the run metrics take the sliding: wheelsets, or the limit slid a wheel."""
+        return bool(self.wheelsets or np.any(self.coach[OUTPUT.SLIDE_T] > 0.0))
 
     @property
     def remotes(self) -> list[int]:

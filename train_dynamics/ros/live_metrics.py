@@ -57,7 +57,7 @@ class LiveMetrics:
             return
         queue = self._queue
         sliding = ((sim.sliding_time, sim.sliding_distance)
-                   if getattr(sim, 'wheelsets', False) else None)
+                   if getattr(sim, 'counts_sliding', False) else None)
         queue.append((sim.t, sim.y, sim.ydot, sim.coupler_force, sim.x, sim.v, sim.brake_force,
                       sim.coupler_force_envelope, sliding))
         if len(queue) > MAX_PENDING:

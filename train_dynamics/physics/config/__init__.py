@@ -37,8 +37,8 @@ from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERV
                                                  INTEGRATION_TOLERANCE, P_FILL_FRACTION,
                                                  P_FILL_TIME, P_RELEASE_FRACTION, P_RELEASE_TIME,
                                                  PARAMETERS, PIPE_NOMINAL_PRESSURE,
-                                                 SIM_NODE_PARAMETERS, validate_value,
-                                                 VEHICLE_PARAMETERS)
+                                                 validate_value, VEHICLE_PARAMETERS)
+from train_dynamics.physics.config.node_table import SIM_NODE_PARAMETERS
 
 __all__ = [
     'ARRAY_KINDS', 'ATMOSPHERIC_PRESSURE', 'BOOL', 'check_value', 'ConfigError', 'Consist',

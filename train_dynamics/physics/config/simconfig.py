@@ -160,6 +160,7 @@ class SimConfig:
     # wheel slide (physics/wheelset.py)
     wheelsets: bool = False                           # rotating wheelsets, creep law
     wsp: str = 'none'                                 # slide protection: none/builtin/external
+    adhesion_limit: bool = True                       # braking force <= mu(v) m g
     wheelset_inertia: float = 440.0                   # vehicle field: J [kg m^2]
     wheel_radius: float = 0.46                        # vehicle field: r [m]
     wheel_speed_resolution: float = 0.0               # speed sensor: quantisation [m/s]

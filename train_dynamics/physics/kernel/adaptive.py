@@ -56,6 +56,8 @@ def _brake_tick(coach, sc, iv, ring, tables, ws, fbt, tet):
     brake_system_step(coach, sc, iv, ring, tables, ws)
     fb_next = ws[WORK.FBNEXT]
     available_braking_force(coach, sc, fb_next)
+    if sc[PARAM.ADHLIM] != 0.0:     # the adhesion limit's sliding, at the chain's speeds
+        wheelset.book_adhesion_slide(coach, sc[PARAM.H])
     tick = iv[CLOCK.TICK] + 1
     r = tick % fbt.shape[0]
     h = sc[PARAM.H]

@@ -108,7 +108,9 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
     standstill with unchanged inputs the active-set step repeats the last one exactly and is
     skipped (:func:`_repeats_standstill`). With wheelsets (OPTION.WHEELS) the slide
     protection acts on the cylinders after the brake system and the wheelsets' creep force
-    replaces the braking force (:mod:`.wheelset`). With PARAM.MRTOL > 0
+    replaces the braking force (:mod:`.wheelset`); without them the braking force is at most
+    what the adhesion carries (PARAM.ADHLIM, :func:`.wheelset.adhesion_limit`), the steps
+    where it binds booked as sliding. With PARAM.MRTOL > 0
     (``multirate_tolerance``, the default) and the tanh law the groups of vehicles around
     couplers over that tolerance are re-integrated in sub-steps before the fault check
     (:func:`.multirate.refine`); with
@@ -162,6 +164,8 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
         sc[TOTAL.WB] += accept_step(coach, held, extra_work, ws, iv[OPTION.EXT])
         if wheels:
             wheelset.book_wheelsets(coach, sc, ws)
+        elif sc[PARAM.ADHLIM] != 0.0:
+            wheelset.book_adhesion_slide(coach, sc[PARAM.H])
         # the couplers at the new state: their work over the step, and the next step's start
         sc[TOTAL.WC] += eval_couplers_work(coach, cpl, iv[OPTION.MODEL], sc[PARAM.U], gh,
                                            ws) + work_fix

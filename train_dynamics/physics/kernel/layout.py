@@ -124,8 +124,9 @@ OUTPUT = _group('OutputRows', [
     'ADH_USED',     # wheelsets: creep force / axle load of the last step [-]
     'ADH_AVAIL',    # wheelsets: available adhesion at the vehicle's speed [-]
     'VALVE',        # wheelsets: slide-protection valve state of the last step (0, 1, 2)
-    'SLIDE_T',      # wheelsets: time the wheels slid since t = 0 [s]
+    'SLIDE_T',      # wheelsets (or adhesion limit): time the wheels slid since t = 0 [s]
     'SLIDE_X',      # wheelsets: distance the vehicle ran on sliding wheels since t = 0 [m]
+    'ADH_CUT',      # adhesion limit: braking force beyond mu(v) m g, cut off [N] (0: none)
 ], after=(VEHICLE, STATE, INPUT))
 #: all rows of ``coach``; VEHICLE first, so ``coach[len(VEHICLE):]`` is what reset() rewrites
 COACH = range(len(VEHICLE) + len(STATE) + len(INPUT) + len(OUTPUT))
@@ -175,6 +176,7 @@ PARAM = _group('ParamSlots', [
     'FRICTION',     # 1.0: some vehicle brakes with a friction material (not paper)
     'MRTOL',        # multirate_tolerance: local coupler-force error / force level [-]; 0 off
     'MRVW',         # multirate_reversal_weight: velocity error at the reversal slope [-]; 0 off
+    'ADHLIM',       # 1.0: braking force limited by the adhesion (adhesion_limit, no wheelsets)
 ])
 TOTAL = _group('TotalSlots', [
     'WB',           # work of the brakes since t = 0 [J]

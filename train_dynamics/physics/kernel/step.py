@@ -34,7 +34,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from train_dynamics.physics.kernel import brakes, friction, traction
+from train_dynamics.physics.kernel import brakes, friction, traction, wheelset
 from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.coupler_rows import invalidate_caches
 from train_dynamics.physics.kernel.layout import (CLOCK, INPUT, OPTION, OUTPUT, PARAM,
@@ -95,7 +95,9 @@ def available_braking_force(coach, sc, out):
 
     Eq. (13) limited by eq. (12) (:func:`~.brakes.braking_force`); then, when some vehicle
     brakes with a friction material (PARAM.FRICTION), its force at its speed
-    (:func:`~.friction.friction_braking_force`; the speed of the chain's present state).
+    (:func:`~.friction.friction_braking_force`; the speed of the chain's present state);
+    then, on a train without wheelsets (PARAM.ADHLIM, ``adhesion_limit``), at most what the
+    wheel-rail adhesion carries, mu(v) m g (:func:`~.wheelset.adhesion_limit`).
     """
     brakes.braking_force(coach[STATE.PCYL], sc[PARAM.PMAX], sc[PARAM.MU],
                          coach[VEHICLE.BMASS], sc[PARAM.G], out)
@@ -105,6 +107,8 @@ def available_braking_force(coach, sc, out):
                                         coach[STATE.PCYL], coach[STATE.V],
                                         coach[VEHICLE.BRAKE_GAIN], coach[VEHICLE.BRAKE_OFF],
                                         coach[VEHICLE.BLOCKS], coach[VEHICLE.RHO], out)
+    if sc[PARAM.ADHLIM] != 0.0:
+        wheelset.adhesion_limit(coach, out)
 
 
 @jit(inline=True)

@@ -12,9 +12,11 @@ Per step, in :func:`~.fixed_step.advance_chain`:
 1. :func:`wsp_valves` after the brake system: each vehicle's valve (0 normal, 1 hold,
    2 vent; the builtin controller's or the input INPUT.VALVE) acts on its brake cylinder:
    hold keeps the pressure of the step's start, vent lets it fall with the dump valve's
-   time constant VENT_TAU; after a release by the valves a cylinder driven by an input
-   (``cylinder_per_coach``, the pneumatic brake) refills toward the input with REFILL_TAU
-   (the distributors of the pipe modes refill it along their filling table);
+   time constant VENT_TAU, both whatever an input commands (``cylinder_per_coach``, the
+   pneumatic brake: the valves cut the cylinder off it, and a new input does not refill it,
+   ``TrainSimulator._hold_cylinders``); after a release by the valves such a cylinder
+   refills toward a higher input with REFILL_TAU, falls to a lower one at once (the
+   distributors of the pipe modes refill it along their filling table);
 2. :func:`wheelset_substep` after the braking force: the wheel speed to the step's end
    (backward Euler, :func:`wheelset_solve`) under the brake at the wheel's speed and the
    creep force at the vehicle's speed of the step's start; the vehicle's friction over the
@@ -225,7 +227,7 @@ def wsp_valves(coach, sc, iv, ws):
 
     WORK.PCYL0 holds the cylinder pressures of the step's start [Pa]; OUTPUT.VALVE gets the
     valve state of the step. STATE.WSP_CUT marks a cylinder the valves have held or vented
-    below its input (cylinder inputs refill from there).
+    (cut off its input; cylinder inputs refill from there once the valves are normal).
     """
     mode = iv[OPTION.WSP]
     h = sc[PARAM.H]
@@ -246,13 +248,14 @@ def wsp_valves(coach, sc, iv, ws):
             valve = NORMAL
         valve_out[i] = valve
         if valve == HOLD:
-            if p_cyl[i] != p0[i]:
-                cut[i] = 1.0
             p_cyl[i] = p0[i]
+            cut[i] = 1.0
         elif valve == VENT:
-            if p0[i] * vent < p_cyl[i]:
+            # the valves cut an input-driven cylinder off its input, whatever it commands; a
+            # distributor that releases faster than the dump valve is left to do so
+            if by_input or p0[i] * vent < p_cyl[i]:
                 p_cyl[i] = p0[i] * vent
-                cut[i] = 1.0
+            cut[i] = 1.0
         elif cut[i] != 0.0:
             if by_input and p_cyl[i] > p0[i]:
                 p_cyl[i] = p0[i] + (p_cyl[i] - p0[i]) * refill
@@ -345,3 +348,42 @@ def book_wheelsets(coach, sc, ws):
             coach[OUTPUT.SLIDE_T, i] += h
             coach[OUTPUT.SLIDE_X, i] += abs(coach[STATE.X, i] - x_old[i])
     sc[TOTAL.WCREEP] += wcreep
+
+
+@jit(inline=True)
+def adhesion_limit(coach, out):
+    """
+    Limit each vehicle's braking force ``out`` [N] to what the adhesion carries (in place).
+
+    A train without wheelsets (PARAM.ADHLIM): a braked wheel cannot pass more force to the
+    rail than the available adhesion, Fb_i <= mu(|v_i|) m_i g (mu: Curtius-Kniffler's law
+    from the vehicle's low-speed adhesion OUTPUT.ADH_LOW, the track's or dry, as the
+    wheelsets take it, :func:`~.traction.adhesion`; m_i g = VEHICLE.WEIGHT [N], the
+    vehicle's weight on its wheels; v_i the chain's present speed [m/s]). The demand beyond it
+    goes to OUTPUT.ADH_CUT [N] (0 where the limit does not bind): those wheels slide
+    (:func:`book_adhesion_slide`). Where it does not bind ``out`` is left untouched, bit for
+    bit.
+    """
+    for i in range(out.shape[0]):
+        cap = adhesion(coach[STATE.V, i], coach[OUTPUT.ADH_LOW, i]) * coach[VEHICLE.WEIGHT, i]
+        if out[i] > cap:
+            coach[OUTPUT.ADH_CUT, i] = out[i] - cap
+            out[i] = cap
+        else:
+            coach[OUTPUT.ADH_CUT, i] = 0.0
+
+
+@jit(inline=True)
+def book_adhesion_slide(coach, h):
+    """
+    Count the sliding of a train without wheelsets over a step of h [s] (adhesion limit).
+
+    A moving vehicle whose braking force the adhesion limited (OUTPUT.ADH_CUT > 0,
+    :func:`adhesion_limit`) slides: h to OUTPUT.SLIDE_T [s] and h |v| (its speed at the
+    step's end) to OUTPUT.SLIDE_X [m], as the wheelsets book a sliding wheel.
+    """
+    for i in range(coach.shape[1]):
+        s = abs(coach[STATE.V, i])
+        if coach[OUTPUT.ADH_CUT, i] > 0.0 and s > 0.0:
+            coach[OUTPUT.SLIDE_T, i] += h
+            coach[OUTPUT.SLIDE_X, i] += h * s
