@@ -6,7 +6,7 @@ from train_dynamics.physics import resistance
 from train_dynamics.physics.chain_reference import ChainLaw, solve_chain
 from train_dynamics.physics.config import ConfigError, consist, SimConfig
 from train_dynamics.physics.kernel.couplers import coupler_force_travel, MODEL_CODES
-from train_dynamics.physics.kernel.layout import COUPLER, TABLE_KNOTS, TABLE_ROWS
+from train_dynamics.physics.kernel.layout import COUPLER, STATE, TABLE_KNOTS, TABLE_ROWS
 from train_dynamics.physics.kernel.resistance import davis
 from train_dynamics.physics.train import TrainSimulator
 
@@ -68,8 +68,9 @@ def test_energy_and_momentum_balance_with_two_side_category_buffers(tmp_path):
     """
     Three wagons with two UIC category A buffers per end, the front one braked alone.
 
-    The front wagon brakes at 0.3 g, the rear ones run into it through 20 mm of free play:
-    the buffers go well into their progressive branch. The
+    The front wagon brakes (its LL blocks at full cylinder pressure), the rear ones, 2 m/s
+    faster, run into it through 20 mm of free play: the buffers go well into their
+    progressive branch. The
     kinetic energy lost is the brake's and resistance's work plus the couplers' (stored
     elastic and dissipated; the stored part integrates the tables), the momentum change the
     external impulse.
@@ -82,6 +83,7 @@ def test_energy_and_momentum_balance_with_two_side_category_buffers(tmp_path):
                                'initial_speed': 10.0, 'initial_state': 'unstressed'})
     sim = TrainSimulator(cfg)
     assert np.all(sim.cpl[COUPLER.TAB] == 1.0)
+    sim.coach[STATE.V, 1:] = 12.0
     e0, p0 = sim.kinetic_energy, sim.momentum
     sim.set_cylinder_pressure(np.array([cfg.max_cylinder_pressure, 0.0, 0.0]))
     low = 0.0

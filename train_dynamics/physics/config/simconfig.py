@@ -175,16 +175,6 @@ class SimConfig:
     integration_max_steps: int = 100                  # steps per output period
     multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = plain fixed step
     multirate_reversal_weight: float = MULTIRATE_REVERSAL_WEIGHT  # [-]; 0 = off
-    # vehicle ends and resistance laws (config/table_ends.py)
-    buffers_per_end: int = 1                          # side buffers per end, in parallel
-    coupling_pretension: float = 0.0                  # screw coupling at rest [N]; 0 = none
-    buffer_characteristic: str = ''                   # tabulated buffer curve; '' = none
-    draw_gear_characteristic: str = ''                # tabulated draw-gear curve; '' = none
-    resistance_law: str = 'davis'                     # davis, strahl or sauthoff
-    strahl_k: float = 0.05                            # Strahl speed factor k [-]
-    sauthoff_c: float = 0.0024                        # Sauthoff c [per mille per km/h]
-    sauthoff_area: float = 1.45                       # Sauthoff area f [m^2]
-    resistance_wind: float = 15.0                     # wind allowance dV [km/h]
     # multiple units: brake control unit and blending (config/blending_params.py)
     blending: str = 'none'                            # 'none' or 'builtin'
     blending_scope: str = 'train'                     # 'train' or 'car'
@@ -203,6 +193,16 @@ class SimConfig:
     eddy_brake_critical_speed: float = 15.0           # vehicle field: [m/s]
     eddy_brake_air_gap: float = 0.007                 # vehicle field: [m]
     track_brake_delay: float = 0.5                    # switching delay [s]
+    # vehicle ends and resistance laws (config/table_ends.py)
+    buffers_per_end: int = 1                          # side buffers per end, in parallel
+    coupling_pretension: float = 0.0                  # screw coupling at rest [N]; 0 = none
+    buffer_characteristic: str = ''                   # tabulated buffer curve; '' = none
+    draw_gear_characteristic: str = ''                # tabulated draw-gear curve; '' = none
+    resistance_law: str = 'davis'                     # davis, strahl or sauthoff
+    strahl_k: float = 0.05                            # Strahl speed factor k [-]
+    sauthoff_c: float = 0.0024                        # Sauthoff c [per mille per km/h]
+    sauthoff_area: float = 1.45                       # Sauthoff area f [m^2]
+    resistance_wind: float = 15.0                     # wind allowance dV [km/h]
 
     #: the parsed consist (built by :meth:`from_dict` or on first use, then kept)
     _consist = None
