@@ -55,3 +55,20 @@ def test_damage_equivalent_load_by_hand():
 def test_rainflow_refuses_nan():
     with pytest.raises(ValueError):
         rainflow([0.0, float('nan'), 1.0])
+
+
+def test_block_fed_fatigue_equals_the_whole_history_counted_at_once():
+    from train_dynamics.physics.fatigue import FatigueFeed
+    rng = np.random.default_rng(4)
+    forces = np.cumsum(rng.normal(size=(5000, 3)), axis=0) * 1e3   # three random walks [N]
+    feed = FatigueFeed(['coupler_1', 'coupler_2', 'coupler_3'])
+    for start in range(0, 5000, 777):          # blocks that cut through excursions
+        feed.add(forces[start:start + 777])
+    found = feed.result()
+    above = 0.1 * np.abs(forces).max()
+    for j, name in enumerate(feed.names):
+        whole = rainflow(forces[:, j])
+        assert found['couplers'][name]['del'] == pytest.approx(
+            damage_equivalent_load(whole, 4.0), rel=1e-12)
+        assert found['couplers'][name]['cycles'] == cycle_count(whole, above)
+    assert found['max_del'] == max(c['del'] for c in found['couplers'].values())

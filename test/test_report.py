@@ -138,3 +138,27 @@ def test_report_reads_slack_and_strokes_from_the_consist_as_the_simulator_does(t
     assert expected['impact_count'] > 0
     assert doc['train']['impact_count'] == expected['impact_count']
     assert doc['train']['blocking_count'] == expected['blocking_count']
+
+
+def test_report_fatigue_counts_every_sample_of_the_bag(tmp_path):
+    """report --fatigue: each coupler's DEL and cycle count equal the whole history's."""
+    import numpy as np
+
+    from train_dynamics.physics.fatigue import cycle_count, damage_equivalent_load, rainflow
+    from train_dynamics.recording.bags import read_topics
+    bag, out = tmp_path / 'run', tmp_path / 'report'
+    assert main(['simulate', '--params', PAPER, '--duration', '12', '--output', str(bag),
+                 '-q']) == 0
+    assert main(['report', str(bag), '--output', str(out), '--fatigue', '-q']) == 0
+    found = json.loads((out / 'summary.json').read_text())['fatigue']
+    forces = np.array([list(m.effort) for _, _, m in read_topics(bag, ['couplers'])])
+    above = 0.1 * np.abs(forces).max()
+    assert found['threshold_N'] == pytest.approx(above)
+    for j, name in enumerate(('coupler_1', 'coupler_2')):
+        whole = rainflow(forces[:, j])
+        assert found['couplers'][name]['del'] == pytest.approx(
+            damage_equivalent_load(whole, 4.0), rel=1e-12)
+        assert found['couplers'][name]['cycles'] == cycle_count(whole, above)
+        assert found['couplers'][name]['cycles'] > 0          # the run-in oscillates
+    assert main(['report', str(bag), '--output', str(tmp_path / 'plain'), '-q']) == 0
+    assert 'fatigue' not in json.loads((tmp_path / 'plain' / 'summary.json').read_text())

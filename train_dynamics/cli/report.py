@@ -22,16 +22,19 @@ from pathlib import Path
 import shutil
 from typing import Any
 
+import numpy as np
+
 from train_dynamics import topics
 from train_dynamics.cli.errors import CliError, EXIT_ERROR, EXIT_OK
 from train_dynamics.cli.output import output_dir, remove_created
 from train_dynamics.cli.scenario import load_config
 from train_dynamics.physics.config import ConfigError, SimConfig
+from train_dynamics.physics.fatigue import FatigueFeed
 from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
 from train_dynamics.quoting import clip
 from train_dynamics.recording.bags import bag_info, BagError
 from train_dynamics.recording.blending_metrics import blending_metrics
-from train_dynamics.recording.history import History, stream_history
+from train_dynamics.recording.history import History, natural_key, stream_history
 from train_dynamics.recording.metrics_report import (MetricsFeed, stop_error_from_bag,
                                                      write_report)
 
@@ -52,8 +55,33 @@ def add_parser(sub: argparse._SubParsersAction) -> None:
                    help='override coupler_force_limit [N] (0 = off)')
     r.add_argument('--jerk-limit', type=float, metavar='J',
                    help='override jerk_limit [m/s^3] (0 = off)')
+    r.add_argument('--fatigue', action='store_true',
+                   help='also count every coupler force history (rainflow, ASTM E1049-85) and '
+                   'give each coupler its damage-equivalent load (slope m 4) and its cycles '
+                   'above 10 %% of the peak (summary.json "fatigue")')
     r.add_argument('-q', '--quiet', action='store_true', help='print nothing')
     r.set_defaults(func=cmd_report)
+
+
+class _FatigueTap:
+    """The coupler forces of a bag as it is read, into a :class:`FatigueFeed` (last run)."""
+
+    def __init__(self) -> None:
+        self.feed: FatigueFeed | None = None
+
+    def on_block(self, topic: str, t: np.ndarray, q: np.ndarray, names: list[str]) -> None:
+        if topic != topics.COUPLERS_TOPIC:
+            return
+        if self.feed is None:
+            self.feed = FatigueFeed(sorted(names, key=natural_key))
+        where = {n: j for j, n in enumerate(names)}
+        if set(where) != set(self.feed.names):
+            raise CliError(f'{topic}: the couplers changed names within the run')
+        self.feed.add(q[:, 2, [where[n] for n in self.feed.names]])
+
+    def on_reset(self, topic: str) -> None:
+        if topic == topics.COUPLERS_TOPIC:
+            self.feed = None
 
 
 def run_config(args: argparse.Namespace, info: dict[str, str]
@@ -101,11 +129,24 @@ def read_run(args: argparse.Namespace, overrides: dict[str, Any]
         raise CliError(str(exc)) from None
     cfg, origin = run_config(args, info.custom_data)
     feed = MetricsFeed(metrics_factory(cfg, **overrides))
+    tap = _FatigueTap() if getattr(args, 'fatigue', False) else None
+
+    def on_block(*block: Any) -> None:
+        feed.on_block(*block)
+        if tap is not None:
+            tap.on_block(*block)
+
+    def on_reset(topic: str) -> None:
+        feed.on_reset(topic)
+        if tap is not None:
+            tap.on_reset(topic)
+
     try:
-        hist = stream_history(args.bag, namespace=args.namespace, on_block=feed.on_block,
-                              on_reset=feed.on_reset)
+        hist = stream_history(args.bag, namespace=args.namespace, on_block=on_block,
+                              on_reset=on_reset)
     except BagError as exc:
         raise CliError(str(exc)) from None
+    args.fatigue_result = tap.feed.result() if tap is not None and tap.feed else None
     return hist, feed.finish(), origin
 
 
@@ -174,6 +215,8 @@ def run_result(args: argparse.Namespace, overrides: dict) -> tuple[dict, Any, di
     blending = blending_metrics(args.bag, args.namespace)       # multiple units only
     if blending is not None:
         result['blending'] = blending
+    if getattr(args, 'fatigue_result', None) is not None:        # report --fatigue
+        result['fatigue'] = args.fatigue_result
     keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
     model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
     source = {'bag': str(args.bag), 'parameters': origin, 'model': model,
