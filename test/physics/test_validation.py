@@ -1,0 +1,34 @@
+"""The validation suite's cheap subset: published stopping distances within their tolerance."""
+from pathlib import Path
+import sys
+
+import pytest
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[2] / 'bench'))
+
+import validation  # noqa: E402
+
+
+def test_published_model_is_reproduced_from_its_equations():
+    """The reference model written from Pfaff et al.'s equations prints their figures."""
+    w = validation._pfaff_wagon
+    assert validation.pfaff_model(100 / 3.6, [w()]) == pytest.approx(597.2, abs=0.05)
+    assert validation.pfaff_model(100 / 3.6, [w(mass=25500.0, i=2.4, rot=1.15)]) \
+        == pytest.approx(422.8, abs=0.05)
+    assert validation.pfaff_model(25 / 3.6, [
+        w(i=6.5, length=13.0), w(i=5.5, length=13.0),
+        w(mass=45000.0, i=6.0, d=0.3, n=8, length=17.0)]) == pytest.approx(40.9, abs=0.05)
+
+
+@pytest.mark.parametrize('name, cases, tolerance', validation.QUICK)
+def test_stopping_distances_within_tolerance_of_published(name, cases, tolerance):
+    rows = cases()
+    assert rows
+    for row in rows:
+        assert abs(row.diff) <= tolerance, (name, row.case, row.published, row.ours)
+
+
+def test_shunting_single_calculation_within_5_percent():
+    """Pfaff et al.'s 3-wagon P stop from 25 km/h (40.9 m) from its inputs, through our model."""
+    row = validation.shunting_cases(quick=True)[0]
+    assert abs(row.diff) <= 5.0, (row.published, row.ours)
