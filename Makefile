@@ -1,4 +1,4 @@
-# train_dynamics: make run | make test | make lint | make bench | make soak | make venv | make bytecode | make clean
+# train_dynamics: make run | make test | make test-fast | make lint | make bench | make soak | make venv | make bytecode | make clean
 #
 # Every target creates the virtual environment it needs (.venv, pinned by requirements.txt)
 # on first use; later runs skip the install (stamp file) unless requirements.txt, setup.py or
@@ -27,12 +27,13 @@ export ROS_DOMAIN_ID
 # Keep matplotlib off any display.
 export MPLBACKEND ?= Agg
 
-.PHONY: help venv bytecode test lint run bench soak clean distclean
+.PHONY: help venv bytecode test test-fast lint run bench soak clean distclean
 
 help:
 	@echo "make run    - the paper's emergency braking through sim_node + brake_valve (DDS on loopback), recorded"
 	@echo "make test   - the test suite (pytest), the ament linters included"
-	@echo "make lint   - only the ament linter tests (test_flake8.py, test_pep257.py)"
+	@echo "make test-fast - the tests not marked slow (pytest -m 'not slow'; the table in test/conftest.py)"
+	@echo "make lint   - only the ament linter tests (test/lint/: test_flake8.py, test_pep257.py)"
 	@echo "make bench  - benchmarks (bench/run_all.py)"
 	@echo "make soak   - long run (bench/soak.py)"
 	@echo "make venv   - only create/update .venv"
@@ -63,6 +64,13 @@ $(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml 
 test: venv bytecode
 	$(VPY) -m train_dynamics.cli.prebuild
 	$(VPY) -m pytest test/ $(PYTEST_ARGS)
+
+# the quick loop while editing: every test but those marked `slow` (test/conftest.py's table
+# of the slowest, measured); the tests needing DDS stay in (add -m 'not slow and not ros' by
+# hand to leave them out too)
+test-fast: venv bytecode
+	$(VPY) -m train_dynamics.cli.prebuild
+	$(VPY) -m pytest test/ -m 'not slow' $(PYTEST_ARGS)
 
 # The linter tests carry the pytest mark `linter` and the list of paths they check.
 lint: venv

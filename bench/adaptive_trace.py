@@ -6,7 +6,7 @@ its ``_chain_to`` written out here, logging every attempted step (chain time, st
 norm, accepted, the limiting coupler, whether its relative velocity is inside the 1/u band,
 the position and velocity parts of its error) and taking the controller's constants and the
 error norm's variant from an array (``ctl``), so variants can be tried without editing the
-kernel. ``test/test_adaptive_trace.py`` runs both with the kernel's constants on short cases
+kernel. ``test/kernel/test_adaptive_trace.py`` runs both with the kernel's constants on short cases
 and requires the same state bit for bit: the copy cannot drift from the driver. Norm variants
 (``ctl[MODE]``):
 

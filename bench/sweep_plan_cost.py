@@ -5,7 +5,7 @@ The sweep of ``MAX_CASES`` cases (100 grid values x ``MAX_CASES / 100`` Latin-hy
 samples on the paper's base parameters) is planned in a fresh process: every case is checked
 (``SimConfig.replace``) but its parameters are built on demand, the base dict shared. Prints
 the case count, the seconds and the peak resident memory [MB]; the figures were a test's
-bounds (60 s, 1024 MB) until speed left the tests (``test_hardening_sweep.py`` keeps the
+bounds (60 s, 1024 MB) until speed left the tests (``test_sweep_refusals.py`` keeps the
 sharing of the base and the count). ``python bench/sweep_plan_cost.py``; ``bench/run_all.py``
 (``make bench``) runs it too.
 """

@@ -479,7 +479,7 @@ FOOTER = """## Where the gaps come from
 - **G/P rule.** The published figure here is the Minden P distance plus v0 times the
   difference of the response times; the exact distance with a gradual filling is shorter by
   a (M1,G - M1,P) (the fillings' spread, 12-17 m from 100 km/h:
-  `test/test_braked_weight.py`): ours 1.2-2.1 % short, on K blocks (nearly constant mu). On
+  `test/physics/test_braked_weight.py`): ours 1.2-2.1 % short, on K blocks (nearly constant mu). On
   cast iron G stops shorter still: its mu is higher under the low block forces of the slow
   G filling (Karwatzki's force term), so the G filling costs less than v0 Delta t_e.
 - **Slip tests.** [Pfaff] calibrated its rigging ratio on the 100 km/h tests; ours, with the

@@ -23,12 +23,26 @@ Fixtures for tests with real rclpy (DDS on loopback, in-process):
 - ``contract_defaults``: the product contract's parameter names and defaults.
 
 Shared test code lives in helper modules without the ``test_`` prefix (``physics_helpers``,
-``sim_node_helpers``); test modules never import from each other.
+``sim_node_helpers``, ``cli_helpers``, ...) in ``test/`` itself, which this file puts on
+``sys.path``; the tests sit in folders that mirror the package (``test/physics``,
+``test/ros``, ...) and never import from each other.
+
+Marks, set here on collection (``pytest_collection_modifyitems``; registered in setup.cfg):
+
+- ``ros``: the test needs rclpy or DDS: it sits in ``test/ros``, uses one of the rclpy
+  fixtures below, or (read from its source and the module's functions it calls) imports
+  ``rclpy`` or ``train_dynamics.ros``, starts ``sim_node``/``brake_valve`` or runs a
+  controller scenario (``run_scenario``).
+- ``slow``: the test is in :data:`SLOW_TESTS`, the table of the slowest tests measured.
+  ``pytest -m "not slow"`` (``make test-fast``) leaves them out.
 """
 from __future__ import annotations
 
+import ast
 import os
+import re
 import signal
+import sys
 import tempfile
 import time
 
@@ -70,6 +84,11 @@ os.environ['ROS_DOMAIN_ID'] = str(_choose_domain())
 if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
     signal.signal(signal.SIGINT, signal.default_int_handler)
 os.environ.setdefault('MPLBACKEND', 'Agg')
+
+# The helper modules in test/ import as top-level modules from every test folder.
+_TEST_DIR = os.path.dirname(os.path.abspath(__file__))
+if _TEST_DIR not in sys.path:
+    sys.path.insert(0, _TEST_DIR)
 
 import pytest  # noqa: E402
 
@@ -140,3 +159,143 @@ def harness(rclpy_context):
         yield h
     finally:
         h.close()
+
+
+# -- marks ---------------------------------------------------------------------------------
+
+#: the slowest tests, ``module basename::test name`` (every parameter of a parametrised test):
+#: each took 20 s or more in a whole-suite run here (``pytest --durations``, call and setup,
+#: 2 cores, loaded); ``make test-fast`` runs the others. The figure is that run's.
+SLOW_TESTS = {
+}
+
+#: fixtures (here and in sim_node_helpers) that initialise rclpy
+_ROS_FIXTURES = frozenset({'rclpy_context', 'spin_until', 'harness'})
+#: callables that start sim_node (and a controller) as processes
+_ROS_CALLS = frozenset({'run_scenario'})
+#: strings in a test that start a node: its module's name, ROS arguments
+_ROS_STRINGS = ('train_dynamics.ros', '--ros-args')
+_REPO = os.path.dirname(_TEST_DIR)
+_RCLPY_LINE = re.compile(r'^\s*(?:import|from)\s+rclpy\b', re.M)
+_ROS_IMPORT = re.compile(r'^\s*from\s+(?:train_dynamics\.ros|\.)\.?(\w+)\s+import', re.M)
+_LOADS_RCLPY: dict = {}
+
+
+def _loads_rclpy(module: str) -> bool:
+    """Whether importing ``module`` loads rclpy: rclpy, or a module of ros/ importing it."""
+    if module == 'rclpy' or module.startswith('rclpy.'):
+        return True
+    if not module.startswith('train_dynamics.ros.'):
+        return False
+    if module not in _LOADS_RCLPY:
+        _LOADS_RCLPY[module] = False     # an import cycle reads as "no"
+        path = os.path.join(_REPO, *module.split('.')) + '.py'
+        try:
+            with open(path, encoding='utf-8') as fh:
+                text = fh.read()
+        except OSError:
+            return False
+        _LOADS_RCLPY[module] = bool(_RCLPY_LINE.search(text)) or any(
+            _loads_rclpy(f'train_dynamics.ros.{m}') for m in _ROS_IMPORT.findall(text))
+    return _LOADS_RCLPY[module]
+
+
+def _ros_import(node) -> list:
+    """Return the names an import statement binds to modules that load rclpy."""
+    if isinstance(node, ast.Import):
+        return [(a.asname or a.name).split('.')[0] for a in node.names if _loads_rclpy(a.name)]
+    if isinstance(node, ast.ImportFrom) and node.module:
+        if node.module == 'train_dynamics.ros':        # submodules: from ... import sim_node
+            return [a.asname or a.name for a in node.names
+                    if _loads_rclpy(f'train_dynamics.ros.{a.name}')]
+        if _loads_rclpy(node.module):
+            return [a.asname or a.name for a in node.names]
+    return []
+
+
+class _RosSource:
+    """Which functions of a test module use rclpy or start a node (read from the source)."""
+
+    def __init__(self, path: str):
+        with open(path, encoding='utf-8') as fh:
+            tree = ast.parse(fh.read(), path)
+        self.ros_names = set(_ROS_CALLS)     # module-level names bound to ROS code
+        self.functions = {}                  # module-level (and class-level) functions
+        for node in tree.body:
+            if isinstance(node, (ast.Import, ast.ImportFrom)):
+                self.ros_names.update(_ros_import(node))
+            elif isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                self.functions[node.name] = node
+            elif isinstance(node, ast.ClassDef):
+                for sub in node.body:
+                    if isinstance(sub, (ast.FunctionDef, ast.AsyncFunctionDef)):
+                        self.functions[f'{node.name}.{sub.name}'] = sub
+        self._memo = {}
+
+    def _direct(self, fn) -> tuple[bool, set]:
+        """Return (uses ROS itself, names of the module's functions it refers to)."""
+        calls = set()
+        body = fn.body
+        if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant):
+            body = body[1:]                  # the docstring names nodes without starting them
+        args = fn.args
+        calls.update(a.arg for a in args.args + args.kwonlyargs + args.posonlyargs)
+        for stmt in body:
+            for node in ast.walk(stmt):
+                if isinstance(node, ast.Name):
+                    if node.id in self.ros_names:
+                        return True, calls
+                    calls.add(node.id)
+                elif isinstance(node, (ast.Import, ast.ImportFrom)) and _ros_import(node):
+                    return True, calls
+                elif isinstance(node, ast.Constant) and isinstance(node.value, str):
+                    if any(s in node.value for s in _ROS_STRINGS):
+                        return True, calls
+        return False, calls
+
+    def uses_ros(self, name: str, seen: frozenset = frozenset()) -> bool:
+        """Whether function ``name`` or a module function it refers to uses ROS."""
+        if name in self._memo:
+            return self._memo[name]
+        fn = self.functions.get(name)
+        if fn is None or name in seen:
+            return False
+        direct, calls = self._direct(fn)
+        result = direct or any(self.uses_ros(c, seen | {name}) for c in calls
+                               if c in self.functions)
+        self._memo[name] = result
+        return result
+
+
+_ROS_SOURCES: dict = {}
+
+
+def _needs_ros(item) -> bool:
+    """Whether a collected test needs rclpy or DDS (see the module docstring)."""
+    path = str(item.fspath)
+    if os.path.relpath(path, _TEST_DIR).split(os.sep)[0] == 'ros':
+        return True
+    if _ROS_FIXTURES & set(getattr(item, 'fixturenames', ())):
+        return True
+    function = getattr(item, 'function', None)
+    if function is None:
+        return False
+    if path not in _ROS_SOURCES:
+        _ROS_SOURCES[path] = _RosSource(path)
+    source = _ROS_SOURCES[path]
+    name = function.__qualname__
+    fixtures = [f for f in getattr(item, 'fixturenames', ()) if f in source.functions]
+    return source.uses_ros(name) or any(source.uses_ros(f) for f in fixtures)
+
+
+def _slow_key(item) -> str:
+    return f'{os.path.basename(str(item.fspath))}::{getattr(item, "originalname", item.name)}'
+
+
+def pytest_collection_modifyitems(config, items):
+    """Mark ``ros`` and ``slow`` tests (see the module docstring)."""
+    for item in items:
+        if _needs_ros(item):
+            item.add_marker(pytest.mark.ros)
+        if _slow_key(item) in SLOW_TESTS:
+            item.add_marker(pytest.mark.slow)

@@ -13,7 +13,7 @@ topic and the message (its number and time), and nothing written:
 - ``brake_cylinders`` with an empty ``velocity`` is what the outputs carry: accepted; a ragged
   one is refused.
 
-Non-finite values (NaN, inf) are refused as before (test_hardening_report.py).
+Non-finite values (NaN, inf) are refused as before (test_report_refusals.py).
 """
 from __future__ import annotations
 

@@ -86,7 +86,7 @@ def test_every_import_maps_to_a_dependency_and_none_is_unused():
     code = _imports([*(REPO / 'train_dynamics').rglob('*.py'), *(REPO / 'launch').glob('*.py')])
     for pkg, where in _message_packages().items():      # imported by type name at run time
         code.setdefault(pkg, where)
-    tests = _imports([*(REPO / 'test').glob('*.py'), *(REPO / 'examples').glob('*.py')])
+    tests = _imports([*(REPO / 'test').rglob('*.py'), *(REPO / 'examples').glob('*.py')])
     for found in (code, tests):
         for name in _local_modules():
             found.pop(name, None)

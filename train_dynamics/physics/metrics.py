@@ -56,7 +56,7 @@ integrator's steps. Smooth parts: trapezoid error ~ (dt w)^2 / 12 relative (2e-4
 dt = 10 ms at w = 13 rad/s, the coupler mode of the paper's train); each friction reversal
 (a kink of F ydot) adds O(dt) locally. On the paper's run the brake energy is within
 0.05 % and the coupler work within 1 % of the integrator's per-step integrals
-(test/test_metrics.py).
+(test/physics/test_metrics.py).
 
 Limits (``coupler_force_limit`` [N] on |F|, ``jerk_limit`` [m/s^3]; 0 = off): every
 excursion beyond a limit is a crossing {coupler or vehicle, start, end, peak value, time of

@@ -4,8 +4,9 @@ Direct CDR encoding of the messages the simulator writes most (no ``rosbags`` ne
 :func:`encode_joint_state`, :class:`JointStateEncoder` (names encoded once) and
 :func:`encode_fluid_pressure` build the little-endian CDR bytes of ``sensor_msgs/JointState``
 and ``sensor_msgs/FluidPressure`` by hand: the very bytes ``rosbags`` serialisation gives
-(zero padding; test/test_bagio.py compares them), about ten times faster. The output encoding
-of :mod:`train_dynamics.recording.outputs` and the offline command's bag use them.
+(zero padding; test/recording/test_bagio.py compares them), about ten times faster. The
+output encoding of :mod:`train_dynamics.recording.outputs` and the offline command's bag use
+them.
 """
 from __future__ import annotations
 

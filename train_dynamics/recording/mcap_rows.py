@@ -8,7 +8,7 @@ place (:class:`train_dynamics.recording.outputs.OutputRows`), and
 :meth:`train_dynamics.recording.bags.BagRecorder.attach` writes its rows with one copy into the
 rosbags writer's chunk (:class:`BlockMcap`, through :class:`BlockWriter`), before any other
 message and whenever the block is full. The messages are those of the per-message path, byte
-for byte and in the same order (test/test_bag_blocks.py). Record layout: the MCAP
+for byte and in the same order (test/recording/test_bag_blocks.py). Record layout: the MCAP
 specification, https://mcap.dev/spec (Message op 0x05, Chunk op 0x06, Message Index op 0x07,
 Chunk Index op 0x08).
 """
@@ -225,7 +225,7 @@ class BlockWriter(Writer):
         compression) with the metadata (``metadata.yaml`` and the MCAP metadata record
         ``rosbag2``) emitted by libyaml instead of ruamel.yaml: the same data, keys sorted
         alike (libyaml keeps a long value on its key's line where ruamel.yaml folds it;
-        test/test_recorder_hostile_inputs.py compares the two), in a few milliseconds
+        test/recording/test_recorder_hostile_inputs.py compares the two), in a few milliseconds
         instead of about 0.05 s: most of a flush when a file is finished every 0.1 s.
         """
         assert self.storage
