@@ -33,7 +33,7 @@ Marks, set here on collection (``pytest_collection_modifyitems``; registered in 
   fixtures below, or (read from its source and the module's functions it calls) imports
   ``rclpy`` or ``train_dynamics.ros``, starts ``sim_node``/``brake_valve`` or runs a
   controller scenario (``run_scenario``).
-- ``slow``: the test is in :data:`SLOW_TESTS`, the table of the slowest tests measured.
+- ``slow``: the test is in :data:`SLOW_TABLE`, the table of the slowest tests measured.
   ``pytest -m "not slow"`` (``make test-fast``) leaves them out.
 """
 from __future__ import annotations
@@ -163,11 +163,175 @@ def harness(rclpy_context):
 
 # -- marks ---------------------------------------------------------------------------------
 
-#: the slowest tests, ``module basename::test name`` (every parameter of a parametrised test):
-#: each took 20 s or more in a whole-suite run here (``pytest --durations``, call and setup,
-#: 2 cores, loaded); ``make test-fast`` runs the others. The figure is that run's.
-SLOW_TESTS = {
+#: the slowest tests: {module basename: {test name: seconds}}, every parameter of a
+#: parametrised test. Each took 2 s or more (setup, call and teardown, all its parameters
+#: summed) in a run of the whole suite here (2 cores shared, load average 4-5, 2026-12-05;
+#: 580 s for all the tests, 460 s of it in these; flake8 measured alone). ``make test-fast``
+#: (``-m 'not slow'``) runs the other tests. A test that takes seconds belongs here.
+SLOW_TABLE = {
+    'test_adaptive.py': {
+        'test_controller_meets_its_tolerance_on_a_smooth_problem': 2.7,
+        'test_unequal_masses_replayed_cylinders_within_2_percent': 6.6,
+    },
+    'test_blending_controller_loop.py': {
+        'test_external_blending_loop_is_byte_identical_and_passes_its_criteria': 16.5,
+    },
+    'test_brake_valve.py': {
+        'test_node_live_position_change_and_invalid_values': 5.7,
+        'test_node_publishes_absolute_pressure_following_schedule': 2.1,
+    },
+    'test_colcon_install.py': {
+        'test_colcon_build_installs_where_ros2_run_looks': 2.2,
+        'test_installed_sim_node_runs_with_brake_valve': 4.1,
+    },
+    'test_colcon_test.py': {
+        'test_colcon_test_runs_the_tests_and_fails_when_one_fails': 4.9,
+    },
+    'test_consist_fuzz.py': {
+        'test_consist_files_run_one_second_or_are_refused_in_one_line': 8.1,
+    },
+    'test_controller_loop.py': {
+        'test_harness_passes_the_pi_controller_and_fails_its_harsh_twin': 7.5,
+        'test_harness_reports_a_silent_controller_as_a_lockstep_timeout': 2.1,
+        'test_lockstep_closed_loop_is_byte_identical_and_loses_no_command': 7.3,
+        'test_lockstep_waits_for_traction_commands_and_is_byte_identical': 5.9,
+    },
+    'test_couplings.py': {
+        'test_kernel_follows_the_reference_with_preloaded_progressive_ends': 2.2,
+    },
+    'test_flake8.py': {
+        'test_flake8': 26.6,
+    },
+    'test_friction_brakes.py': {
+        'test_low_adhesion_locks_without_wsp_not_with_builtin': 2.6,
+    },
+    'test_harness_hostile_inputs.py': {
+        'test_command_line_exits_1_for_a_failed_criterion_and_prints_the_report': 5.4,
+        'test_controller_that_exits_0_before_the_run_ends_is_reported': 2.1,
+        'test_report_figures_are_off_unless_asked': 5.0,
+        'test_shell_wrapped_controller_is_ended_after_a_timeout': 20.2,
+    },
+    'test_kernel_cache.py': {
+        'test_a_change_in_any_kernel_source_compiles_again': 2.4,
+        'test_no_writable_cache_compiles_in_memory': 2.2,
+        'test_prebuilt_kernels_are_read_before_the_user_cache': 2.2,
+    },
+    'test_layout.py': {
+        'test_layer_loads_no_forbidden_module': 2.2,
+    },
+    'test_lockstep_clock.py': {
+        'test_timer_driven_controller_on_sim_time_runs_in_lockstep_byte_identical': 5.2,
+    },
+    'test_lockstep_hostile_inputs.py': {
+        'test_a_lockstep_wait_at_real_time_is_not_counted_as_lag': 2.4,
+        'test_paused_time_is_not_counted_as_lag': 2.3,
+    },
+    'test_multiple_units.py': {
+        'test_report_books_regenerated_and_friction_energy': 6.7,
+        'test_shipped_unit_stops_from_top_speed': 4.1,
+    },
+    'test_multirate.py': {
+        'test_khz_cylinders_and_free_play_within_two_percent': 2.1,
+    },
+    'test_node_graph_hygiene.py': {
+        'test_help_prints_usage_and_exits_without_starting': 2.4,
+        'test_namespaced_clocks_of_two_trains_stay_apart': 2.6,
+        'test_second_clock_publisher_is_warned_about': 2.1,
+    },
+    'test_node_hostile_inputs.py': {
+        'test_sigint_during_the_run_never_reports_a_timer_exception': 4.6,
+        'test_wrong_type_publisher_on_an_input_topic_is_reported_in_diagnostics': 2.0,
+    },
+    'test_offline_memory_bounds.py': {
+        'test_compare_memory_is_independent_of_duration': 12.2,
+        'test_simulate_memory_is_independent_of_duration': 4.5,
+    },
+    'test_output_specs.py': {
+        'test_report_gives_the_stop_error_of_a_braked_run': 5.0,
+    },
+    'test_plot.py': {
+        'test_plot_of_a_recorded_bag_many_couplers_namespace_and_reset': 2.1,
+        'test_plot_of_a_simulated_bag': 3.2,
+    },
+    'test_pneumatic_train.py': {
+        'test_reservoir_topic_encoded_and_recorded': 3.5,
+    },
+    'test_recorder_hostile_inputs.py': {
+        'test_sim_node_with_a_short_flush_period_records_every_output': 2.5,
+    },
+    'test_recording_refusals.py': {
+        'test_sim_node_full_disk_reports_what_was_written_and_exits_nonzero': 3.4,
+    },
+    'test_report.py': {
+        'test_report_fatigue_counts_every_sample_of_the_bag': 3.3,
+        'test_report_of_a_bag_recorded_by_sim_node': 10.1,
+        'test_report_of_an_offline_bag_equals_the_live_metrics': 3.5,
+        'test_report_reads_slack_and_strokes_from_the_consist_as_the_simulator_does': 7.3,
+        'test_report_without_parameters_has_no_limits': 3.3,
+    },
+    'test_report_hostile_inputs.py': {
+        'test_a_sound_bag_is_reported_and_plotted': 2.3,
+    },
+    'test_run_control.py': {
+        'test_two_publishers_on_the_active_input_raise_a_warn': 3.0,
+    },
+    'test_sim_node.py': {
+        'test_cylinder_inputs_over_topics_match_the_core_run_offline': 2.4,
+        'test_live_model_switches_take_effect_with_continuous_state': 2.2,
+        'test_wait_for_input_holds_t0_until_a_publisher_connects': 2.1,
+    },
+    'test_sim_node_brake_state.py': {
+        'test_ecp_line_loss_is_published_recorded_and_diagnosed': 3.2,
+        'test_radio_loss_is_published_and_diagnosed': 2.1,
+    },
+    'test_sim_node_ep.py': {
+        'test_ep_command_applied_validated_and_train_line_supervised': 2.1,
+    },
+    'test_sim_node_hardening.py': {
+        'test_bad_inputs_are_rejected_counted_and_a_flood_does_not_slow_the_node': 8.1,
+        'test_long_free_run_memory_flat_stamps_monotonic_exact_counts': 3.2,
+        'test_numerical_fault_stops_reports_keeps_the_bag_and_reset_recovers': 2.1,
+        'test_rapid_live_model_switching_keeps_the_state_continuous': 2.1,
+        'test_sigkill_loses_at_most_the_unflushed_part': 3.5,
+        'test_signal_during_recorded_run_leaves_a_complete_bag': 5.3,
+        'test_stale_input_emergency_then_fresh_then_hold': 5.8,
+    },
+    'test_sim_node_metrics.py': {
+        'test_node_reports_running_maxima_and_warns_past_the_force_limit': 2.2,
+    },
+    'test_sim_node_traction_refusals.py': {
+        'test_node_traction_for_non_locomotive_counted': 4.1,
+    },
+    'test_sim_node_traction_stale.py': {
+        'test_stale_traction_command_in_diagnostics_emergency_then_fresh_then_hold': 9.1,
+    },
+    'test_sim_node_wsp.py': {
+        'test_external_wsp_node_keeps_the_wheels_turning': 7.2,
+    },
+    'test_standstill.py': {
+        'test_energy_balance_through_the_standstill_paper_law': 2.7,
+        'test_error_controlled_stepping_brings_the_train_to_rest_too': 3.0,
+        'test_iteration_cap_is_counted_and_the_step_finishes': 9.3,
+        'test_long_train_is_at_rest_and_held_within_2_s_and_stays_so': 4.9,
+        'test_momentum_and_energy_balance_through_the_standstill': 5.0,
+    },
+    'test_stream_plot_report.py': {
+        'test_block_wise_report_equals_the_in_memory_one': 22.3,
+        'test_plot_and_report_memory_is_independent_of_the_bag_length': 28.1,
+        'test_report_and_plot_of_a_bag_with_a_reset_take_the_last_run': 2.3,
+    },
+    'test_sweep.py': {
+        'test_a_killed_worker_s_case_is_rescheduled': 16.3,
+        'test_resume_after_an_interrupted_sweep_runs_only_the_missing_cases': 21.1,
+        'test_sweep_on_a_local_cluster_and_on_dask_workers_equals_sequential_runs': 17.6,
+    },
+    'test_sweep_refusals.py': {
+        'test_sweep_consist_file_relative_to_the_sweep_file': 2.5,
+        'test_sweep_resume_refuses_an_edited_consist': 2.0,
+    },
 }
+SLOW_TESTS = frozenset(f'{module}::{test}' for module, tests in SLOW_TABLE.items()
+                       for test in tests)
 
 #: fixtures (here and in sim_node_helpers) that initialise rclpy
 _ROS_FIXTURES = frozenset({'rclpy_context', 'spin_until', 'harness'})
@@ -272,7 +436,7 @@ _ROS_SOURCES: dict = {}
 
 def _needs_ros(item) -> bool:
     """Whether a collected test needs rclpy or DDS (see the module docstring)."""
-    path = str(item.fspath)
+    path = str(item.path)
     if os.path.relpath(path, _TEST_DIR).split(os.sep)[0] == 'ros':
         return True
     if _ROS_FIXTURES & set(getattr(item, 'fixturenames', ())):
@@ -289,7 +453,7 @@ def _needs_ros(item) -> bool:
 
 
 def _slow_key(item) -> str:
-    return f'{os.path.basename(str(item.fspath))}::{getattr(item, "originalname", item.name)}'
+    return f'{item.path.name}::{getattr(item, "originalname", item.name)}'
 
 
 def pytest_collection_modifyitems(config, items):
