@@ -141,7 +141,7 @@ def test_report_reads_slack_and_strokes_from_the_consist_as_the_simulator_does(t
 
 
 def test_report_fatigue_counts_every_sample_of_the_bag(tmp_path):
-    """report --fatigue: each coupler's DEL and cycle count equal the whole history's."""
+    """Check report --fatigue: each coupler's DEL and cycle count equal the whole history's."""
     import numpy as np
 
     from train_dynamics.physics.fatigue import cycle_count, damage_equivalent_load, rainflow
