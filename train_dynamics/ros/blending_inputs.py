@@ -8,6 +8,15 @@ simulator at the next integration step; the brake control unit acts on it at its
 (``blending_period``). Recorded as received. Rejected and counted with the traction commands'
 reasons: ``non_finite``, ``out_of_range`` (a negative demand, or a fraction above 1),
 ``malformed``.
+
+Lock-step (``blending`` in ``lockstep_inputs``): as the traction commands
+(:mod:`train_dynamics.ros.traction_inputs`), a Float64 has no stamp, so a value answers the
+latest output published before it arrived; each period waits until the applied value of
+**each** of the three topics answers its output (a controller or test script sends all three
+once per output, the same value again when nothing changes), and a second value on one topic
+to one output is not used (counted). The values of a period are applied in the fixed order
+demand, emergency, ED trip, whatever order they arrived in, so that the run is the same on
+every run.
 """
 from __future__ import annotations
 
@@ -37,26 +46,68 @@ class BlendingInputs:
         self._subs: dict[str, Any] = {}
         self._lock = threading.Lock()
         #: kind -> (value, raw CDR) received and not yet applied
-        self._pending: dict[str, tuple[float, bytes]] = {}
+        self._pending: dict[str, tuple[float, bytes, int]] = {}
         self._cfg = None
         self.accepted = 0
+        self._period_ns = -1                       # stamp of the latest output published
+        self._tag: dict[str, int] = {}             # the output each topic's last value answers
+        self._applied_tag: dict[str, int] = {}     # simulation lock: of the value applied
+        #: lock-step on these inputs: a second value after one output is not used
+        self.dedupe = False
+        self.duplicates = 0
+        self.on_duplicate: Callable[[str], None] | None = None   # (resolved topic): warn
 
     def start(self, cfg: Any) -> None:
         """Subscribe (``blending: builtin``) or unsubscribe for a new run of ``cfg``."""
         with self._lock:
             self._pending = {}
+            self._period_ns = -1
+            self._tag = {}
+        self._applied_tag = {}
+        self.duplicates = 0
         self._cfg = cfg
         active = cfg.blending == 'builtin'
         if active and not self._subs:
-            for kind, topic in BLENDING_TOPICS.items():
-                name = self._node.resolve_topic_name(topic)
-                self._subs[kind] = self._node.create_subscription(
-                    Float64, name, lambda data, k=kind, n=name: self._on_value(k, n, data),
-                    self._qos, raw=True)
+            self._subscribe()
         elif not active and self._subs:
-            for sub in self._subs.values():
-                self._node.destroy_subscription(sub)
-            self._subs = {}
+            self._unsubscribe()
+
+    def _subscribe(self) -> None:
+        for kind, topic in BLENDING_TOPICS.items():
+            name = self._node.resolve_topic_name(topic)
+            self._subs[kind] = self._node.create_subscription(
+                Float64, name, lambda data, k=kind, n=name: self._on_value(k, n, data),
+                self._qos, raw=True)
+
+    def _unsubscribe(self) -> None:
+        for sub in self._subs.values():
+            self._node.destroy_subscription(sub)
+        self._subs = {}
+
+    def set_qos(self, qos: Any) -> None:
+        """Subscribe with ``qos`` from now on (reliable in lock-step)."""
+        if qos == self._qos:
+            return
+        self._qos = qos
+        if self._subs:
+            self._unsubscribe()
+            self._subscribe()
+
+    def subscriptions(self) -> list[Any]:
+        """Return the subscriptions of the three topics ([] when the run does not blend)."""
+        return list(self._subs.values())
+
+    def output_published(self, t_ns: int) -> None:
+        """Tag the values arriving from now on as answers to the output stamped ``t_ns``."""
+        with self._lock:
+            self._period_ns = t_ns
+
+    def unanswered(self, t_ns: int) -> list[str]:
+        """Lock-step: the topics whose applied value does not answer the output ``t_ns``."""
+        if not self._subs:
+            return []
+        tags = self._applied_tag
+        return [topic for kind, topic in BLENDING_TOPICS.items() if tags.get(kind) != t_ns]
 
     @property
     def active(self) -> bool:
@@ -75,7 +126,16 @@ class BlendingInputs:
             self._reject(resolved, *exc.args)
             return
         with self._lock:
-            self._pending[kind] = (value, bytes(data))
+            duplicate = (self.dedupe and self._period_ns >= 0
+                         and self._tag.get(kind) == self._period_ns)
+            if not duplicate:
+                self._pending[kind] = (value, bytes(data), self._period_ns)
+                self._tag[kind] = self._period_ns
+        if duplicate:          # lock-step: the first value after the output answers it
+            self.duplicates += 1
+            if self.on_duplicate is not None:
+                self.on_duplicate(resolved)
+            return
         self.accepted += 1
         self._notify()
 
@@ -85,6 +145,9 @@ class BlendingInputs:
             return
         with self._lock:
             pending, self._pending = self._pending, {}
-        for kind, (value, raw) in pending.items():
+        for kind in BLENDING_TOPICS:              # a fixed order, not the arrival order
+            if kind not in pending:
+                continue
+            value, raw, self._applied_tag[kind] = pending[kind]
             apply_blending_input(sim, kind, value)
             record(BLENDING_TOPICS[kind], topics.FLOAT64, time_ns(sim.t), raw)
