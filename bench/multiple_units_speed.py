@@ -27,8 +27,6 @@ import sys
 import tempfile
 import time
 
-import yaml
-
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, HERE)
@@ -36,6 +34,7 @@ sys.path.insert(1, ROOT)
 
 import node as node_bench  # noqa: E402
 import offline_speed  # noqa: E402
+import yaml  # noqa: E402
 
 TARGET_RTF = 50.0
 TARGET_P99_MS = 2.0

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from train_dynamics.physics.config import ConfigError
-from train_dynamics.testing.criteria import Criterion, criteria_metrics, parse_criteria
+from train_dynamics.testing.criteria import criteria_metrics, Criterion, parse_criteria
 
 SUMMARY = {'train': {'stopping_distance': 305.7, 'max_jerk': 0.82},
            'blending': {'friction_share': 0.012, 'energy_regenerated': 3.0e7,

@@ -40,6 +40,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from train_dynamics import topics
 from train_dynamics.physics.config import SIM_NODE_PARAMETERS
+from train_dynamics.ros.ed_force_inputs import motor_cars
 
 #: ``lockstep_inputs``: the controller inputs a lock-step period can wait for
 LOCKSTEP_INPUTS = SIM_NODE_PARAMETERS['lockstep_inputs'].choices
@@ -62,10 +63,11 @@ def lockstep_input_error(cfg: Any, families: tuple[str, ...]) -> str | None:
     """
     why = {TRACTION: 'no locomotive takes traction commands',
            EP: 'brake_system is neither ep nor ecp',
-           WSP: 'wsp is not external', BLENDING: 'blending is not builtin'}
+           WSP: 'wsp is not external',
+           BLENDING: 'blending is neither builtin nor external with motor cars'}
     has = {TRACTION: bool(cfg.external_forces and cfg.consist.commanded),
            EP: bool(cfg.ep_commanded), WSP: cfg.wsp == 'external',
-           BLENDING: cfg.blending == 'builtin'}
+           BLENDING: cfg.blending == 'builtin' or bool(motor_cars(cfg))}
     missing = [f for f in families if f != BRAKE and not has[f]]
     if not missing:
         return None

@@ -7,7 +7,8 @@ A criterion names a metric of ``train-dynamics report`` (a key of ``summary.json
 ``blocking_count``, ...) or of its brake blending (``blending.<key>``, a key of
 ``summary.json``'s ``blending``, :data:`BLENDING_METRICS`: ``blending.friction_share``,
 ``blending.max_jerk``, ``blending.max_tracking_error``, ``blending.energy_regenerated``, ...;
-the run's flat view is :func:`criteria_metrics`) and bounds it: ``{max: X}``, ``{min: X}``, both (``min <= max``), or
+the run's flat view is :func:`criteria_metrics`) and bounds it: ``{max: X}``, ``{min: X}``,
+both (``min <= max``), or
 ``{equals: X}`` alone. Bounds are finite numbers; ``equals`` is ``true``/``false`` for the
 yes/no metrics (:data:`BOOLEAN_METRICS`) and a finite number for the others. Anything else
 is refused when the scenario is read (:class:`ConfigError` naming the criterion): a criterion

@@ -40,7 +40,8 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               "the output's stamp; traction: the command topic of every locomotive that "
               'takes one, ep: brake_ep/command (brake_system ep or ecp), wsp: every '
               "vehicle's coach_<i>/wsp/valve (wsp external), blending: brake_demand, "
-              'brake_emergency and ed_brake/trip, each of the three (blending builtin), each '
+              'brake_emergency and ed_brake/trip, each of the three (blending builtin), or '
+              "every motor car's coach_<i>/ed_brake/force (blending external), each "
               'answered by one command received after the output was published '
               '(std_msgs/Float64 and Int8 have no stamp). A listed input the train does not '
               'have is a configuration error in lockstep.',
