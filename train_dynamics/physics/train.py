@@ -23,7 +23,7 @@ import itertools
 
 import numpy as np
 
-from train_dynamics.physics import blending, equilibrium, friction, pneumatic
+from train_dynamics.physics import blending, ed_force, equilibrium, friction, pneumatic
 from train_dynamics.physics.config import (Consist, G_FILL_TIME, G_RELEASE_TIME,
                                            P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
                                            P_RELEASE_TIME, SimConfig)
@@ -117,8 +117,10 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         #: pipe_per_coach); the pipe-head delay line and the pneumatic brake run on the
         #: tick h: there an input at t acts from the first step k with k h >= t
         self.exact_inputs = self.pneu is None and self.mode != brakes.PIPE_HEAD
-        #: blending builtin: the brake control unit (physics/blending.py); None: friction only
+        #: blending builtin: the brake control unit (physics/blending.py), external: the ED
+        #: force commands (physics/ed_force.py); None: not that mode
         self.bcu = blending.BrakeControlUnit(self) if cfg.blending == 'builtin' else None
+        self.ed_force = ed_force.EdForceCommands(self) if cfg.blending == 'external' else None
 
     def _build_couplers(self, consist: Consist, coupler_constants: dict | None) -> None:
         """Fill ``cpl``: each connection's constants (eqs. 2-3, free play, strokes, K_b)."""
@@ -263,8 +265,8 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         if bcu is not None:         # the track brakes off before the couplers settle
             bcu.track.restore()
         self._settle()
-        if bcu is not None:
-            bcu.reset()
+        for part in filter(None, (bcu, getattr(self, 'ed_force', None))):
+            part.reset()
 
     def _settle(self) -> None:
         """
