@@ -100,9 +100,9 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         self.ws = make_workspace(n)
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
-        #: error-controlled chain (integration_tolerance > 0): the brake system keeps the
+        #: error-controlled chain (integrator adaptive): the brake system keeps the
         #: fixed tick h, the chain lands on every output instant (``land`` ticks)
-        self.tolerance = float(cfg.integration_tolerance)
+        self.tolerance = cfg.integration.tolerance
         self.adaptive = self.tolerance > 0.0
         self.land = _landing_ticks(float(cfg.publish_rate), self.h)
         self.tick_fb = np.zeros((self.land + 1, n))
@@ -203,7 +203,7 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
             cfg.max_coupler_displacement, self.tolerance,
             1e-3 * float(np.max(self.masses)) * float(cfg.gravity)]
         sc[PARAM.FRICTION] = float(np.any(c[VEHICLE.MATERIAL] != friction.PAPER))
-        sc[PARAM.MRTOL] = float(cfg.multirate_tolerance)
+        sc[PARAM.MRTOL] = cfg.integration.multirate_tolerance
         sc[PARAM.MRVW] = float(cfg.multirate_reversal_weight)
         # braking force <= mu(v) m g; with wheelsets the creep law carries the limit
         sc[PARAM.ADHLIM] = float(bool(cfg.adhesion_limit) and not self.wheelsets)
