@@ -15,7 +15,9 @@ import pytest
 
 from train_dynamics.cli import offline
 from train_dynamics.physics.config import ConfigError, load_param_file, PARAMETERS, SimConfig
-from train_dynamics.physics.config.integrator import ADAPTIVE_TOLERANCE
+from train_dynamics.physics.config.integrator import ADAPTIVE_TOLERANCE, INTEGRATORS
+from train_dynamics.physics.kernel.drivers import (advance_error_controlled, advance_fixed,
+                                                   DRIVERS)
 from train_dynamics.physics.kernel.layout import PARAM
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bag_read import read_topics
@@ -49,6 +51,11 @@ def test_each_integrator_reaches_the_kernel_with_its_tolerance(over, method, tol
     assert sim.adaptive == (method == 'adaptive')
     assert sim.tolerance == tol and sim.sc[PARAM.MRTOL] == mrtol
     assert sim.sc[PARAM.TOL] == tol
+    assert sim.driver is (advance_error_controlled if method == 'adaptive' else advance_fixed)
+
+
+def test_every_method_has_a_driver():
+    assert set(DRIVERS) == set(INTEGRATORS)
 
 
 def test_the_default_is_multirate_at_1e_3():

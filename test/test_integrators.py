@@ -41,7 +41,7 @@ def test_stage_solve_matches_dense_solve_with_held_coaches():
     ws[WORK.F, :m], ws[WORK.DFDY, :m], ws[WORK.KK, :m] = F, dfdy, kk
     ws[WORK.VSTART], ws[WORK.SIGNED] = v, brake
     rosenbrock2.ros2_step(h, coach, cpl, couplers.TANH, 1000.0, held, ws, 0, 0,
-                   np.zeros((3, 0)))
+                          np.zeros((3, 0)))
     D = np.eye(n)[:-1] - np.eye(n, k=1)[:-1]          # y = D x
     A = np.diag(masses) + D.T @ np.diag(kk) @ D
     rhs = -D.T @ F - gh * D.T @ (dfdy * (D @ v))
