@@ -103,10 +103,10 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         self.u = float(cfg.scale_factor)
         #: error-controlled chain (integrator adaptive): the brake system keeps the
         #: fixed tick h, the chain lands on every output instant (``land`` ticks)
-        self.tolerance = cfg.integration.tolerance
-        self.adaptive = self.tolerance > 0.0
+        method, self.tolerance, _ = cfg.integration
+        self.adaptive = method == 'adaptive'
         #: the method's driver: driver(n_steps, sync, KernelArrays) -> (steps, status)
-        self.driver = DRIVERS[cfg.integration.method]
+        self.driver = DRIVERS[method]
         self.land = _landing_ticks(float(cfg.publish_rate), self.h)
         self.tick_fb = np.zeros((self.land + 1, n))
         self.tick_te = np.zeros((self.land + 1, n))
