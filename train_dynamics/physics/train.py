@@ -29,7 +29,8 @@ from train_dynamics.physics.config import (Consist, G_FILL_TIME, G_RELEASE_TIME,
                                            P_RELEASE_TIME, SimConfig)
 from train_dynamics.physics.config.consist import check_friction_below_stiffness
 from train_dynamics.physics.config.table import KERNEL_ROWS
-from train_dynamics.physics.kernel import adaptive, brakes, fixed_step, wheelset
+from train_dynamics.physics.kernel import brakes, wheelset
+from train_dynamics.physics.kernel.drivers import DRIVERS, KernelArrays
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, COUNT, COUPLER,
                                                   INPUT, INTEGER, OPTION, OUTPUT, PARAM, SCALAR,
                                                   SCALAR_INPUT, STATE, TABLE_ROWS, VEHICLE,
@@ -52,7 +53,7 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
     (:attr:`exact_inputs`), so a 1 kHz input reaches the model at 1 kHz whatever the step.
     Outputs are numpy arrays (copies). The state lives in the packed arrays of
     :mod:`train_dynamics.physics.kernel.layout` (``coach``, ``cpl``, ``sc``, ``iv``, ``ws``)
-    that :func:`fixed_step.advance_chain` advances in place.
+    that the method's driver (:mod:`~.kernel.drivers`) advances in place.
     """
 
     #: per-coupler constants that ``coupler_constants`` may override (arrays of N-1) and
@@ -100,10 +101,12 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         self.ws = make_workspace(n)
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
-        #: error-controlled chain (integration_tolerance > 0): the brake system keeps the
+        #: error-controlled chain (integrator adaptive): the brake system keeps the
         #: fixed tick h, the chain lands on every output instant (``land`` ticks)
-        self.tolerance = float(cfg.integration_tolerance)
-        self.adaptive = self.tolerance > 0.0
+        method, self.tolerance, _ = cfg.integration
+        self.adaptive = method == 'adaptive'
+        #: the method's driver: driver(n_steps, sync, KernelArrays) -> (steps, status)
+        self.driver = DRIVERS[method]
         self.land = _landing_ticks(float(cfg.publish_rate), self.h)
         self.tick_fb = np.zeros((self.land + 1, n))
         self.tick_te = np.zeros((self.land + 1, n))
@@ -205,7 +208,7 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
             cfg.max_coupler_displacement, self.tolerance,
             1e-3 * float(np.max(self.masses)) * float(cfg.gravity)]
         sc[PARAM.FRICTION] = float(np.any(c[VEHICLE.MATERIAL] != friction.PAPER))
-        sc[PARAM.MRTOL] = float(cfg.multirate_tolerance)
+        sc[PARAM.MRTOL] = cfg.integration.multirate_tolerance
         sc[PARAM.MRVW] = float(cfg.multirate_reversal_weight)
         # braking force <= mu(v) m g; with wheelsets the creep law carries the limit
         sc[PARAM.ADHLIM] = float(bool(cfg.adhesion_limit) and not self.wheelsets)
@@ -429,16 +432,10 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         sc, iv = self.sc, self.iv
         sc[PARAM.H] = dt
         iv[CACHE.WS_VALID] = 0           # the couplers' rows (and tick ring) for this length
+        if self.adaptive:
+            iv[CLOCK.TICK] = iv[CLOCK.CHAIN_TICK] = tick0
         try:
-            if self.adaptive:
-                iv[CLOCK.TICK] = iv[CLOCK.CHAIN_TICK] = tick0
-                _, status = adaptive.advance_adaptive(
-                    1, True, self.coach, self.cpl, sc, iv, self.fill, self.rel, self.ring,
-                    self.ws, self.gprof, self.cprof, self.aprof, self.tick_fb, self.tick_te)
-            else:
-                _, status = fixed_step.advance_chain(1, self.coach, self.cpl, sc, iv,
-                                                     self.fill, self.rel, self.ring, self.ws,
-                                                     self.gprof, self.cprof, self.aprof)
+            _, status = self._kernel(1, True)
         finally:
             sc[PARAM.H] = self.h
             iv[CACHE.WS_VALID] = 0
@@ -490,15 +487,10 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         return done
 
     def _kernel(self, n_steps: int, sync: bool = False) -> tuple[int, int]:
-        """Run the fixed-step or the error-controlled kernel; return (steps, status)."""
-        if self.adaptive:
-            return adaptive.advance_adaptive(n_steps, sync, self.coach, self.cpl, self.sc,
-                                             self.iv, self.fill, self.rel, self.ring,
-                                             self.ws, self.gprof, self.cprof, self.aprof,
-                                             self.tick_fb, self.tick_te)
-        return fixed_step.advance_chain(n_steps, self.coach, self.cpl, self.sc, self.iv,
-                                        self.fill, self.rel, self.ring, self.ws, self.gprof,
-                                        self.cprof, self.aprof)
+        """Run the method's driver over the packed arrays; return (steps, status)."""
+        return self.driver(n_steps, sync, KernelArrays(
+            self.coach, self.cpl, self.sc, self.iv, self.fill, self.rel, self.ring, self.ws,
+            self.gprof, self.cprof, self.aprof, self.tick_fb, self.tick_te))
 
     def _sync(self) -> None:
         """Bring the error-controlled chain to the present tick (it lands on outputs)."""

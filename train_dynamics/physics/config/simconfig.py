@@ -28,6 +28,7 @@ from train_dynamics.physics.config.consist import (check_friction_below_stiffnes
                                                    check_traction_power, Consist, consist_of,
                                                    CONSIST_PARAMETERS)
 from train_dynamics.physics.config.files import simulator_params
+from train_dynamics.physics.config.integrator import DEFAULT_INTEGRATOR, Integration, resolve
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERVICE_PRESSURE,
                                                  G_FILL_TIME, G_RELEASE_TIME,
@@ -170,8 +171,9 @@ class SimConfig:
     traction_schedule_commands: list[float] = field(default_factory=list)  # [-1, 1]
     ep_schedule_times: list[float] = field(default_factory=list)          # [s], increasing
     ep_schedule_commands: list[float] = field(default_factory=list)       # [0, 1]
-    # error-controlled stepping
-    integration_tolerance: float = INTEGRATION_TOLERANCE  # [-]; 0 = fixed step
+    # the integration method (config/integrator.py)
+    integrator: str = DEFAULT_INTEGRATOR              # 'fixed', 'multirate' or 'adaptive'
+    integration_tolerance: float = INTEGRATION_TOLERANCE  # [-]; 0 = unset
     integration_max_steps: int = 100                  # steps per output period
     multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = plain fixed step
     multirate_reversal_weight: float = MULTIRATE_REVERSAL_WEIGHT  # [-]; 0 = off
@@ -297,6 +299,11 @@ class SimConfig:
                                       self.track_adhesion_positions, self.track_adhesion)
 
     @property
+    def integration(self) -> Integration:
+        """Return the integration method and the tolerances it uses (config/integrator.py)."""
+        return resolve(self.integrator, self.integration_tolerance, self.multirate_tolerance)
+
+    @property
     def has_wheelsets(self) -> bool:
         """Return True when the vehicles run on rotating wheelsets (``wheelsets``, implied)."""
         return bool(self.wheelsets or self.wsp != 'none'
@@ -324,6 +331,7 @@ class SimConfig:
     # -- the checks as a whole ------------------------------------------------------------
     def check(self) -> None:
         """Cross-parameter checks; raises :class:`ConfigError`."""
+        self.integration                 # the method: refuses a contradiction
         self._check_real_train()
         check_blending(self)
         if self.masses and len(self.masses) < 2:
@@ -340,9 +348,10 @@ class SimConfig:
                 'publish_rate / integration_step) per vehicle; raise brake_propagation_speed, '
                 'integration_step or publish_rate, or shorten the train')
         self._check_work()
-        if self.has_wheelsets and self.integration_tolerance > 0.0:
+        if self.has_wheelsets and self.integration.method == 'adaptive':
             raise ConfigError('wheelsets (wheelsets, wsp or a track_adhesion below dry) need '
-                              'the fixed step: set integration_tolerance 0')
+                              'the fixed step: set integration_tolerance 0 and integrator '
+                              'fixed or multirate')
         # the uniform train's vehicles (and the defaults of a consist's)
         check_friction_below_stiffness(self.values)
         check_traction_power(self.values)
@@ -426,7 +435,7 @@ class SimConfig:
     def _check_work(self) -> None:
         """Refuse an error-control work budget that could keep one output period busy."""
         limit = max_period_steps(self.n_coaches)
-        if self.integration_tolerance > 0.0 and self.integration_max_steps > limit:
+        if self.integration.method == 'adaptive' and self.integration_max_steps > limit:
             raise ConfigError(
                 f'integration_max_steps {self.integration_max_steps}: more than the limit of '
                 f'{limit} error-controlled steps per output period for {self.n_coaches} '

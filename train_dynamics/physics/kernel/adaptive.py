@@ -27,7 +27,7 @@ from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_coup
                                                         invalidate_caches)
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, CONTROL, COUNT, INPUT, OPTION,
                                                   PARAM, STATE, TOTAL, VEHICLE, WORK)
-from train_dynamics.physics.kernel.ros2 import GAMMA
+from train_dynamics.physics.kernel.rosenbrock2 import GAMMA
 from train_dynamics.physics.kernel.step import (accept_external, accept_step,
                                                 available_braking_force, brake_system_step,
                                                 fault_check, OK, static_resistance)

@@ -25,7 +25,7 @@ from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_coup
 from train_dynamics.physics.kernel.couplers import TANH
 from train_dynamics.physics.kernel.layout import CACHE, OPTION, PARAM, STATE, TOTAL, VEHICLE, WORK
 from train_dynamics.physics.kernel.multirate import refine
-from train_dynamics.physics.kernel.ros2 import GAMMA
+from train_dynamics.physics.kernel.rosenbrock2 import GAMMA
 from train_dynamics.physics.kernel.step import (accept_external, accept_step, brake_system_step,
                                                 braking_force_trapezoid, external_step,
                                                 fault_check, OK)
