@@ -302,18 +302,18 @@ class SimConfig:
         return bool(self.wheelsets or self.wsp != 'none'
                     or any(a < track.DRY_ADHESION for a in self.track_adhesion))
 
-    def fill_table(self) -> tuple[list[float], list[float]]:
-        """Return the cylinder filling characteristic: times [s], p / p_max."""
+    def fill_table(self, regime: str = '') -> tuple[list[float], list[float]]:
+        """Return the filling characteristic of ``regime`` (brake_regime): times [s], p/p_max."""
         if self.cylinder_fill_time:
             return list(self.cylinder_fill_time), list(self.cylinder_fill_fraction)
-        times = P_FILL_TIME if self.brake_regime == 'P' else G_FILL_TIME
+        times = P_FILL_TIME if (regime or self.brake_regime) == 'P' else G_FILL_TIME
         return list(times), list(P_FILL_FRACTION)
 
-    def release_table(self) -> tuple[list[float], list[float]]:
-        """Return the cylinder release characteristic: times [s], p / p_max."""
+    def release_table(self, regime: str = '') -> tuple[list[float], list[float]]:
+        """Return the release characteristic of ``regime`` (brake_regime): times [s], p/p_max."""
         if self.cylinder_release_time:
             return list(self.cylinder_release_time), list(self.cylinder_release_fraction)
-        times = P_RELEASE_TIME if self.brake_regime == 'P' else G_RELEASE_TIME
+        times = P_RELEASE_TIME if (regime or self.brake_regime) == 'P' else G_RELEASE_TIME
         return list(times), list(P_RELEASE_FRACTION)
 
     @property
@@ -346,7 +346,6 @@ class SimConfig:
         # the uniform train's vehicles (and the defaults of a consist's)
         check_friction_below_stiffness(self.values)
         check_traction_power(self.values)
-        self._check_regimes()
         if not (self.full_service_pressure + self.distributor_sensitivity
                 < self.pipe_nominal_pressure):
             raise ConfigError('full_service_pressure + distributor_sensitivity must be below '
@@ -433,15 +432,6 @@ class SimConfig:
                 f'vehicles (about {MAX_PERIOD_SECONDS:g} s of work per period: signals and '
                 'callbacks are served between periods); lower integration_max_steps '
                 '(the rest of a period runs at the fixed integration_step)')
-
-    def _check_regimes(self) -> None:
-        """Refuse vehicles of mixed brake regimes unless both cylinder tables are given."""
-        regimes = sorted(set(self.consist.regimes))
-        if len(regimes) > 1 and not (self.cylinder_fill_time and self.cylinder_release_time):
-            raise ConfigError(f'{self.consist_file}: brake_regime: the vehicles mix regimes '
-                              f'({", ".join(regimes)}), and the cylinder characteristics are '
-                              'one per train: give every vehicle the same brake_regime, or set '
-                              'cylinder_fill_time/_fraction and cylinder_release_time/_fraction')
 
 
 def check_output_grid(rate: float, h: float) -> None:
