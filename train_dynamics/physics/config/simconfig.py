@@ -30,7 +30,7 @@ from train_dynamics.physics.config.consist import (check_friction_below_stiffnes
 from train_dynamics.physics.config.files import simulator_params
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERVICE_PRESSURE,
-                                                 G_FILL_TIME, G_RELEASE_TIME,
+                                                 G_FILL_TIME, G_RELEASE_TIME, INSHOT_PRESSURE,
                                                  INTEGRATION_TOLERANCE, MULTIRATE_REVERSAL_WEIGHT,
                                                  MULTIRATE_TOLERANCE,
                                                  P_FILL_FRACTION,
@@ -98,7 +98,7 @@ class SimConfig:
     main_reservoir_pressure: float = 900000.0         # gauge [Pa]
     brake_system: str = 'pneumatic'                   # 'pneumatic', 'ep' or 'ecp'
     emergency_accelerator: bool = True                # vehicle field: accelerator fitted
-    inshot_pressure: float = 0.0                      # vehicle field: first stage [Pa]
+    inshot_pressure: float = INSHOT_PRESSURE          # vehicle field: first stage [Pa]
     cylinder_dead_volume: float = 0.008               # vehicle field: pistons in [m^3]
     piston_stroke: float = 0.0                        # vehicle field: [m]; 0 = fixed volume
     remote: bool = False                              # vehicle field: DP remote locomotive
