@@ -242,8 +242,7 @@ def trace_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gprof
                    fbt, tet, ctl, scr, log, cnt):
     """:func:`adaptive.advance_adaptive` through the traced :func:`_chain_to`."""
     held = np.empty(coach.shape[1], dtype=np.bool_)
-    tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
-                                   rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
+    tables = brakes.make_tables(fill, rel)
     if iv[CACHE.WS_VALID] == 0:
         brakes.delay_split(coach[VEHICLE.DELAY], ws[WORK.K0], ws[WORK.FRAC])
         r = iv[CLOCK.TICK] % fbt.shape[0]

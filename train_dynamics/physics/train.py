@@ -24,9 +24,7 @@ import itertools
 import numpy as np
 
 from train_dynamics.physics import blending, ed_force, equilibrium, friction, pneumatic
-from train_dynamics.physics.config import (Consist, G_FILL_TIME, G_RELEASE_TIME,
-                                           P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
-                                           P_RELEASE_TIME, SimConfig)
+from train_dynamics.physics.config import Consist, SimConfig
 from train_dynamics.physics.config.consist import check_friction_below_stiffness
 from train_dynamics.physics.config.table import KERNEL_ROWS
 from train_dynamics.physics.kernel import brakes, wheelset
@@ -152,7 +150,7 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         """Set up the brake system (eq. 13): mode, cylinder tables, pipe delays, pneumatics."""
         n = self.n
         self.mode = brakes.MODE_CODES[cfg.brake_input]
-        self.fill, self.rel = _cylinder_tables(cfg, consist)
+        self.fill, self.rel, self.table_set = _cylinder_tables(cfg, consist)
         if cfg.consist_file:     # the pipe runs along the vehicles' lengths
             ahead = np.concatenate(([0.0], np.cumsum(consist['length'][:-1])))
             self.delays = ahead / float(cfg.brake_propagation_speed)
@@ -200,6 +198,7 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         c[VEHICLE.FRONT0] = self.track.fronts(consist['length'])
         c[VEHICLE.DELAY] = self.delays / self.h
         c[VEHICLE.WHEEL_MASS] = consist['wheelset_inertia'] / consist['wheel_radius'] ** 2
+        c[VEHICLE.TABLE] = self.table_set
         sc, iv = self.sc, self.iv
         sc[[PARAM.H, PARAM.PMAX, PARAM.MU, PARAM.G, PARAM.PNOM, PARAM.PFS, PARAM.SENS,
             PARAM.YLIM, PARAM.TOL, PARAM.FFLOOR]] = [
@@ -573,20 +572,20 @@ def _cylinder_fields(consist: Consist) -> dict[str, np.ndarray]:
             'spring_pressure': np.where(moving, consist['brake_spring_force'] / safe, 0.0)}
 
 
-def _cylinder_tables(cfg: SimConfig, consist: Consist) -> tuple[np.ndarray, np.ndarray]:
+def _cylinder_tables(cfg: SimConfig,
+                     consist: Consist) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
-    Return the filling and release tables of the train's brake regime.
+    Return the filling and release tables of the train's brake regimes, and each vehicle's.
 
-    The parameters' own tables when set; else the regime of the vehicles (all the same: a
-    train of mixed regimes gives both tables) or of ``brake_regime``.
+    One table set per regime present (the vehicles', or ``brake_regime``), P before G:
+    fill, rel (2 R, L), rows 2 k, 2 k + 1 the times [s] and p/p_max of set k, and the set
+    of each vehicle (float, N). A regime's set is the parameters' own table when set (one
+    for every vehicle), else the regime's standard one (config/table.py: UIC 540 P, and G
+    the same shape six times slower), so a GP or LL train fills each vehicle by its own
+    regime (SimConfig.fill_table, release_table).
     """
-    regimes = set(consist.regimes)
-    # vehicles of mixed regimes have both tables given (SimConfig refuses them otherwise)
-    regime = regimes.pop() if len(regimes) == 1 else cfg.brake_regime
-    fill_t = P_FILL_TIME if regime == 'P' else G_FILL_TIME
-    rel_t = P_RELEASE_TIME if regime == 'P' else G_RELEASE_TIME
-    fill = (list(cfg.cylinder_fill_time), list(cfg.cylinder_fill_fraction)) \
-        if cfg.cylinder_fill_time else (fill_t, P_FILL_FRACTION)
-    rel = (list(cfg.cylinder_release_time), list(cfg.cylinder_release_fraction)) \
-        if cfg.cylinder_release_time else (rel_t, P_RELEASE_FRACTION)
-    return np.asarray(fill, dtype=float), np.asarray(rel, dtype=float)
+    regimes = sorted(set(consist.regimes) or {cfg.brake_regime}, reverse=True)   # P, G
+    fills = [row for r in regimes for row in cfg.fill_table(r)]
+    rels = [row for r in regimes for row in cfg.release_table(r)]
+    which = np.array([regimes.index(r) for r in consist.regimes], dtype=float)
+    return np.asarray(fills, dtype=float), np.asarray(rels, dtype=float), which

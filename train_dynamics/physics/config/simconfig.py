@@ -31,7 +31,7 @@ from train_dynamics.physics.config.files import simulator_params
 from train_dynamics.physics.config.integrator import DEFAULT_INTEGRATOR, Integration, resolve
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERVICE_PRESSURE,
-                                                 G_FILL_TIME, G_RELEASE_TIME,
+                                                 G_FILL_TIME, G_RELEASE_TIME, INSHOT_PRESSURE,
                                                  INTEGRATION_TOLERANCE, MULTIRATE_REVERSAL_WEIGHT,
                                                  MULTIRATE_TOLERANCE,
                                                  P_FILL_FRACTION,
@@ -99,7 +99,7 @@ class SimConfig:
     main_reservoir_pressure: float = 900000.0         # gauge [Pa]
     brake_system: str = 'pneumatic'                   # 'pneumatic', 'ep' or 'ecp'
     emergency_accelerator: bool = True                # vehicle field: accelerator fitted
-    inshot_pressure: float = 0.0                      # vehicle field: first stage [Pa]
+    inshot_pressure: float = INSHOT_PRESSURE          # vehicle field: first stage [Pa]
     cylinder_dead_volume: float = 0.008               # vehicle field: pistons in [m^3]
     piston_stroke: float = 0.0                        # vehicle field: [m]; 0 = fixed volume
     remote: bool = False                              # vehicle field: DP remote locomotive
@@ -309,18 +309,18 @@ class SimConfig:
         return bool(self.wheelsets or self.wsp != 'none'
                     or any(a < track.DRY_ADHESION for a in self.track_adhesion))
 
-    def fill_table(self) -> tuple[list[float], list[float]]:
-        """Return the cylinder filling characteristic: times [s], p / p_max."""
+    def fill_table(self, regime: str = '') -> tuple[list[float], list[float]]:
+        """Return the filling characteristic of ``regime`` (brake_regime): times [s], p/p_max."""
         if self.cylinder_fill_time:
             return list(self.cylinder_fill_time), list(self.cylinder_fill_fraction)
-        times = P_FILL_TIME if self.brake_regime == 'P' else G_FILL_TIME
+        times = P_FILL_TIME if (regime or self.brake_regime) == 'P' else G_FILL_TIME
         return list(times), list(P_FILL_FRACTION)
 
-    def release_table(self) -> tuple[list[float], list[float]]:
-        """Return the cylinder release characteristic: times [s], p / p_max."""
+    def release_table(self, regime: str = '') -> tuple[list[float], list[float]]:
+        """Return the release characteristic of ``regime`` (brake_regime): times [s], p/p_max."""
         if self.cylinder_release_time:
             return list(self.cylinder_release_time), list(self.cylinder_release_fraction)
-        times = P_RELEASE_TIME if self.brake_regime == 'P' else G_RELEASE_TIME
+        times = P_RELEASE_TIME if (regime or self.brake_regime) == 'P' else G_RELEASE_TIME
         return list(times), list(P_RELEASE_FRACTION)
 
     @property
@@ -355,7 +355,6 @@ class SimConfig:
         # the uniform train's vehicles (and the defaults of a consist's)
         check_friction_below_stiffness(self.values)
         check_traction_power(self.values)
-        self._check_regimes()
         if not (self.full_service_pressure + self.distributor_sensitivity
                 < self.pipe_nominal_pressure):
             raise ConfigError('full_service_pressure + distributor_sensitivity must be below '
@@ -442,15 +441,6 @@ class SimConfig:
                 f'vehicles (about {MAX_PERIOD_SECONDS:g} s of work per period: signals and '
                 'callbacks are served between periods); lower integration_max_steps '
                 '(the rest of a period runs at the fixed integration_step)')
-
-    def _check_regimes(self) -> None:
-        """Refuse vehicles of mixed brake regimes unless both cylinder tables are given."""
-        regimes = sorted(set(self.consist.regimes))
-        if len(regimes) > 1 and not (self.cylinder_fill_time and self.cylinder_release_time):
-            raise ConfigError(f'{self.consist_file}: brake_regime: the vehicles mix regimes '
-                              f'({", ".join(regimes)}), and the cylinder characteristics are '
-                              'one per train: give every vehicle the same brake_regime, or set '
-                              'cylinder_fill_time/_fraction and cylinder_release_time/_fraction')
 
 
 def check_output_grid(rate: float, h: float) -> None:

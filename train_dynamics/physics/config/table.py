@@ -20,6 +20,7 @@ from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, Config
                                                 DOUBLE_ARRAY, EQUAL_FORCE, INTEGER, ParamSpec,
                                                 SERIES, STRING)
 from train_dynamics.physics.config.table_ends import END_AND_RESISTANCE_PARAMS
+from train_dynamics.physics.pneumatic import INSHOT_PRESSURE
 from train_dynamics.quoting import quote
 
 # Pressure defaults, written once (used by the simulator and the brake valve).
@@ -204,11 +205,12 @@ _PARAMS = [
               'default: UIC passenger and freight distributors carry one in service; false '
               'for a vehicle without.', vehicle='emergency_accelerator'),
     # Cylinders and distributor first stage of the pneumatic brake (physics/pneumatic.py).
-    ParamSpec('inshot_pressure', 0.0, DOUBLE,
+    ParamSpec('inshot_pressure', INSHOT_PRESSURE, DOUBLE,
               'Pneumatic: distributor first stage (inshot; UIC 540 / EN 15355 "first stage" of '
               'the cylinder pressure): an applied distributor fills its cylinder through an '
               'extra port up to this gauge pressure [Pa] (rigging slack taken up quickly, '
-              'typically 0.4-0.7 bar); 0 = none (the calibrated UIC fill times).',
+              'typically 0.4-0.7 bar; the UIC fill times are calibrated with 0.4 bar); 0 = '
+              'none.',
               low=0.0, high=2.0e5, vehicle='inshot_pressure'),
     ParamSpec('cylinder_dead_volume', 0.008, DOUBLE,
               'Pneumatic: volume of the brake cylinders of the vehicle with the pistons '

@@ -85,7 +85,8 @@ def brake_system_step(coach, sc, iv, ring, tables, ws):
     else:
         brakes.distributor_target(p_pipe, coach[STATE.APPLIED], sc[PARAM.PNOM],
                                   sc[PARAM.PFS], sc[PARAM.SENS], p_max, target)
-        brakes.cylinder_advance(p_cyl, target, sc[PARAM.H], p_max, tables)
+        brakes.cylinder_advance(p_cyl, target, sc[PARAM.H], p_max, tables,
+                                coach[VEHICLE.TABLE])
 
 
 @jit(inline=True)
