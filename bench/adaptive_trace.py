@@ -37,7 +37,8 @@ import numpy as np  # noqa: E402
 
 from train_dynamics.physics.kernel import active_set, brakes, couplers  # noqa: E402
 from train_dynamics.physics.kernel import adaptive as ad  # noqa: E402
-from train_dynamics.physics.kernel import coupler_rows as rows, ros2, step as it  # noqa: E402
+from train_dynamics.physics.kernel import coupler_rows as rows, step as it  # noqa: E402
+from train_dynamics.physics.kernel import rosenbrock2  # noqa: E402
 from train_dynamics.physics.kernel.compiler import jit  # noqa: E402
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, CONTROL,  # noqa: E402
                                                   COUNT, COUPLER, OPTION, PARAM, STATE, TOTAL,
@@ -57,7 +58,7 @@ def _err(h, coach, cpl, model, u, held, ws, tol, f_floor, mode, scr, info):
     dfdy = ws[WORK.DFDY]
     kk = ws[WORK.KK]
     F0 = ws[WORK.F]
-    gh = ros2.GAMMA * h
+    gh = rosenbrock2.GAMMA * h
     cx = h - gh
     n = b1.shape[0]
     m = n - 1
@@ -177,7 +178,8 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
             h = h_tick
         hs = ad._landing_step(h, rem)
         if hs != sc[CONTROL.HEVAL]:
-            rows.eval_couplers(coach[STATE.X], coach[STATE.V], cpl, model, u, ros2.GAMMA * hs, ws)
+            rows.eval_couplers(coach[STATE.X], coach[STATE.V], cpl, model, u,
+                               rosenbrock2.GAMMA * hs, ws)
             sc[CONTROL.HEVAL] = hs
         ad._tick_means(fbt, tet, ka, s / h_tick, (s + hs) / h_tick, ws)
         if ext:
@@ -225,7 +227,7 @@ def _chain_to(coach, cpl, sc, iv, ws, gprof, cprof, fbt, tet, held, ctl, scr, lo
             h = max(min(h, h_max), ad.H_MIN)
             sc[CONTROL.HPROP] = h
         hn = ad._landing_step(h, total - s) if s < total else h
-        sc[TOTAL.WC] += rows.eval_couplers_work(coach, cpl, model, u, ros2.GAMMA * hn, ws)
+        sc[TOTAL.WC] += rows.eval_couplers_work(coach, cpl, model, u, rosenbrock2.GAMMA * hn, ws)
         sc[CONTROL.HEVAL] = hn
     iv[CLOCK.CHAIN_TICK] = kb
     iv[COUNT.NSTEPS] += steps
@@ -240,8 +242,7 @@ def trace_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gprof
                    fbt, tet, ctl, scr, log, cnt):
     """:func:`adaptive.advance_adaptive` through the traced :func:`_chain_to`."""
     held = np.empty(coach.shape[1], dtype=np.bool_)
-    tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
-                                   rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
+    tables = brakes.make_tables(fill, rel)
     if iv[CACHE.WS_VALID] == 0:
         brakes.delay_split(coach[VEHICLE.DELAY], ws[WORK.K0], ws[WORK.FRAC])
         r = iv[CLOCK.TICK] % fbt.shape[0]
@@ -251,7 +252,7 @@ def trace_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gprof
         sc[CONTROL.HEVAL] = -1.0
         if iv[CLOCK.TICK] == 0:
             rows.eval_couplers(coach[STATE.X], coach[STATE.V], cpl, iv[OPTION.MODEL],
-                               sc[PARAM.U], ros2.GAMMA * sc[PARAM.H], ws)
+                               sc[PARAM.U], rosenbrock2.GAMMA * sc[PARAM.H], ws)
         iv[CACHE.WS_VALID] = 1
     land = iv[OPTION.LAND]
     for k in range(n_ticks):

@@ -97,6 +97,9 @@ BRAKE_DEMAND_TOPIC = 'brake_demand'
 BRAKE_EMERGENCY_TOPIC = 'brake_emergency'
 #: the ED brake of every motor car lost (line breaker trip): >= 0.5 tripped, < 0.5 restored
 ED_TRIP_TOPIC = 'ed_brake/trip'
+#: ``blending: external``: the ED brake force [N, >= 0] commanded of motor car i
+#: (physics/ed_force.py), ``.format(i=<1-based vehicle>)``
+ED_FORCE_TOPIC = 'coach_{i}/ed_brake/force'
 #: the brake control unit's outputs (fields: recording/output_specs.py)
 BRAKE_BLENDING_TOPIC = 'brake_blending'
 BRAKE_DEMAND_STATE_TOPIC = 'brake_demand/state'
@@ -113,6 +116,11 @@ def input_topic(mode: str, coach: int | None = None) -> str:
 def traction_topic(vehicle: int) -> str:
     """Return the traction-command topic of ``vehicle`` (1-based)."""
     return TRACTION_TOPIC.format(i=vehicle)
+
+
+def ed_force_topic(vehicle: int) -> str:
+    """Return the ED force command topic of motor car ``vehicle`` (1-based)."""
+    return ED_FORCE_TOPIC.format(i=vehicle)
 
 
 def wsp_valve_topic(vehicle: int) -> str:

@@ -29,9 +29,14 @@ def offline(*args) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, cwd=ROOT)
 
 
-def wait_for(predicate, timeout: float, what: str) -> None:
+def wait_for(predicate, timeout: float, what: str, proc: subprocess.Popen | None = None) -> None:
+    """Wait until ``predicate()``; fail at once, with its output, if ``proc`` has ended."""
     deadline = time.monotonic() + timeout
     while not predicate():
+        if proc is not None and proc.poll() is not None:
+            out, err = proc.communicate()
+            raise AssertionError(f'the command ended (status {proc.returncode}) before '
+                                 f'{what}:\n{out}\n{err}')
         assert time.monotonic() < deadline, f'timed out waiting for {what}'
         time.sleep(0.05)
 
@@ -62,10 +67,11 @@ def staged_bytes(parent: Path, name: str) -> int:
 @pytest.mark.parametrize('signum, code', [(signal.SIGINT, 130), (signal.SIGTERM, 143)])
 def test_simulate_signal_stops_within_a_second_and_keeps_the_bag(tmp_path, signum, code):
     out = tmp_path / 'run'
-    proc = offline('simulate', '--params', PAPER, '--duration', 100000, '--output', out, '-q')
+    # 30000 s: "until the signal", under the 10 GB a bag may take without --allow-large
+    proc = offline('simulate', '--params', PAPER, '--duration', 30000, '--output', out, '-q')
     # running: the staged bag grows (past the kernels' loading or compiling)
     _, err, took = signal_when(proc, signum, lambda: wait_for(
-        lambda: staged_bytes(tmp_path, 'run') > 2_000_000, 600, 'a growing bag'))
+        lambda: staged_bytes(tmp_path, 'run') > 2_000_000, 600, 'a growing bag', proc))
     assert proc.returncode == code, err
     assert took < 1.0, took
     lines = err.strip().splitlines()
@@ -92,7 +98,7 @@ def test_sweep_signal_stops_within_a_second_and_keeps_finished_cases(tmp_path):
                    '--workers', 1, '--no-figures', '-q')
     try:
         wait_for(lambda: len(list((out / 'cases').glob('case_*.json'))) >= 1
-                 if (out / 'cases').exists() else False, 600, 'a finished case')
+                 if (out / 'cases').exists() else False, 600, 'a finished case', proc)
         t0 = time.monotonic()
         proc.send_signal(signal.SIGTERM)
         _, err = proc.communicate(timeout=60)
@@ -126,10 +132,10 @@ def test_simulate_at_a_tolerance_no_step_meets_stops_within_a_second(tmp_path, s
         f'    integration_max_steps: {max_period_steps(3)}').replace(
         '"1.0:emergency"', '"12.0:emergency"'))
     out = tmp_path / 'run'
-    proc = offline('simulate', '--params', params, '--duration', 100000, '--output', out, '-q')
+    proc = offline('simulate', '--params', params, '--duration', 30000, '--output', out, '-q')
 
     def ready():
-        wait_for(lambda: staged_bytes(tmp_path, 'run') > 200_000, 600, 'a growing bag')
+        wait_for(lambda: staged_bytes(tmp_path, 'run') > 200_000, 600, 'a growing bag', proc)
         time.sleep(1.0)                        # braking from t = 12 s: every step rejected
 
     _, err, took = signal_when(proc, signum, ready)

@@ -21,9 +21,8 @@ from train_dynamics.recording.plots import png_size
 from train_dynamics.simulation.runner import InputSchedule, run_simulation, traction_schedule
 import yaml
 
-PAPER = os.path.join(
-    os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
-    'config', 'paper_3coach.yaml')
+PAPER = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config',
+                     'paper_3coach.yaml')
 FIGURES = ('force_envelope.png', 'worst_force.png', 'vehicles.png', 'coupler_force.png',
            'coaches.png')
 
@@ -142,7 +141,7 @@ def test_report_reads_slack_and_strokes_from_the_consist_as_the_simulator_does(t
 
 
 def test_report_fatigue_counts_every_sample_of_the_bag(tmp_path):
-    """Report --fatigue: each coupler's DEL and cycle count equal the whole history's."""
+    """Check report --fatigue: each coupler's DEL and cycle count equal the whole history's."""
     import numpy as np
 
     from train_dynamics.physics.fatigue import cycle_count, damage_equivalent_load, rainflow

@@ -2,7 +2,7 @@
 Hostile configurations: sizes bounded before memory is used, bounded quotes, refused trains.
 
 Consist files with huge counts, long files, alias bombs; output periods and vehicle lengths
-the memory estimate must see; live sets that fail in any way; mixed brake regimes, force
+the memory estimate must see; live sets that fail in any way; mixed brake regimes (run), force
 limits without power, a traction schedule without a locomotive. Each is refused with one
 line naming the value and the limit (exit 2 offline), quickly and in little memory.
 """
@@ -195,23 +195,16 @@ def test_item3_missing_file_named_by_a_huge_value_is_quoted_bounded():
 MIXED = 'vehicles: [{type: paper_coach}, {type: paper_coach, brake_regime: G}]\n'
 
 
-def test_item9_mixed_regimes_are_a_config_error_naming_the_file_exit_2(tmp_path, capsys):
+def test_mixed_regimes_run_with_or_without_their_own_cylinder_tables(tmp_path):
+    """A consist mixing P and G runs: each vehicle on its regime's tables, or on the given."""
     c = consist_file(tmp_path / 'mixed.yaml', MIXED)
-    with pytest.raises(ConfigError, match='mix regimes') as exc:
-        SimConfig.from_dict({'consist_file': c})
-    assert 'mixed.yaml' in str(exc.value)
-    p = params_file(tmp_path / 'p.yaml', f'    consist_file: {c}\n')
-    code, err = run_cli(capsys, 'simulate', '--params', p, '--duration', 1, '--output',
-                        tmp_path / 'out', '-q')
-    assert_one_line_error(code, err)
-    assert 'mixed.yaml' in err[0] and 'regime' in err[0]
-    # with both characteristics given the train runs (one table for all)
+    assert TrainSimulator(SimConfig.from_dict({'consist_file': c})).advance(10) == 10
     both = {'consist_file': c, 'cylinder_fill_time': [0.0, 5.0],
             'cylinder_fill_fraction': [0.0, 1.0], 'cylinder_release_time': [0.0, 20.0],
             'cylinder_release_fraction': [1.0, 0.0]}
     assert TrainSimulator(SimConfig.from_dict(both)).advance(10) == 10
-    with pytest.raises(ConfigError, match='mix regimes'):     # one table is not enough
-        SimConfig.from_dict({k: v for k, v in both.items() if 'release' not in k})
+    fill_only = {k: v for k, v in both.items() if 'release' not in k}
+    assert TrainSimulator(SimConfig.from_dict(fill_only)).advance(10) == 10
 
 
 @pytest.mark.parametrize('text, values', [

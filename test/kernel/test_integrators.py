@@ -3,7 +3,7 @@ import numpy as np
 from physics_helpers import paper_reference, paper_sim, record
 import pytest
 
-from train_dynamics.physics.kernel import couplers, ros2, step
+from train_dynamics.physics.kernel import couplers, rosenbrock2, step
 from train_dynamics.physics.kernel.layout import COACH, VEHICLE, WORK
 
 T_END = 12.0   # the brake wave, the buffer shock and the oscillations after it
@@ -26,7 +26,7 @@ def test_stage_solve_matches_dense_solve_with_held_coaches():
     rng = np.random.default_rng(3)
     n, h = 9, 2e-3
     m = n - 1
-    gh = ros2.GAMMA * h
+    gh = rosenbrock2.GAMMA * h
     masses = rng.uniform(3e4, 6e4, n)
     F, dfdy, kk = rng.normal(0, 1e5, m), rng.uniform(1e6, 8e6, m), rng.uniform(0, 1e5, m)
     v, brake = rng.uniform(10.0, 11.0, n), rng.uniform(0.0, 4e4, n)
@@ -40,8 +40,8 @@ def test_stage_solve_matches_dense_solve_with_held_coaches():
     ws = step.make_workspace(n)
     ws[WORK.F, :m], ws[WORK.DFDY, :m], ws[WORK.KK, :m] = F, dfdy, kk
     ws[WORK.VSTART], ws[WORK.SIGNED] = v, brake
-    ros2.ros2_step(h, coach, cpl, couplers.TANH, 1000.0, held, ws, 0, 0,
-                   np.zeros((3, 0)))
+    rosenbrock2.ros2_step(h, coach, cpl, couplers.TANH, 1000.0, held, ws, 0, 0,
+                          np.zeros((3, 0)))
     D = np.eye(n)[:-1] - np.eye(n, k=1)[:-1]          # y = D x
     A = np.diag(masses) + D.T @ np.diag(kk) @ D
     rhs = -D.T @ F - gh * D.T @ (dfdy * (D @ v))

@@ -10,7 +10,7 @@ from train_dynamics.physics.config import load_param_file, SimConfig
 from train_dynamics.physics.kernel import multirate
 from train_dynamics.physics.kernel.coupler_rows import eval_couplers
 from train_dynamics.physics.kernel.layout import COUPLER, OPTION, PARAM, STATE, VEHICLE, WORK
-from train_dynamics.physics.kernel.ros2 import GAMMA, ros2_step
+from train_dynamics.physics.kernel.rosenbrock2 import GAMMA, ros2_step
 from train_dynamics.physics.reference import HeadVentBraking
 from train_dynamics.physics.train import TrainSimulator
 

@@ -75,9 +75,11 @@ def test_piston_travel_time_at_the_choked_application_choke():
     The cylinder holds the spring pressure while the pistons travel out.
 
     For m_s / w seconds: m_s = (patm + p_s) Vs / (R T) the air the stroke takes, w = A_app
-    p_AR psi* / sqrt(R T) the choked flow from the auxiliary reservoir (p_C / p_AR < 0.53).
+    p_AR psi* / sqrt(R T) the choked flow from the auxiliary reservoir (p_C / p_AR < 0.53);
+    without the first stage (its port would feed the travel too).
     """
-    t, cyl, aux = emergency_trace(dead_volume=V0, stroke_volume=VS, spring_pressure=PS)
+    t, cyl, aux = emergency_trace(dead_volume=V0, stroke_volume=VS, spring_pressure=PS,
+                                  inshot=0.0)
     at_spring = np.abs(cyl - PS) < 1.0
     travel = np.count_nonzero(at_spring) * H
     p_ar = np.mean(aux[at_spring]) + PATM
@@ -88,14 +90,30 @@ def test_piston_travel_time_at_the_choked_application_choke():
     # so the fill time grows: 95 % of p_max later than with a fixed cylinder of V0 + Vs
     # filled from the start
     t95 = t[np.argmax(cyl >= 0.95 * P_MAX)]
-    t_fixed, cyl_fixed, _ = emergency_trace(dead_volume=V0 + VS)
+    t_fixed, cyl_fixed, _ = emergency_trace(dead_volume=V0 + VS, inshot=0.0)
     assert t95 > t_fixed[np.argmax(cyl_fixed >= 0.95 * P_MAX)]
+
+
+def test_distributors_have_the_uic_first_stage_by_default_and_keep_the_uic_fill_times():
+    """Default 0.4 bar first stage (UIC 540 / EN 15355); P 95 % at 4.0 s, G at 24.0 s."""
+    assert pn.PneumaticSpec().inshot_pressure == pn.INSHOT_PRESSURE == 40000.0
+    for regime, seconds, t95 in (('P', 12.0, 4.0), ('G', 60.0, 24.0)):
+        brake = pn.PneumaticBrake([25.0], [P_MAX], [regime], H)
+        brake.set_command(0.0)
+        cyl = np.zeros(int(round(seconds / H)))
+        for k in range(cyl.size):
+            brake.advance(1)
+            cyl[k] = brake.cylinder_pressure[0]
+        assert (np.argmax(cyl >= 0.95 * cyl[-1]) + 1) * H == pytest.approx(t95, abs=0.05)
+        # the first stage: 0.4 bar within 0.2 s in either regime (0.13 s P, 0.16 s G;
+        # through the application choke alone 0.47 s and 2.7 s)
+        assert (np.argmax(cyl >= 0.4e5) + 1) * H < 0.2
 
 
 def test_first_stage_fills_through_the_inshot_port_up_to_its_pressure():
     """With inshot, the first 0.5 bar fill through the choke and the inshot port together."""
     t, cyl, _ = emergency_trace(inshot=50000.0)
-    t0, cyl0, _ = emergency_trace()
+    t0, cyl0, _ = emergency_trace(inshot=0.0)
     first, first0 = t[np.argmax(cyl >= 0.4e5)], t0[np.argmax(cyl0 >= 0.4e5)]
     assert first < 0.6 * first0
     assert cyl[-1] == pytest.approx(cyl0[-1], rel=1e-3)      # the same final pressure
@@ -105,7 +123,7 @@ def test_vehicle_fields_reach_the_pneumatic_brake(tmp_path):
     """inshot_pressure, cylinder_dead_volume, piston_stroke per vehicle of a consist."""
     (tmp_path / 'c.yaml').write_text(f"""
 vehicles:
-  - {{type: passenger_coach, inshot_pressure: 40000.0, cylinder_dead_volume: {V0},
+  - {{type: passenger_coach, inshot_pressure: 60000.0, cylinder_dead_volume: {V0},
      piston_stroke: {STROKE}, brake_cylinder_area: {AREA}, brake_cylinders: {CYLINDERS},
      brake_spring_force: {SPRING}}}
   - {{type: passenger_coach}}
@@ -113,7 +131,7 @@ vehicles:
     sim = TrainSimulator(SimConfig.from_dict({'consist_file': str(tmp_path / 'c.yaml'),
                                               'brake_model': 'pneumatic'}))
     veh = sim.pneu.veh
-    assert veh[pk.V_INSHOT].tolist() == [40000.0, 0.0]
+    assert veh[pk.V_INSHOT].tolist() == [60000.0, pn.INSHOT_PRESSURE]
     assert veh[pk.V_VCYL].tolist() == [V0, 0.008]
     assert veh[pk.V_VSTROKE].tolist() == pytest.approx([VS, 0.0])
     assert veh[pk.V_PSPRING].tolist() == pytest.approx([PS, 0.0])

@@ -32,3 +32,20 @@ def test_shunting_single_calculation_within_5_percent():
     """Pfaff et al.'s 3-wagon P stop from 25 km/h (40.9 m) from its inputs, through our model."""
     row = validation.shunting_cases(quick=True)[0]
     assert abs(row.diff) <= 5.0, (row.published, row.ours)
+
+
+def test_gp_train_stops_alike_in_both_brake_models_and_within_the_block_law_gap():
+    """
+    [C&O] table 7, 1200 t GP from 30 km/h (published 58.4 m, cast iron P10).
+
+    The locomotive in G, the wagons in P: both models run it, each vehicle on its regime.
+    They agree within 5 % (the pneumatic distributors' first stage and calibrated chokes
+    against the empirical tables); both stop short of the published figure by the gap of
+    the cast-iron law calibrated at 100 km/h (docs/validation.md: 15-18 % in P, GP and LL).
+    """
+    rows = {r.case.split(', ')[-1]: r for r in validation.gp_case()}
+    empirical, pneumatic = rows['empirical'], rows['pneumatic']
+    assert abs(pneumatic.ours / empirical.ours - 1.0) <= 0.05, (empirical.ours, pneumatic.ours)
+    for row in (empirical, pneumatic):
+        assert row.published == 58.4
+        assert -20.0 <= row.diff <= -5.0, (row.case, row.ours)

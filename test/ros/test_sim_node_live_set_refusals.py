@@ -2,7 +2,7 @@
 ``sim_node`` under hostile live sets: every failure of a set is a rejection with a bounded reason.
 
 A consist of a hundred million vehicles, a check that fails with something other than a
-ValueError (MemoryError), a consist of mixed brake regimes, a masses list past the vehicle
+ValueError (MemoryError), a consist of mixed brake regimes (taken), a masses list past the vehicle
 limit: each set is refused at once with one line, the executor keeps answering and the
 running simulation is untouched.
 """
@@ -46,13 +46,12 @@ def test_item1_any_failure_of_a_set_check_is_a_rejection_never_a_traceback(harne
     assert node.simulator.n == 3 and _set(harness, {'num_coaches': 5})[0].successful
 
 
-def test_item9_live_consist_of_mixed_regimes_is_refused_at_set_time(tmp_path, harness):
+def test_item9_live_consist_of_mixed_regimes_is_taken_at_set_time(tmp_path, harness):
     mixed = tmp_path / 'mixed.yaml'
     mixed.write_text('vehicles: [{type: paper_coach}, {type: paper_coach, brake_regime: G}]\n')
     harness.start(real_time_factor=0.0)
     result, _ = _set(harness, {'consist_file': str(mixed)})
-    assert not result.successful and 'mixed.yaml' in result.reason
-    assert 'regime' in result.reason
+    assert result.successful, result.reason
 
 
 def test_item2_live_masses_past_the_limit_are_refused_and_logs_show_arrays_cut():

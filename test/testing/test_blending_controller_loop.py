@@ -30,6 +30,9 @@ def test_external_blending_loop_is_byte_identical_and_passes_its_criteria(tmp_pa
     runs = [run_scenario(SCENARIO, CONTROLLER, tmp_path / f'run{k}') for k in (1, 2)]
     for run in runs:
         assert run.returncode == 0 and not run.error and run.passed, run.report()
+        checked = {r.criterion.metric: r.value for r in run.results}
+        assert 0.0 < checked['blending.friction_share'] < 0.05
+        assert checked['blending.energy_regenerated'] > 2.5e7
     first, second = (_files(run.bag) for run in runs)
     assert first.keys() == second.keys()
     for name in first:

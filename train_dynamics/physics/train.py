@@ -23,13 +23,12 @@ import itertools
 
 import numpy as np
 
-from train_dynamics.physics import blending, equilibrium, friction, pneumatic
-from train_dynamics.physics.config import (Consist, G_FILL_TIME, G_RELEASE_TIME,
-                                           P_FILL_FRACTION, P_FILL_TIME, P_RELEASE_FRACTION,
-                                           P_RELEASE_TIME, SimConfig)
+from train_dynamics.physics import blending, ed_force, equilibrium, friction, pneumatic
+from train_dynamics.physics.config import Consist, SimConfig
 from train_dynamics.physics.config.consist import check_friction_below_stiffness
 from train_dynamics.physics.config.table import KERNEL_ROWS
-from train_dynamics.physics.kernel import adaptive, brakes, fixed_step, wheelset
+from train_dynamics.physics.kernel import brakes, wheelset
+from train_dynamics.physics.kernel.drivers import DRIVERS, KernelArrays
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, COACH, CONTROL, COUNT, COUPLER,
                                                   INPUT, INTEGER, OPTION, OUTPUT, PARAM, SCALAR,
                                                   SCALAR_INPUT, STATE, TABLE_ROWS, VEHICLE,
@@ -52,7 +51,7 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
     (:attr:`exact_inputs`), so a 1 kHz input reaches the model at 1 kHz whatever the step.
     Outputs are numpy arrays (copies). The state lives in the packed arrays of
     :mod:`train_dynamics.physics.kernel.layout` (``coach``, ``cpl``, ``sc``, ``iv``, ``ws``)
-    that :func:`fixed_step.advance_chain` advances in place.
+    that the method's driver (:mod:`~.kernel.drivers`) advances in place.
     """
 
     #: per-coupler constants that ``coupler_constants`` may override (arrays of N-1) and
@@ -100,10 +99,12 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         self.ws = make_workspace(n)
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
-        #: error-controlled chain (integration_tolerance > 0): the brake system keeps the
+        #: error-controlled chain (integrator adaptive): the brake system keeps the
         #: fixed tick h, the chain lands on every output instant (``land`` ticks)
-        self.tolerance = float(cfg.integration_tolerance)
-        self.adaptive = self.tolerance > 0.0
+        method, self.tolerance, _ = cfg.integration
+        self.adaptive = method == 'adaptive'
+        #: the method's driver: driver(n_steps, sync, KernelArrays) -> (steps, status)
+        self.driver = DRIVERS[method]
         self.land = _landing_ticks(float(cfg.publish_rate), self.h)
         self.tick_fb = np.zeros((self.land + 1, n))
         self.tick_te = np.zeros((self.land + 1, n))
@@ -117,8 +118,10 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         #: pipe_per_coach); the pipe-head delay line and the pneumatic brake run on the
         #: tick h: there an input at t acts from the first step k with k h >= t
         self.exact_inputs = self.pneu is None and self.mode != brakes.PIPE_HEAD
-        #: blending builtin: the brake control unit (physics/blending.py); None: friction only
+        #: blending builtin: the brake control unit (physics/blending.py), external: the ED
+        #: force commands (physics/ed_force.py); None: not that mode
         self.bcu = blending.BrakeControlUnit(self) if cfg.blending == 'builtin' else None
+        self.ed_force = ed_force.EdForceCommands(self) if cfg.blending == 'external' else None
 
     def _build_couplers(self, consist: Consist, coupler_constants: dict | None) -> None:
         """Fill ``cpl``: each connection's constants (eqs. 2-3, free play, strokes, K_b)."""
@@ -147,7 +150,7 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         """Set up the brake system (eq. 13): mode, cylinder tables, pipe delays, pneumatics."""
         n = self.n
         self.mode = brakes.MODE_CODES[cfg.brake_input]
-        self.fill, self.rel = _cylinder_tables(cfg, consist)
+        self.fill, self.rel, self.table_set = _cylinder_tables(cfg, consist)
         if cfg.consist_file:     # the pipe runs along the vehicles' lengths
             ahead = np.concatenate(([0.0], np.cumsum(consist['length'][:-1])))
             self.delays = ahead / float(cfg.brake_propagation_speed)
@@ -195,6 +198,7 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         c[VEHICLE.FRONT0] = self.track.fronts(consist['length'])
         c[VEHICLE.DELAY] = self.delays / self.h
         c[VEHICLE.WHEEL_MASS] = consist['wheelset_inertia'] / consist['wheel_radius'] ** 2
+        c[VEHICLE.TABLE] = self.table_set
         sc, iv = self.sc, self.iv
         sc[[PARAM.H, PARAM.PMAX, PARAM.MU, PARAM.G, PARAM.PNOM, PARAM.PFS, PARAM.SENS,
             PARAM.YLIM, PARAM.TOL, PARAM.FFLOOR]] = [
@@ -203,7 +207,7 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
             cfg.max_coupler_displacement, self.tolerance,
             1e-3 * float(np.max(self.masses)) * float(cfg.gravity)]
         sc[PARAM.FRICTION] = float(np.any(c[VEHICLE.MATERIAL] != friction.PAPER))
-        sc[PARAM.MRTOL] = float(cfg.multirate_tolerance)
+        sc[PARAM.MRTOL] = cfg.integration.multirate_tolerance
         sc[PARAM.MRVW] = float(cfg.multirate_reversal_weight)
         # braking force <= mu(v) m g; with wheelsets the creep law carries the limit
         sc[PARAM.ADHLIM] = float(bool(cfg.adhesion_limit) and not self.wheelsets)
@@ -263,8 +267,8 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         if bcu is not None:         # the track brakes off before the couplers settle
             bcu.track.restore()
         self._settle()
-        if bcu is not None:
-            bcu.reset()
+        for part in filter(None, (bcu, getattr(self, 'ed_force', None))):
+            part.reset()
 
     def _settle(self) -> None:
         """
@@ -427,16 +431,10 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         sc, iv = self.sc, self.iv
         sc[PARAM.H] = dt
         iv[CACHE.WS_VALID] = 0           # the couplers' rows (and tick ring) for this length
+        if self.adaptive:
+            iv[CLOCK.TICK] = iv[CLOCK.CHAIN_TICK] = tick0
         try:
-            if self.adaptive:
-                iv[CLOCK.TICK] = iv[CLOCK.CHAIN_TICK] = tick0
-                _, status = adaptive.advance_adaptive(
-                    1, True, self.coach, self.cpl, sc, iv, self.fill, self.rel, self.ring,
-                    self.ws, self.gprof, self.cprof, self.aprof, self.tick_fb, self.tick_te)
-            else:
-                _, status = fixed_step.advance_chain(1, self.coach, self.cpl, sc, iv,
-                                                     self.fill, self.rel, self.ring, self.ws,
-                                                     self.gprof, self.cprof, self.aprof)
+            _, status = self._kernel(1, True)
         finally:
             sc[PARAM.H] = self.h
             iv[CACHE.WS_VALID] = 0
@@ -488,15 +486,10 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         return done
 
     def _kernel(self, n_steps: int, sync: bool = False) -> tuple[int, int]:
-        """Run the fixed-step or the error-controlled kernel; return (steps, status)."""
-        if self.adaptive:
-            return adaptive.advance_adaptive(n_steps, sync, self.coach, self.cpl, self.sc,
-                                             self.iv, self.fill, self.rel, self.ring,
-                                             self.ws, self.gprof, self.cprof, self.aprof,
-                                             self.tick_fb, self.tick_te)
-        return fixed_step.advance_chain(n_steps, self.coach, self.cpl, self.sc, self.iv,
-                                        self.fill, self.rel, self.ring, self.ws, self.gprof,
-                                        self.cprof, self.aprof)
+        """Run the method's driver over the packed arrays; return (steps, status)."""
+        return self.driver(n_steps, sync, KernelArrays(
+            self.coach, self.cpl, self.sc, self.iv, self.fill, self.rel, self.ring, self.ws,
+            self.gprof, self.cprof, self.aprof, self.tick_fb, self.tick_te))
 
     def _sync(self) -> None:
         """Bring the error-controlled chain to the present tick (it lands on outputs)."""
@@ -579,20 +572,20 @@ def _cylinder_fields(consist: Consist) -> dict[str, np.ndarray]:
             'spring_pressure': np.where(moving, consist['brake_spring_force'] / safe, 0.0)}
 
 
-def _cylinder_tables(cfg: SimConfig, consist: Consist) -> tuple[np.ndarray, np.ndarray]:
+def _cylinder_tables(cfg: SimConfig,
+                     consist: Consist) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """
-    Return the filling and release tables of the train's brake regime.
+    Return the filling and release tables of the train's brake regimes, and each vehicle's.
 
-    The parameters' own tables when set; else the regime of the vehicles (all the same: a
-    train of mixed regimes gives both tables) or of ``brake_regime``.
+    One table set per regime present (the vehicles', or ``brake_regime``), P before G:
+    fill, rel (2 R, L), rows 2 k, 2 k + 1 the times [s] and p/p_max of set k, and the set
+    of each vehicle (float, N). A regime's set is the parameters' own table when set (one
+    for every vehicle), else the regime's standard one (config/table.py: UIC 540 P, and G
+    the same shape six times slower), so a GP or LL train fills each vehicle by its own
+    regime (SimConfig.fill_table, release_table).
     """
-    regimes = set(consist.regimes)
-    # vehicles of mixed regimes have both tables given (SimConfig refuses them otherwise)
-    regime = regimes.pop() if len(regimes) == 1 else cfg.brake_regime
-    fill_t = P_FILL_TIME if regime == 'P' else G_FILL_TIME
-    rel_t = P_RELEASE_TIME if regime == 'P' else G_RELEASE_TIME
-    fill = (list(cfg.cylinder_fill_time), list(cfg.cylinder_fill_fraction)) \
-        if cfg.cylinder_fill_time else (fill_t, P_FILL_FRACTION)
-    rel = (list(cfg.cylinder_release_time), list(cfg.cylinder_release_fraction)) \
-        if cfg.cylinder_release_time else (rel_t, P_RELEASE_FRACTION)
-    return np.asarray(fill, dtype=float), np.asarray(rel, dtype=float)
+    regimes = sorted(set(consist.regimes) or {cfg.brake_regime}, reverse=True)   # P, G
+    fills = [row for r in regimes for row in cfg.fill_table(r)]
+    rels = [row for r in regimes for row in cfg.release_table(r)]
+    which = np.array([regimes.index(r) for r in consist.regimes], dtype=float)
+    return np.asarray(fills, dtype=float), np.asarray(rels, dtype=float), which

@@ -28,6 +28,12 @@ from train_dynamics import topics
 from train_dynamics.recording.bags import read_topics
 
 
+#: the keys of the blending section, in order (``summary.json``'s ``blending``)
+BLENDING_KEYS = ('energy_regenerated', 'energy_friction', 'energy_track_brake',
+                 'friction_share', 'max_jerk', 'max_tracking_error', 'rms_tracking_error',
+                 'stopping_time', 'stopping_distance')
+
+
 def _arrays(bag: str, topic: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Return t [s], position, velocity, effort (samples x joints) of a JointState topic."""
     t, p, v, e = [], [], [], []

@@ -10,7 +10,8 @@ waits for (:data:`LOCKSTEP_INPUTS`); ``lockstep_answer`` says what answers:
 - ``clock``: a brake input stamped at or after the period's time (the node publishes
   ``/clock``; a controller on ``use_sim_time`` answers from its own timer).
 
-A ``std_msgs/Float64`` or ``Int8`` command (traction, EP, WSP valve) has no stamp: it answers
+A ``std_msgs/Float64`` or ``Int8`` command (traction, EP, WSP valve, the brake control
+unit's ``brake_demand``, ``brake_emergency``, ``ed_brake/trip``) has no stamp: it answers
 the latest output published before it arrived, in both.
 
 What the lock-step refuses, so that a run is the same on every run or ends saying why:
@@ -39,10 +40,11 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 
 from train_dynamics import topics
 from train_dynamics.physics.config import SIM_NODE_PARAMETERS
+from train_dynamics.ros.ed_force_inputs import motor_cars
 
 #: ``lockstep_inputs``: the controller inputs a lock-step period can wait for
 LOCKSTEP_INPUTS = SIM_NODE_PARAMETERS['lockstep_inputs'].choices
-BRAKE, TRACTION, EP, WSP = LOCKSTEP_INPUTS
+BRAKE, TRACTION, EP, WSP, BLENDING = LOCKSTEP_INPUTS
 #: declared lock-step inputs: reliable (a lost command would stall the loop until its timeout)
 LOCKSTEP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                           reliability=ReliabilityPolicy.RELIABLE,
@@ -61,9 +63,11 @@ def lockstep_input_error(cfg: Any, families: tuple[str, ...]) -> str | None:
     """
     why = {TRACTION: 'no locomotive takes traction commands',
            EP: 'brake_system is neither ep nor ecp',
-           WSP: 'wsp is not external'}
+           WSP: 'wsp is not external',
+           BLENDING: 'blending is neither builtin nor external with motor cars'}
     has = {TRACTION: bool(cfg.external_forces and cfg.consist.commanded),
-           EP: bool(cfg.ep_commanded), WSP: cfg.wsp == 'external'}
+           EP: bool(cfg.ep_commanded), WSP: cfg.wsp == 'external',
+           BLENDING: cfg.blending == 'builtin' or bool(motor_cars(cfg))}
     missing = [f for f in families if f != BRAKE and not has[f]]
     if not missing:
         return None
@@ -91,7 +95,7 @@ class LockstepInputs:
         """Declare the families a period waits for (empty: free running) and the answer rule."""
         self._ls_families = tuple(families)
         self._ls_clock = bool(clock)
-        for family, part in ((TRACTION, self.traction), (EP, self.ep), (WSP, self.wsp)):
+        for family, part in self._command_families():
             part.dedupe = family in families
             part.on_duplicate = self.duplicate
             part.set_qos(LOCKSTEP_QOS if family in families else self.free_qos)
@@ -100,8 +104,13 @@ class LockstepInputs:
     @property
     def duplicates(self) -> int:
         """Return the answers not used because their input had answered the output already."""
-        return (self.duplicates_brake + self.traction.duplicates + self.ep.duplicates
-                + self.wsp.duplicates)
+        return self.duplicates_brake + sum(part.duplicates
+                                           for _, part in self._command_families())
+
+    def _command_families(self) -> tuple[tuple[str, Any], ...]:
+        """Return (family, input part) of the unstamped command families."""
+        return ((TRACTION, self.traction), (EP, self.ep), (WSP, self.wsp),
+                (BLENDING, self.blending))
 
     # -- subscription callbacks (executor thread, input lock held) -------------------------
     def _duplicate_answer(self, last_ns: int, stamp_ns: int) -> bool:
@@ -129,16 +138,16 @@ class LockstepInputs:
     def output_published(self, t_ns: int) -> None:
         """Take note of an output stamped ``t_ns`` about to go out: Float64 commands answer it."""
         self._ls_period_ns = t_ns
-        self.traction.output_published(t_ns)
-        self.ep.output_published(t_ns)
-        self.wsp.output_published(t_ns)
+        for _, part in self._command_families():
+            part.output_published(t_ns)
 
     def unanswered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> list[str]:
         """
         Return the input topics of ``families`` whose applied input does not answer ``t_ns``.
 
         ``brake``: every active brake input holds a value stamped ``t_ns`` (``clock``: at or
-        after it); ``traction``, ``ep``, ``wsp``: the applied command (valve state) arrived
+        after it); ``traction``, ``ep``, ``wsp``, ``blending``: the applied command (valve
+        state, demand) arrived
         after the output stamped ``t_ns`` was published. Empty: every declared input answered.
         """
         out: list[str] = []
@@ -146,12 +155,9 @@ class LockstepInputs:
             stamps = self._applied_stamp
             missing = np.nonzero(stamps < t_ns if self._ls_clock else stamps != t_ns)[0]
             out += [self._buffer.topics[k] for k in missing[:10]]
-        if TRACTION in families:
-            out += self.traction.unanswered(t_ns)
-        if EP in families:
-            out += self.ep.unanswered(t_ns)
-        if WSP in families:
-            out += self.wsp.unanswered(t_ns)
+        for family, part in self._command_families():
+            if family in families:
+                out += part.unanswered(t_ns)
         return out
 
     def answered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> bool:
@@ -212,14 +218,14 @@ class LockstepInputs:
 
     def missing_inputs(self, families: tuple[str, ...]) -> list[str]:
         """Return the families of ``families`` this run has no input topic of."""
-        return [f for f in families if (f == TRACTION and not self.traction.active)
-                or (f == EP and not self.ep.active) or (f == WSP and not self.wsp.active)]
+        return [f for f, part in self._command_families()
+                if f in families and not part.active]
 
     def _lockstep_subscriptions(self, families: tuple[str, ...]) -> list[Any]:
         subs: list[Any] = []
         if BRAKE in families:
             subs += list(self._active)
-        for family, part in ((TRACTION, self.traction), (EP, self.ep), (WSP, self.wsp)):
+        for family, part in self._command_families():
             if family in families:
                 subs += part.subscriptions()
         return subs

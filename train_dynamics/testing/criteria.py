@@ -4,12 +4,17 @@ Acceptance criteria of a scenario file, checked against a run's metrics.
 A criterion names a metric of ``train-dynamics report`` (a key of ``summary.json``'s
 ``train``, :data:`METRICS`: ``stopping_distance`` [m], ``max_compression`` and ``max_tension``
 [N, positive], ``max_jerk`` [m/s^3], ``max_deceleration`` [m/s^2], ``stopped``,
-``blocking_count``, ...) and bounds it: ``{max: X}``, ``{min: X}``, both (``min <= max``), or
+``blocking_count``, ...) or of its brake blending (``blending.<key>``, a key of
+``summary.json``'s ``blending``, :data:`BLENDING_METRICS`: ``blending.friction_share``,
+``blending.max_jerk``, ``blending.max_tracking_error``, ``blending.energy_regenerated``, ...;
+the run's flat view is :func:`criteria_metrics`) and bounds it: ``{max: X}``, ``{min: X}``,
+both (``min <= max``), or
 ``{equals: X}`` alone. Bounds are finite numbers; ``equals`` is ``true``/``false`` for the
 yes/no metrics (:data:`BOOLEAN_METRICS`) and a finite number for the others. Anything else
 is refused when the scenario is read (:class:`ConfigError` naming the criterion): a criterion
 that could never fail, or never pass, tests nothing. A metric the run did not produce (None,
-e.g. ``stopping_distance`` of a train that did not stop) fails the criterion and says so.
+e.g. ``stopping_distance`` of a train that did not stop, or any ``blending.`` metric of a run
+without blending) fails the criterion and says so.
 """
 from __future__ import annotations
 
@@ -21,10 +26,15 @@ from typing import Any, Mapping
 from train_dynamics.physics.config import ConfigError
 from train_dynamics.physics.metrics import FLAT_KEYS, SLIDING_KEYS
 from train_dynamics.quoting import quote
+from train_dynamics.recording.blending_metrics import BLENDING_KEYS
 
 BOUNDS = ('min', 'max', 'equals')
-#: the run metrics a criterion may name: ``summary.json``'s ``train`` keys
-METRICS = FLAT_KEYS + SLIDING_KEYS
+#: the section prefix of the blending metrics in a criterion's name
+BLENDING = 'blending.'
+#: the blending metrics a criterion may name: ``summary.json``'s ``blending`` keys
+BLENDING_METRICS = tuple(BLENDING + key for key in BLENDING_KEYS)
+#: the run metrics a criterion may name: ``summary.json``'s ``train`` keys, then blending's
+METRICS = FLAT_KEYS + SLIDING_KEYS + BLENDING_METRICS
 #: the metrics that are true or false (``equals`` only)
 BOOLEAN_METRICS = ('stopped',)
 
@@ -125,6 +135,19 @@ def _finite(name: str, which: str, value: Any) -> None:
         finite = False
     if not finite:
         raise ConfigError(f'{name}: {which} {quote(value)} is not a finite number')
+
+
+def criteria_metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
+    """
+    Return the metrics criteria are checked against, from a ``summary.json`` document.
+
+    ``summary``'s ``train`` as it is, and its ``blending`` section (when the run blends) as
+    ``blending.<key>``.
+    """
+    out = dict(summary.get('train') or {})
+    out.update({BLENDING + key: value
+                for key, value in (summary.get('blending') or {}).items()})
+    return out
 
 
 def parse_criteria(spec: Any) -> list[Criterion]:

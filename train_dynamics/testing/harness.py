@@ -64,7 +64,7 @@ class RunResult:
     directory: Path
     bag: Path
     returncode: int | None             # sim_node's exit status (None: never started)
-    metrics: dict[str, Any]            # summary.json's ``train`` (empty if none)
+    metrics: dict[str, Any]            # summary.json's ``train``, blending.<key> (empty: none)
     results: list[CriterionResult]
     error: str = ''                    # why the run itself failed ('' if it did not)
     controller_returncode: int | None = None     # the controller command's exit status

@@ -20,6 +20,8 @@ import os
 from pathlib import Path
 from typing import Any
 
+from train_dynamics.testing.criteria import criteria_metrics
+
 
 def preload(cfg: Any = None) -> None:
     """
@@ -48,7 +50,10 @@ def preload(cfg: Any = None) -> None:
 def run_metrics(bag: Path, out: Path, namespace: str = '', figures: bool = False
                 ) -> dict[str, Any]:
     """
-    Return ``summary.json``'s ``train`` of ``bag``, written into ``out`` with ``summary.md``.
+    Return the criteria's metrics of ``bag``, written into ``out`` with ``summary.md``.
+
+    ``summary.json``'s ``train``, and its ``blending`` as ``blending.<key>``
+    (:func:`~train_dynamics.testing.criteria.criteria_metrics`).
 
     Raises :class:`train_dynamics.cli.errors.CliError` (one line) where ``train-dynamics
     report`` would refuse the bag.
@@ -60,7 +65,7 @@ def run_metrics(bag: Path, out: Path, namespace: str = '', figures: bool = False
                               coupler_force_limit=None, jerk_limit=None, quiet=True)
     if figures:
         report.cmd_report(args)
-        return json.loads((out / 'summary.json').read_text(encoding='utf-8'))['train']
+        return criteria_metrics(json.loads((out / 'summary.json').read_text(encoding='utf-8')))
     result, _, source = report.run_result(args, {})
     doc = {'source': {**source,
                       'figures': 'off (figures: true in the scenario to draw them)'},
@@ -68,7 +73,7 @@ def run_metrics(bag: Path, out: Path, namespace: str = '', figures: bool = False
     out.mkdir(parents=True, exist_ok=True)
     _write(out / 'summary.json', json.dumps(doc, indent=2, allow_nan=False) + '\n')
     _write(out / 'summary.md', summary_markdown(doc))
-    return result['train']
+    return criteria_metrics(result)
 
 
 def _write(path: Path, text: str) -> None:

@@ -28,6 +28,7 @@ from train_dynamics.physics.config.inputs import (ep_rejection, EP_VALUE_REASONS
                                                   input_rejection, INPUT_VALUE_REASONS,
                                                   traction_rejection, TRACTION_VALUE_REASONS,
                                                   wsp_rejection, WSP_VALUE_REASONS)
+from train_dynamics.physics.config.node_table import SIM_NODE_PARAMETERS
 from train_dynamics.physics.config.simconfig import load_param_file, SimConfig
 from train_dynamics.physics.config.spec import (ARRAY_KINDS, BOOL, check_value, ConfigError,
                                                 DOUBLE, DOUBLE_ARRAY, INTEGER, ParamSpec, STRING,
@@ -38,7 +39,6 @@ from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERV
                                                  P_FILL_TIME, P_RELEASE_FRACTION, P_RELEASE_TIME,
                                                  PARAMETERS, PIPE_NOMINAL_PRESSURE,
                                                  validate_value, VEHICLE_PARAMETERS)
-from train_dynamics.physics.config.node_table import SIM_NODE_PARAMETERS
 
 __all__ = [
     'ARRAY_KINDS', 'ATMOSPHERIC_PRESSURE', 'BOOL', 'check_value', 'ConfigError', 'Consist',

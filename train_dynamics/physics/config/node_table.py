@@ -39,11 +39,14 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'active brake-input topic of brake_input, answered by a message stamped with '
               "the output's stamp; traction: the command topic of every locomotive that "
               'takes one, ep: brake_ep/command (brake_system ep or ecp), wsp: every '
-              "vehicle's coach_<i>/wsp/valve (wsp external), each answered by one "
-              'command received after the output was published (std_msgs/Float64 and Int8 '
-              'have no stamp). A listed input the train does not have is a configuration '
-              'error in lockstep.',
-              choices=('brake', 'traction', 'ep', 'wsp'), dynamic=True, min_items=1),
+              "vehicle's coach_<i>/wsp/valve (wsp external), blending: brake_demand, "
+              'brake_emergency and ed_brake/trip, each of the three (blending builtin), or '
+              "every motor car's coach_<i>/ed_brake/force (blending external), each "
+              'answered by one command received after the output was published '
+              '(std_msgs/Float64 and Int8 have no stamp). A listed input the train does not '
+              'have is a configuration error in lockstep.',
+              choices=('brake', 'traction', 'ep', 'wsp', 'blending'), dynamic=True,
+              min_items=1),
     ParamSpec('lockstep_answer', 'echo', STRING,
               "lockstep: what answers a period. echo: a brake input stamped with the output's "
               'stamp; clock: the node publishes /clock at every output (whatever publish_clock '

@@ -28,9 +28,10 @@ from train_dynamics.physics.config.consist import (check_friction_below_stiffnes
                                                    check_traction_power, Consist, consist_of,
                                                    CONSIST_PARAMETERS)
 from train_dynamics.physics.config.files import simulator_params
+from train_dynamics.physics.config.integrator import DEFAULT_INTEGRATOR, Integration, resolve
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERVICE_PRESSURE,
-                                                 G_FILL_TIME, G_RELEASE_TIME,
+                                                 G_FILL_TIME, G_RELEASE_TIME, INSHOT_PRESSURE,
                                                  INTEGRATION_TOLERANCE, MULTIRATE_REVERSAL_WEIGHT,
                                                  MULTIRATE_TOLERANCE,
                                                  P_FILL_FRACTION,
@@ -98,7 +99,7 @@ class SimConfig:
     main_reservoir_pressure: float = 900000.0         # gauge [Pa]
     brake_system: str = 'pneumatic'                   # 'pneumatic', 'ep' or 'ecp'
     emergency_accelerator: bool = True                # vehicle field: accelerator fitted
-    inshot_pressure: float = 0.0                      # vehicle field: first stage [Pa]
+    inshot_pressure: float = INSHOT_PRESSURE          # vehicle field: first stage [Pa]
     cylinder_dead_volume: float = 0.008               # vehicle field: pistons in [m^3]
     piston_stroke: float = 0.0                        # vehicle field: [m]; 0 = fixed volume
     remote: bool = False                              # vehicle field: DP remote locomotive
@@ -170,8 +171,9 @@ class SimConfig:
     traction_schedule_commands: list[float] = field(default_factory=list)  # [-1, 1]
     ep_schedule_times: list[float] = field(default_factory=list)          # [s], increasing
     ep_schedule_commands: list[float] = field(default_factory=list)       # [0, 1]
-    # error-controlled stepping
-    integration_tolerance: float = INTEGRATION_TOLERANCE  # [-]; 0 = fixed step
+    # the integration method (config/integrator.py)
+    integrator: str = DEFAULT_INTEGRATOR              # 'fixed', 'multirate' or 'adaptive'
+    integration_tolerance: float = INTEGRATION_TOLERANCE  # [-]; 0 = unset
     integration_max_steps: int = 100                  # steps per output period
     multirate_tolerance: float = MULTIRATE_TOLERANCE  # [-]; 0 = plain fixed step
     multirate_reversal_weight: float = MULTIRATE_REVERSAL_WEIGHT  # [-]; 0 = off
@@ -297,23 +299,28 @@ class SimConfig:
                                       self.track_adhesion_positions, self.track_adhesion)
 
     @property
+    def integration(self) -> Integration:
+        """Return the integration method and the tolerances it uses (config/integrator.py)."""
+        return resolve(self.integrator, self.integration_tolerance, self.multirate_tolerance)
+
+    @property
     def has_wheelsets(self) -> bool:
         """Return True when the vehicles run on rotating wheelsets (``wheelsets``, implied)."""
         return bool(self.wheelsets or self.wsp != 'none'
                     or any(a < track.DRY_ADHESION for a in self.track_adhesion))
 
-    def fill_table(self) -> tuple[list[float], list[float]]:
-        """Return the cylinder filling characteristic: times [s], p / p_max."""
+    def fill_table(self, regime: str = '') -> tuple[list[float], list[float]]:
+        """Return the filling characteristic of ``regime`` (brake_regime): times [s], p/p_max."""
         if self.cylinder_fill_time:
             return list(self.cylinder_fill_time), list(self.cylinder_fill_fraction)
-        times = P_FILL_TIME if self.brake_regime == 'P' else G_FILL_TIME
+        times = P_FILL_TIME if (regime or self.brake_regime) == 'P' else G_FILL_TIME
         return list(times), list(P_FILL_FRACTION)
 
-    def release_table(self) -> tuple[list[float], list[float]]:
-        """Return the cylinder release characteristic: times [s], p / p_max."""
+    def release_table(self, regime: str = '') -> tuple[list[float], list[float]]:
+        """Return the release characteristic of ``regime`` (brake_regime): times [s], p/p_max."""
         if self.cylinder_release_time:
             return list(self.cylinder_release_time), list(self.cylinder_release_fraction)
-        times = P_RELEASE_TIME if self.brake_regime == 'P' else G_RELEASE_TIME
+        times = P_RELEASE_TIME if (regime or self.brake_regime) == 'P' else G_RELEASE_TIME
         return list(times), list(P_RELEASE_FRACTION)
 
     @property
@@ -324,6 +331,7 @@ class SimConfig:
     # -- the checks as a whole ------------------------------------------------------------
     def check(self) -> None:
         """Cross-parameter checks; raises :class:`ConfigError`."""
+        self.integration                 # the method: refuses a contradiction
         self._check_real_train()
         check_blending(self)
         if self.masses and len(self.masses) < 2:
@@ -340,13 +348,13 @@ class SimConfig:
                 'publish_rate / integration_step) per vehicle; raise brake_propagation_speed, '
                 'integration_step or publish_rate, or shorten the train')
         self._check_work()
-        if self.has_wheelsets and self.integration_tolerance > 0.0:
+        if self.has_wheelsets and self.integration.method == 'adaptive':
             raise ConfigError('wheelsets (wheelsets, wsp or a track_adhesion below dry) need '
-                              'the fixed step: set integration_tolerance 0')
+                              'the fixed step: set integration_tolerance 0 and integrator '
+                              'fixed or multirate')
         # the uniform train's vehicles (and the defaults of a consist's)
         check_friction_below_stiffness(self.values)
         check_traction_power(self.values)
-        self._check_regimes()
         if not (self.full_service_pressure + self.distributor_sensitivity
                 < self.pipe_nominal_pressure):
             raise ConfigError('full_service_pressure + distributor_sensitivity must be below '
@@ -426,22 +434,13 @@ class SimConfig:
     def _check_work(self) -> None:
         """Refuse an error-control work budget that could keep one output period busy."""
         limit = max_period_steps(self.n_coaches)
-        if self.integration_tolerance > 0.0 and self.integration_max_steps > limit:
+        if self.integration.method == 'adaptive' and self.integration_max_steps > limit:
             raise ConfigError(
                 f'integration_max_steps {self.integration_max_steps}: more than the limit of '
                 f'{limit} error-controlled steps per output period for {self.n_coaches} '
                 f'vehicles (about {MAX_PERIOD_SECONDS:g} s of work per period: signals and '
                 'callbacks are served between periods); lower integration_max_steps '
                 '(the rest of a period runs at the fixed integration_step)')
-
-    def _check_regimes(self) -> None:
-        """Refuse vehicles of mixed brake regimes unless both cylinder tables are given."""
-        regimes = sorted(set(self.consist.regimes))
-        if len(regimes) > 1 and not (self.cylinder_fill_time and self.cylinder_release_time):
-            raise ConfigError(f'{self.consist_file}: brake_regime: the vehicles mix regimes '
-                              f'({", ".join(regimes)}), and the cylinder characteristics are '
-                              'one per train: give every vehicle the same brake_regime, or set '
-                              'cylinder_fill_time/_fraction and cylinder_release_time/_fraction')
 
 
 def check_output_grid(rate: float, h: float) -> None:

@@ -14,10 +14,13 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from train_dynamics.physics.config.blending_params import BLENDING_PARAMS
+from train_dynamics.physics.config.integrator import (ADAPTIVE_TOLERANCE, DEFAULT_INTEGRATOR,
+                                                      INTEGRATORS)
 from train_dynamics.physics.config.spec import (ADDED, BOOL, check_value, ConfigError, DOUBLE,
                                                 DOUBLE_ARRAY, EQUAL_FORCE, INTEGER, ParamSpec,
                                                 SERIES, STRING)
 from train_dynamics.physics.config.table_ends import END_AND_RESISTANCE_PARAMS
+from train_dynamics.physics.pneumatic import INSHOT_PRESSURE
 from train_dynamics.quoting import quote
 
 # Pressure defaults, written once (used by the simulator and the brake valve).
@@ -41,7 +44,7 @@ P_RELEASE_FRACTION = [1.0, 0.768, 0.589, 0.452, 0.347, 0.267, 0.205, 0.157, 0.10
 G_FILL_TIME = [round(t * 6.0, 3) for t in P_FILL_TIME]
 G_RELEASE_TIME = [round(t * 52.0 / 17.0, 3) for t in P_RELEASE_TIME]
 
-#: default integration_tolerance: 0 = fixed step
+#: default integration_tolerance: 0 = unset (no error control unless integrator adaptive)
 INTEGRATION_TOLERANCE = 0.0
 #: default multirate_tolerance and multirate_reversal_weight: every coupler-force and
 #: displacement sample within 2 % of the independent reference's peak on the four accuracy
@@ -202,11 +205,12 @@ _PARAMS = [
               'default: UIC passenger and freight distributors carry one in service; false '
               'for a vehicle without.', vehicle='emergency_accelerator'),
     # Cylinders and distributor first stage of the pneumatic brake (physics/pneumatic.py).
-    ParamSpec('inshot_pressure', 0.0, DOUBLE,
+    ParamSpec('inshot_pressure', INSHOT_PRESSURE, DOUBLE,
               'Pneumatic: distributor first stage (inshot; UIC 540 / EN 15355 "first stage" of '
               'the cylinder pressure): an applied distributor fills its cylinder through an '
               'extra port up to this gauge pressure [Pa] (rigging slack taken up quickly, '
-              'typically 0.4-0.7 bar); 0 = none (the calibrated UIC fill times).',
+              'typically 0.4-0.7 bar; the UIC fill times are calibrated with 0.4 bar); 0 = '
+              'none.',
               low=0.0, high=2.0e5, vehicle='inshot_pressure'),
     ParamSpec('cylinder_dead_volume', 0.008, DOUBLE,
               'Pneumatic: volume of the brake cylinders of the vehicle with the pistons '
@@ -474,12 +478,21 @@ _PARAMS = [
     ParamSpec('ep_schedule_commands', [], DOUBLE_ARRAY,
               'EP / ECP command in [0, 1] (fraction of full service, 0 = release) from each '
               'ep_schedule_times entry on.', low=0.0, high=1.0),
-    # Error-controlled stepping (physics/adaptive.py).
+    # The integration method (config/integrator.py: the rules, older files' settings).
+    ParamSpec('integrator', DEFAULT_INTEGRATOR, STRING,
+              'Integration method: "fixed" (every coupler at the fixed integration_step), '
+              '"multirate" (the fixed step, couplers above multirate_tolerance re-integrated '
+              'in error-controlled sub-steps) or "adaptive" (error control of every step at '
+              f'integration_tolerance; {ADAPTIVE_TOLERANCE:g} when that is 0). With multirate '
+              '(the default), integration_tolerance > 0 means adaptive and multirate_tolerance '
+              '0 means fixed, as in older files; fixed with integration_tolerance > 0 is '
+              'refused.', choices=INTEGRATORS),
     ParamSpec('integration_tolerance', INTEGRATION_TOLERANCE, DOUBLE,
-              'Error-controlled integration: the local error of every coupler force per step, '
-              'relative to the largest coupler force in the train (at least 1e-3 of a '
-              "vehicle's weight) [-]; ROS2 with its embedded first-order estimate, PI step "
-              'control, landing on every output instant. 0 = fixed step integration_step.',
+              'Error-controlled integration (integrator adaptive): the local error of every '
+              'coupler force per step, relative to the largest coupler force in the train (at '
+              "least 1e-3 of a vehicle's weight) [-]; ROS2 with its embedded first-order "
+              'estimate, PI step control, landing on every output instant. 0 = unset (fixed '
+              'step integration_step, or the adaptive default).',
               low=0.0, high=0.1),
     ParamSpec('integration_max_steps', 100, INTEGER,
               'Work budget of the error-controlled integration: steps per output period; '
@@ -488,15 +501,16 @@ _PARAMS = [
               'work per period: 25000 / (1 + N / 20) steps for N vehicles.', low=1,
               high=1000000),
     ParamSpec('multirate_tolerance', MULTIRATE_TOLERANCE, DOUBLE,
-              'Multirate fixed step (the default integration): after each integration_step, a '
-              'coupler whose local force error (ROS2 embedded estimate) exceeds this fraction '
-              "of the largest coupler force in the train (at least 1e-3 of a vehicle's weight) "
-              '[-] is re-integrated with its two neighbouring vehicles on either side in '
-              'error-controlled sub-steps, the rest of the train keeping the step (momentum '
-              'exact). 0 = every coupler at the plain fixed step (the fastest, least accurate '
-              'setting). Acts with the tanh law only (the sign law, discontinuous at zero '
-              'relative speed, keeps the plain fixed step) and not under error control '
-              '(integration_tolerance > 0 controls every step already).', low=0.0, high=0.1),
+              'Multirate fixed step (integrator multirate, the default): after each '
+              'integration_step, a coupler whose local force error (ROS2 embedded estimate) '
+              'exceeds this fraction of the largest coupler force in the train (at least 1e-3 '
+              "of a vehicle's weight) [-] is re-integrated with its two neighbouring "
+              'vehicles on either side in error-controlled sub-steps, the rest of the train '
+              'keeping the step (momentum exact). 0 = every coupler at the plain fixed step '
+              '(the fastest, least accurate setting). Acts with the tanh law only (the sign '
+              'law, discontinuous at zero relative speed, keeps the plain fixed step) and not '
+              'under error control (integrator adaptive controls every step already).',
+              low=0.0, high=0.1),
     ParamSpec('multirate_reversal_weight', MULTIRATE_REVERSAL_WEIGHT, DOUBLE,
               "Multirate: a coupler's local error is at least this weight times its relative "
               'velocity error times k_f |y| u, the slope of the tanh law at its next friction '

@@ -7,7 +7,7 @@ jitted function:
 
 - ``layout.py``: the packed arrays the kernel advances in place, row by row;
 - ``step.py``: the pieces of one step both drivers share (brake system, external forces,
-  fault check, acceptance), over the method's parts, one per module: ``ros2.py`` (the
+  fault check, acceptance), over the method's parts, one per module: ``rosenbrock2.py`` (the
   Rosenbrock stages), ``coupler_rows.py`` (the couplers' force, slopes and stage weights),
   ``active_set.py`` (the vehicles held at rest) and ``standstill.py`` (their holding LCP);
 - the drivers: ``fixed_step.py`` (fixed step) and ``adaptive.py`` (error-controlled);

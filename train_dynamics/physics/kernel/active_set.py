@@ -18,7 +18,7 @@ from train_dynamics.physics.kernel import standstill
 from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.coupler_rows import eval_couplers, raise_blocked_slopes
 from train_dynamics.physics.kernel.layout import COUNT, OPTION, PARAM, STATE, TOTAL, VEHICLE, WORK
-from train_dynamics.physics.kernel.ros2 import GAMMA, ros2_step
+from train_dynamics.physics.kernel.rosenbrock2 import GAMMA, ros2_step
 
 #: chain solves per step at most: the first, then after stops or a new holding set
 HOLD_SOLVES = 6
@@ -182,7 +182,7 @@ def _settle(h, held, ws):
 @jit(inline=True)
 def _blocked_solve(h, coach, cpl, model, u, held, ws, iv, gprof):
     """
-    Do :func:`~.ros2.ros2_step` with the blocked slope of every coupler the step blocks.
+    Do :func:`~.rosenbrock2.ros2_step` with the blocked slope of every coupler the step blocks.
 
     A step that drives couplers into their blocks without their blocked stiffness in the
     stage matrix is solved again with it (:func:`raise_blocked_slopes`), at most

@@ -27,7 +27,7 @@ from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_coup
                                                         invalidate_caches)
 from train_dynamics.physics.kernel.layout import (CACHE, CLOCK, CONTROL, COUNT, INPUT, OPTION,
                                                   PARAM, STATE, TOTAL, VEHICLE, WORK)
-from train_dynamics.physics.kernel.ros2 import GAMMA
+from train_dynamics.physics.kernel.rosenbrock2 import GAMMA
 from train_dynamics.physics.kernel.step import (accept_external, accept_step,
                                                 available_braking_force, brake_system_step,
                                                 fault_check, OK, static_resistance)
@@ -259,8 +259,7 @@ def advance_adaptive(n_ticks, sync, coach, cpl, sc, iv, fill, rel, ring, ws, gpr
     (ticks done, status).
     """
     held = np.empty(coach.shape[1], dtype=np.bool_)
-    tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
-                                   rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
+    tables = brakes.make_tables(fill, rel)
     if iv[CACHE.WS_VALID] == 0:
         brakes.delay_split(coach[VEHICLE.DELAY], ws[WORK.K0], ws[WORK.FRAC])
         r = iv[CLOCK.TICK] % fbt.shape[0]

@@ -121,8 +121,20 @@ def distributor_target(p_pipe: np.ndarray, applied: np.ndarray, p_nominal: float
 CylinderTables = namedtuple('CylinderTables', ['fill_t', 'fill_f', 'rel_t', 'rel_f',
                                                'rel_t_rising', 'rel_f_rising'])
 CylinderTables.__doc__ = """Filling (p/p_max rising 0 -> 1 against time [s]) and release
-(falling 1 -> 0) characteristics; ``*_rising`` are the release table reversed, for the
-inverse look-up."""
+(falling 1 -> 0) characteristics, one row per table set (a vehicle reads the set of its
+row VEHICLE.TABLE: its brake regime's); ``*_rising`` are the release tables reversed, for
+the inverse look-up."""
+
+
+@jit(inline=True)
+def make_tables(fill: np.ndarray, rel: np.ndarray):
+    """
+    Return the :class:`CylinderTables` of ``fill``, ``rel`` (2 R, L).
+
+    Rows 2 k and 2 k + 1: times [s] and p/p_max of table set k (k = 0 .. R - 1).
+    """
+    return CylinderTables(fill[0::2].copy(), fill[1::2].copy(), rel[0::2].copy(),
+                          rel[1::2].copy(), rel[0::2, ::-1].copy(), rel[1::2, ::-1].copy())
 
 
 @jit(inline=True)
@@ -147,23 +159,25 @@ def table_interp(x: float, xp: np.ndarray, fp: np.ndarray) -> float:
 
 @jit(inline=True)
 def cylinder_advance(p_cyl: np.ndarray, target: np.ndarray, dt: float, p_max: float,
-                     tables) -> None:
+                     tables, which: np.ndarray) -> None:
     """
     Move the cylinder pressures ``p_cyl`` [Pa] (in place) ``dt`` seconds toward ``target``.
 
     Rising: along the filling table; falling: along the release table
-    (:class:`CylinderTables`). The time on the curve at the present pressure is found by
-    inverse interpolation, and the cylinder moves dt further along the curve.
+    (:class:`CylinderTables`, vehicle i the table set ``which[i]``: its regime's). The time
+    on the curve at the present pressure is found by inverse interpolation, and the
+    cylinder moves dt further along the curve.
     """
     for i in range(p_cyl.shape[0]):
         frac = min(max(p_cyl[i] / p_max, 0.0), 1.0)
         goal = min(max(target[i] / p_max, 0.0), 1.0)
+        k = int(which[i])
         if goal > frac:
-            tau = table_interp(frac, tables.fill_f, tables.fill_t)
-            frac = min(table_interp(tau + dt, tables.fill_t, tables.fill_f), goal)
+            tau = table_interp(frac, tables.fill_f[k], tables.fill_t[k])
+            frac = min(table_interp(tau + dt, tables.fill_t[k], tables.fill_f[k]), goal)
         elif goal < frac:
-            tau = table_interp(frac, tables.rel_f_rising, tables.rel_t_rising)
-            frac = max(table_interp(tau + dt, tables.rel_t, tables.rel_f), goal)
+            tau = table_interp(frac, tables.rel_f_rising[k], tables.rel_t_rising[k])
+            frac = max(table_interp(tau + dt, tables.rel_t[k], tables.rel_f[k]), goal)
         else:
             continue
         p_cyl[i] = frac * p_max

@@ -3,7 +3,7 @@ The couplers' rows of the workspace: force, slopes and stage weights at the chai
 
 Each coupler's law (:mod:`.couplers`, with free play and blocking) is evaluated at its
 (y, ydot) into the WORK rows F, DFDY and KK (the stage-matrix weights g h dF/dydot +
-(g h)^2 dF/dy) that :func:`~.ros2.ros2_step` solves with. Cache (bit for bit): the rows
+(g h)^2 dF/dy) that :func:`~.rosenbrock2.ros2_step` solves with. Cache (bit for bit): the rows
 carry the (y, ydot) and g h they were made for (WORK.YKEY, VKEY), so a coupler whose
 state did not change keeps them (:func:`invalidate_caches` forgets them all).
 :func:`eval_couplers_work` also books the couplers' work over the step and widens the
@@ -18,7 +18,7 @@ import numpy as np
 from train_dynamics.physics.kernel import couplers
 from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.layout import COUPLER, STATE, WORK
-from train_dynamics.physics.kernel.ros2 import GAMMA
+from train_dynamics.physics.kernel.rosenbrock2 import GAMMA
 
 #: [-] a coupler whose step reaches its blocked branch has the blocked slope k + K_b in the
 #: stage matrix when the slope it lacks would weigh more than this fraction of its reduced

@@ -25,7 +25,7 @@ from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_coup
 from train_dynamics.physics.kernel.couplers import TANH
 from train_dynamics.physics.kernel.layout import CACHE, OPTION, PARAM, STATE, TOTAL, VEHICLE, WORK
 from train_dynamics.physics.kernel.multirate import refine
-from train_dynamics.physics.kernel.ros2 import GAMMA
+from train_dynamics.physics.kernel.rosenbrock2 import GAMMA
 from train_dynamics.physics.kernel.step import (accept_external, accept_step, brake_system_step,
                                                 braking_force_trapezoid, external_step,
                                                 fault_check, OK)
@@ -98,7 +98,8 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
     coach: (len(COACH), N) per-vehicle constants, state, inputs, outputs; cpl:
     (len(COUPLER), N-1) k_e, k_f, k_ec, k_fc [N/m], slack, strokes [m], K_b [N/m]; sc, iv:
     float and integer scalars (constants, totals, clocks, counters); fill, rel:
-    (2, L) cylinder tables (times [s], p/p_max); ring: head-pressure history [Pa]; ws:
+    (2 R, L) cylinder table sets (times [s], p/p_max; brakes.make_tables); ring:
+    head-pressure history [Pa]; ws:
     :func:`make_workspace`; gprof, cprof: (3, K) gradient and curve-resistance profiles
     (breakpoints, values, integrals; ``track``), used when OPTION.TRACK is set; aprof: (3, K)
     the track's adhesion profile (OPTION.ADHESION; :mod:`.wheelset`). The layouts are
@@ -120,8 +121,7 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
     """
     gh = GAMMA * sc[PARAM.H]
     held = np.empty(coach.shape[1], dtype=np.bool_)
-    tables = brakes.CylinderTables(fill[0].copy(), fill[1].copy(), rel[0].copy(),
-                                   rel[1].copy(), rel[0][::-1].copy(), rel[1][::-1].copy())
+    tables = brakes.make_tables(fill, rel)
     if iv[CACHE.WS_VALID] == 0:
         # first call after reset()/set_model(): pipe delays and the couplers at (x, v); later
         # calls find them in ws, left there by the last step of the previous call

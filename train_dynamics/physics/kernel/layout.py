@@ -61,10 +61,11 @@ for couplers), the caches that skip repeated work (bit for bit) and the in-train
 envelope; made by :func:`~train_dynamics.physics.kernel.step.make_workspace`, written by the
 kernel (``reset()`` clears the envelope, the caches are invalidated through ``CACHE``).
 
-Other arrays the drivers take: ``fill``, ``rel`` (2, L) cylinder tables (times [s],
-p/p_max; constants), ``ring`` the head-pressure history [Pa] (state), ``gprof``, ``cprof``
-(3, K) gradient and curve profiles (constants), ``tick_fb``, ``tick_te`` the brake ticks of
-one output period (error-controlled driver; state).
+Other arrays the drivers take: ``fill``, ``rel`` (2 R, L) cylinder tables (times [s],
+p/p_max of each of the R table sets, one per brake regime of the train; constants),
+``ring`` the head-pressure history [Pa] (state), ``gprof``, ``cprof`` (3, K) gradient and
+curve profiles (constants), ``tick_fb``, ``tick_te`` the brake ticks of one output period
+(error-controlled driver; state).
 """
 from __future__ import annotations
 
@@ -91,6 +92,7 @@ DERIVED_VEHICLE_ROWS = [
     'BRAKE_GAIN',   # friction brakes: normal force per cylinder pressure K1 [N/Pa]
     'BRAKE_OFF',    # friction brakes: normal force lost to the return springs K0 [N]
     'WHEEL_MASS',   # wheelsets: reduced mass of the wheelset J / r^2 [kg]
+    'TABLE',        # the vehicle's cylinder table set in fill/rel (its brake regime's) [-]
 ] + [f'LAW{k}' for k in range(LAW_LEN)]     # friction law (kernel/friction.py), LAW0 its kind
 #: then one row per per-vehicle field that the kernel reads as is, in table order: the
 #: ``row`` of its ParamSpec (config/table.py, :data:`KERNEL_ROWS`: name, unit, range there)

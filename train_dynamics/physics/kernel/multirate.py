@@ -47,7 +47,7 @@ import numpy as np
 from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.coupler_rows import eval_couplers
 from train_dynamics.physics.kernel.layout import COUNT, COUPLER, OPTION, PARAM, STATE, WORK
-from train_dynamics.physics.kernel.ros2 import GAMMA, ros2_step
+from train_dynamics.physics.kernel.rosenbrock2 import GAMMA, ros2_step
 
 #: vehicles added to a flagged coupler's group on either side. Measured (bench/accuracy.py,
 #: tolerance 1e-3 / 3e-4, force-sample error): 1: kHz case 1.01 / 0.34 %, free play 2.46 /
@@ -113,7 +113,8 @@ def coupler_impulse(j, h, ws):
 
     I_j = h (phi1_j + phi2_j) / 2 with phi1_j = F_j + g h dF/dy (v_j - v_j+1)
     + KK_j (b1_j - b1_j+1) and phi2_j = F2_j + g h dF/dy (r_j - r_j+1) + KK_j (b2_j - b2_j+1),
-    r = (h - 2 g h) b1 - v: the coupler's terms of the two stage rows (:func:`~.ros2.ros2_step`).
+    r = (h - 2 g h) b1 - v: the coupler's terms of the two stage rows
+    (:func:`~.rosenbrock2.ros2_step`).
     """
     v = ws[WORK.VSTART]
     b1 = ws[WORK.B1]
@@ -155,7 +156,7 @@ def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof):
     """
     Re-integrate vehicles a..b over the long step h [s] in sub-steps; return (done, work).
 
-    ROS2 on the sub-chain (:func:`~.ros2.ros2_step`) with each vehicle's constant force over
+    ROS2 on the sub-chain (:func:`~.rosenbrock2.ros2_step`) with each vehicle's constant force over
     the step (brake, external mean, boundary impulses / h), error-controlled against tol_f
     [N] per coupler, the first sub-step from the long step's error err0 [tol_f]; after
     MAX_SUB tries the rest in MAX_SUB equal sub-steps without control. Writes the new state

@@ -6,7 +6,7 @@ One step, in named parts (the drivers: :mod:`.fixed_step` and :mod:`.adaptive`):
 1. :func:`brake_system_step`: brake pipe, distributors and cylinders to t + h (they do not
    depend on the motion);
 2. :func:`braking_force_trapezoid`: the braking force over the step, eq. (13);
-3. :func:`~.active_set.active_set_step`: :func:`~.ros2.ros2_step` with the active set of
+3. :func:`~.active_set.active_set_step`: :func:`~.rosenbrock2.ros2_step` with the active set of
    held coaches; the fixed-step driver skips it at a standstill whose inputs did not change
    (it would repeat the last step exactly);
 4. :func:`fault_check`, then :func:`accept_step` and the couplers at the new state
@@ -85,7 +85,8 @@ def brake_system_step(coach, sc, iv, ring, tables, ws):
     else:
         brakes.distributor_target(p_pipe, coach[STATE.APPLIED], sc[PARAM.PNOM],
                                   sc[PARAM.PFS], sc[PARAM.SENS], p_max, target)
-        brakes.cylinder_advance(p_cyl, target, sc[PARAM.H], p_max, tables)
+        brakes.cylinder_advance(p_cyl, target, sc[PARAM.H], p_max, tables,
+                                coach[VEHICLE.TABLE])
 
 
 @jit(inline=True)
