@@ -21,8 +21,9 @@ from train_dynamics.recording.plots import png_size
 from train_dynamics.simulation.runner import InputSchedule, run_simulation, traction_schedule
 import yaml
 
-PAPER = os.path.join(os.path.dirname(os.path.dirname(os.path.abspath(__file__))), 'config',
-                     'paper_3coach.yaml')
+PAPER = os.path.join(
+    os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))),
+    'config', 'paper_3coach.yaml')
 FIGURES = ('force_envelope.png', 'worst_force.png', 'vehicles.png', 'coupler_force.png',
            'coaches.png')
 
