@@ -331,7 +331,7 @@ SLOW_TABLE = {
         'test_stale_traction_command_in_diagnostics_emergency_then_fresh_then_hold': 9.1,
     },
     'test_sim_node_wsp.py': {
-        'test_external_wsp_node_keeps_the_wheels_turning': 25.0,   # real time since
+        'test_external_wsp_node_keeps_the_wheels_turning': 25.0,   # at real time
     },
     'test_standstill.py': {
         'test_energy_balance_through_the_standstill_paper_law': 2.7,
