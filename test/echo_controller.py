@@ -11,7 +11,7 @@ import json
 import os
 import sys
 
-import rclpy
+from controller_main import spin
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
@@ -19,8 +19,7 @@ from sensor_msgs.msg import FluidPressure, JointState
 ATM, RELEASE = 101325.0, 5.0e5      # [Pa]: atmosphere; released pipe, gauge
 
 
-def main():
-    rclpy.init(args=sys.argv)
+def _node():
     node = Node('echo_controller', automatically_declare_parameters_from_overrides=True)
     given = {name: p.value for name, p in node.get_parameters_by_prefix('').items()
              if name not in ('use_sim_time', 'start_type_description_service')}
@@ -41,13 +40,11 @@ def main():
         with open(pid_file + '.tmp', 'w') as fh:
             fh.write(str(os.getpid()))
         os.replace(pid_file + '.tmp', pid_file)
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    return node
+
+
+def main():
+    spin(_node, sys.argv)
 
 
 if __name__ == '__main__':

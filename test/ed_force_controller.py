@@ -6,7 +6,7 @@ of ``motor_cars`` (std_msgs/Float64; ``blending: external``).
 """
 import sys
 
-import rclpy
+from controller_main import spin
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -31,15 +31,7 @@ class EdForceController(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = EdForceController()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin(EdForceController, args)
 
 
 if __name__ == '__main__':

@@ -10,7 +10,7 @@ period's values in one fixed order and wait for all three, or two runs differ.
 import sys
 import time
 
-import rclpy
+from controller_main import spin
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import JointState
@@ -47,15 +47,7 @@ class DemandScript(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = DemandScript()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin(DemandScript, args)
 
 
 if __name__ == '__main__':

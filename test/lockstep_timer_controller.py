@@ -9,7 +9,7 @@ proportional to the lead vehicle's speed: ``p = release - gain * v`` [Pa gauge],
 """
 import sys
 
-import rclpy
+from controller_main import spin
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSProfile, ReliabilityPolicy
@@ -49,15 +49,7 @@ class TimerController(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = TimerController()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin(TimerController, args)
 
 
 if __name__ == '__main__':

@@ -10,7 +10,7 @@ command that the node did not wait for land in a later period.
 import sys
 import time
 
-import rclpy
+from controller_main import spin
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from sensor_msgs.msg import FluidPressure, JointState
@@ -46,15 +46,7 @@ class TractionController(Node):
 
 
 def main(args=None):
-    rclpy.init(args=args)
-    node = TractionController()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, rclpy.executors.ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    spin(TractionController, args)
 
 
 if __name__ == '__main__':

@@ -34,9 +34,7 @@ def _controller():
 
 def test_external_wsp_node_keeps_the_wheels_turning(harness):
     from diagnostic_msgs.msg import DiagnosticArray
-    from rclpy.qos import QoSProfile, ReliabilityPolicy
     from sensor_msgs.msg import JointState
-    from std_msgs.msg import Int8
 
     wheels = harness.collect(JointState, 'wheelsets')
     motion = harness.collect(JointState, 'vehicle_motion')
