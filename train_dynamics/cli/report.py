@@ -116,12 +116,13 @@ def report_metrics(hist: History, cfg: SimConfig | None, **overrides: Any) -> Ru
 
 
 def read_run(args: argparse.Namespace, overrides: dict[str, Any]
-             ) -> tuple[History, RunMetrics | None, str]:
+             ) -> tuple[History, RunMetrics | None, str, dict | None]:
     """
     Read the bag once, block-wise: bounded curves for the figures and the run metrics.
 
-    Return the curves, the metrics (None: no common couplers / coaches sample) and where the
-    parameters came from.
+    Return the curves, the metrics (None: no common couplers / coaches sample), where the
+    parameters came from, and with ``args.fatigue`` the couplers' rainflow counts
+    (:meth:`FatigueFeed.result`; else None).
     """
     try:
         info = bag_info(args.bag)
@@ -146,8 +147,8 @@ def read_run(args: argparse.Namespace, overrides: dict[str, Any]
                               on_reset=on_reset)
     except BagError as exc:
         raise CliError(str(exc)) from None
-    args.fatigue_result = tap.feed.result() if tap is not None and tap.feed else None
-    return hist, feed.finish(), origin
+    fatigue = tap.feed.result() if tap is not None and tap.feed else None
+    return hist, feed.finish(), origin, fatigue
 
 
 def refuse_non_finite(bag: str, hist: History) -> None:
@@ -202,7 +203,7 @@ def run_result(args: argparse.Namespace, overrides: dict) -> tuple[dict, Any, di
     ragged sample (:class:`CliError`, one line), take the metrics, fill the stop error from
     the bag's last ``distance_to_go``.
     """
-    hist, metrics, origin = read_run(args, overrides)
+    hist, metrics, origin, fatigue = read_run(args, overrides)
     if hist.couplers is None or hist.coaches is None or not len(hist.coaches) \
             or metrics is None:
         raise CliError(f'{args.bag}: needs the couplers and coaches topics (JointState)')
@@ -215,8 +216,8 @@ def run_result(args: argparse.Namespace, overrides: dict) -> tuple[dict, Any, di
     blending = blending_metrics(args.bag, args.namespace)       # multiple units only
     if blending is not None:
         result['blending'] = blending
-    if getattr(args, 'fatigue_result', None) is not None:        # report --fatigue
-        result['fatigue'] = args.fatigue_result
+    if fatigue is not None:                                      # report --fatigue
+        result['fatigue'] = fatigue
     keys = ('model_type', 'scale_factor', 'integration_step', 'generator')
     model = ', '.join(f'{k} {hist.info[k]}' for k in keys if k in hist.info)
     source = {'bag': str(args.bag), 'parameters': origin, 'model': model,
