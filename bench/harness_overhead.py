@@ -43,7 +43,7 @@ SCENARIO = os.path.join(HERE, 'harness_overhead.yaml')
 CONTROLLER = os.path.join(REPO, 'examples', 'pi_brake_controller.py')
 
 #: the harness process of one run: its stamps (time.time()) and the run's timings, as JSON
-CHILD = r'''
+CHILD = r"""
 import json, resource, sys, time
 t0 = time.time()
 from train_dynamics.testing import run_scenario
@@ -54,7 +54,7 @@ ru = resource.getrusage(resource.RUSAGE_SELF)
 print(json.dumps({'t0': t0, 't_import': t_import, 't_call': t_import,
                   't_return': t_return, 'timings': r.timings, 'passed': r.passed,
                   'error': r.error, 'cpu_self': ru.ru_utime + ru.ru_stime}))
-'''
+"""
 
 #: (key, the phase's label) in the order they happen
 PHASES = (
