@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from train_dynamics.physics.config import (ConfigError, load_param_file, PARAMETERS, SimConfig,
-                                           validate_value)
+from train_dynamics.param_files import load_param_file
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig, validate_value
 from train_dynamics.physics.config.docs import markdown_table
 from train_dynamics.physics.train import TrainSimulator
 

@@ -30,7 +30,7 @@ configuration ``_cfg`` (replaced and changed by the executor thread only, under 
 lock; the simulation thread never reads it: each part holds the values it uses).
 
 Parameters: every parameter of :data:`train_dynamics.physics.config.PARAMETERS` plus the node's
-own (:data:`~train_dynamics.physics.config.SIM_NODE_PARAMETERS`): ``duration`` (simulation
+own (:data:`~train_dynamics.ros.node_parameters.SIM_NODE_PARAMETERS`): ``duration`` (simulation
 seconds after which the node stops by itself, 0 = forever), ``wait_for_input`` (hold t = 0
 until the brake-input topics have publishers, at most that many wall seconds),
 ``realtime_priority`` (the simulation thread's SCHED_FIFO priority,
@@ -68,7 +68,7 @@ from rclpy.serialization import serialize_message
 from std_srvs.srv import Trigger
 
 from train_dynamics import topics
-from train_dynamics.physics.config import ConfigError, PARAMETERS, SIM_NODE_PARAMETERS, SimConfig
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.quoting import quote
@@ -82,6 +82,7 @@ from train_dynamics.ros.diagnostics import (BrakeSystemReport, diagnostic_array,
                                             SimulationReport)
 from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
 from train_dynamics.ros.lockstep_inputs import lockstep_input_error
+from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
 from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
 from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
