@@ -245,13 +245,6 @@ class SimConfig:
         same = all(new[n] == old[n] for n in CONSIST_PARAMETERS)
         return SimConfig._checked(new, self.consist if same else None)
 
-    def set_live(self, **changes: Any) -> None:
-        """Change live (``dynamic``) values in place (``sim_node``); the others never change."""
-        for name, value in changes.items():
-            if not PARAMETERS[name].dynamic:
-                raise ConfigError(f'{name} is not a live parameter')
-            object.__setattr__(self, name, validate_value(name, value))
-
     @property
     def values(self) -> dict[str, Any]:
         """Return ``{name: value}`` of every parameter, in table order (a new dict)."""
