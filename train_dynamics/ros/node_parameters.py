@@ -99,6 +99,12 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'Needs write access to /dev/cpu_dma_latency (root by default); without it '
               'nothing is asked (logged).',
               low=-1, high=100000, dynamic=True),
+    # 1 s: the usual rate of ROS diagnostics (diagnostic_updater's default period)
+    ParamSpec('diagnostics_period', 1.0, DOUBLE,
+              'Wall-clock period [s] of the /diagnostics statuses (and of their copy in '
+              'record_bag outside lock-step): shorter to watch a run closely, longer to '
+              'spare a loaded machine. Each status takes the simulation lock briefly.',
+              low=0.1, high=3600.0, dynamic=True),
     ParamSpec('record_flush_period', 10.0, DOUBLE,
               'Wall-clock period [s] at which the record_bag MCAP file is finished and a new '
               'one started: a SIGKILL loses at most this much of the recording.',

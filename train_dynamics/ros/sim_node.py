@@ -100,7 +100,6 @@ __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
            'MAX_ABSOLUTE_PRESSURE', 'MAX_RECORD_BACKLOG', 'REJECT_REASONS']
 
 NODE_NAME = topics.NODE_NAME
-DIAGNOSTICS_PERIOD = 1.0  # [s wall]
 #: exit status after a recording that failed (a full disk): the bag holds less than the run
 EXIT_RECORD_FAILED = 1
 #: every parameter the node declares: the simulator's and its own
@@ -177,8 +176,8 @@ class SimNode(Node):
                                             self._apply_parameters)
             # on a steady clock: with use_sim_time and no /clock they would never fire
             steady = Clock(clock_type=ClockType.STEADY_TIME)
-            self._diag_timer = self.create_timer(
-                DIAGNOSTICS_PERIOD, shutdown_safe(self, self._publish_diagnostics), clock=steady)
+            self._diag_timer = self._diagnostics_timer(
+                self.get_parameter('diagnostics_period').value)
             self._scan_timer = self.create_timer(
                 GRAPH_SCAN_PERIOD, shutdown_safe(self, self._inputs.scan_graph), clock=steady)
             self._clock_timer = self.create_timer(   # a second /clock publisher: a warning
@@ -287,6 +286,9 @@ class SimNode(Node):
             self._request_wake_latency(changes['cpu_wake_latency'])
         if 'record_flush_period' in changes:
             self._flush_period = changes['record_flush_period']
+        if 'diagnostics_period' in changes:
+            self.destroy_timer(self._diag_timer)
+            self._diag_timer = self._diagnostics_timer(changes['diagnostics_period'])
         structural = [n for n in changes if not SPECS[n].dynamic]
         if structural:
             self.get_logger().info(
@@ -396,6 +398,11 @@ class SimNode(Node):
         return response
 
     # -- diagnostics -----------------------------------------------------------------------
+    def _diagnostics_timer(self, period: float):
+        """Return a timer publishing /diagnostics every ``period`` wall seconds (steady clock)."""
+        return self.create_timer(period, shutdown_safe(self, self._publish_diagnostics),
+                                 clock=Clock(clock_type=ClockType.STEADY_TIME))
+
     def _publish_diagnostics(self) -> None:
         pending = self.pending_changes()
         with self._lock.held():
