@@ -24,3 +24,16 @@ def test_node_parameters_are_not_the_simulators():
     fields = {f.name for f in dataclasses.fields(SimConfig)}
     assert not set(SIM_NODE_PARAMETERS) & fields
     assert all(spec.dynamic for spec in SIM_NODE_PARAMETERS.values())
+
+
+def test_diagnostics_come_at_the_period_set_live(harness):
+    from diagnostic_msgs.msg import DiagnosticArray
+    from rclpy.parameter import Parameter
+
+    node = harness.start(real_time_factor=2.0, diagnostics_period=3600.0)
+    diags = harness.collect(DiagnosticArray, '/diagnostics')
+    harness.spin_for(2.0)
+    assert diags == []                              # the first status is an hour away
+    assert not node.set_parameters([Parameter('diagnostics_period', value=0.01)])[0].successful
+    assert node.set_parameters([Parameter('diagnostics_period', value=0.1)])[0].successful
+    assert harness.wait(lambda: len(diags) >= 3, 60.0)    # the new period: they come
