@@ -19,6 +19,7 @@ from train_dynamics.ros.run_control import CONNECT_SETTLE, RunControl
 
 
 class _Log:
+
     def info(self, text: str) -> None:
         self.last = text
 
@@ -26,7 +27,7 @@ class _Log:
 
 
 def _gate(answer: str) -> RunControl:
-    """A lock-step gate whose controller is connected both ways (fake node and topics)."""
+    """Return a lock-step gate whose controller is connected both ways (fake node, topics)."""
     node = SimpleNamespace(get_logger=lambda: _Log(), create_service=lambda *args: None)
     inputs = SimpleNamespace(configure_lockstep=lambda *args: None,
                              unconnected=lambda waits_for: [],
