@@ -159,7 +159,8 @@ class InputKind:
     ``on_stale`` (``input_timeout`` > 0 s wall after a first value): ``policy`` (the
     fail-safe with ``on_input_timeout`` emergency, else hold), ``failsafe`` (always),
     ``line`` (the EP / ECP train line is lost until the next value), ``''`` (not supervised).
-    ``stamped``: the message has a ``header`` and answers the lock-step output of its stamp
+    ``family`` ``''``: no lock-step period waits for the kind (its values act when they
+    arrive). ``stamped``: the message has a ``header`` and answers the lock-step output of its stamp
     (an unstamped one answers the latest output published before it arrived).
     """
 
@@ -171,7 +172,7 @@ class InputKind:
     reasons: tuple[str, ...]         # what ``rule`` may answer
     apply: Callable[[Any, Any, Any], None]
     takes: Callable[[Any], list[int]]
-    family: str                      # lock-step family (``lockstep_inputs``)
+    family: str                      # lock-step family (``lockstep_inputs``); '': none
     label: str                       # how the log names one
     meaning: str                     # docs: what the value is
     when: str                        # docs: when the node subscribes to it
@@ -340,7 +341,8 @@ def markdown_table() -> str:
         f = ('`max_cylinder_pressure`' if callable(k.failsafe)
              else f'{k.failsafe:g}' if k.failsafe is not None else '')
         lines.append(f'| `{k.display}` | `{k.msgtype}` | {k.when} | {k.meaning} | '
-                     f'{", ".join(k.reasons)} | `{k.family}`'
+                     f'{", ".join(k.reasons)} | '
+                     f'{f"`{k.family}`" if k.family else "not waited for"}'
                      f'{" (header stamp)" if k.stamped else ""} | '
                      f'{stale[k.on_stale].format(f=f)} |')
     return '\n'.join(lines)
