@@ -297,6 +297,15 @@ INPUT_KINDS: tuple[InputKind, ...] = (
               apply=lambda sim, v, i: _bcu(sim, topics.ED_TRIP_TOPIC).set_ed_trip(v >= 0.5),
               meaning='the ED brake of every motor car lost (line breaker trip): >= 0.5 '
                       'tripped, < 0.5 restored', when='`blending: builtin`'),
+    InputKind('track_brake', 'track_brake/command', **_FLOAT,
+              rule=_finite_rule('track_brake/command'), reasons=('non_finite',),
+              takes=_blending_builtin, family='', label='track brake command',
+              apply=lambda sim, v, i: sim.bcu.track.set_applied(v >= 0.5 or sim.bcu.emergency),
+              meaning='the magnetic track and eddy-current brakes of every car that has them '
+                      '(`track_brake_force`, `eddy_brake_force`) applied without the '
+                      'emergency brake: >= 0.5 applied (acting after `track_brake_delay`), '
+                      '< 0.5 released (not while the emergency brake is applied)',
+              when='`blending: builtin`'),
 )
 
 #: name -> row
