@@ -41,7 +41,7 @@ import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from train_dynamics.input_kinds import family_active, FAMILY_NEEDS, INPUT_KINDS
-from train_dynamics.physics.config import SIM_NODE_PARAMETERS
+from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
 
 #: ``lockstep_inputs``: the controller inputs a lock-step period can wait for
 LOCKSTEP_INPUTS = SIM_NODE_PARAMETERS['lockstep_inputs'].choices
