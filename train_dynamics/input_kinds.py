@@ -160,8 +160,8 @@ class InputKind:
     fail-safe with ``on_input_timeout`` emergency, else hold), ``failsafe`` (always),
     ``line`` (the EP / ECP train line is lost until the next value), ``''`` (not supervised).
     ``family`` ``''``: no lock-step period waits for the kind (its values act when they
-    arrive). ``stamped``: the message has a ``header`` and answers the lock-step output of its stamp
-    (an unstamped one answers the latest output published before it arrived).
+    arrive). ``stamped``: the message has a ``header`` and answers the lock-step output of
+    its stamp (an unstamped one answers the latest output published before it arrived).
     """
 
     name: str
