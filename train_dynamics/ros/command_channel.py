@@ -187,9 +187,16 @@ class CommandChannel:
         with self._lock:
             self._period_ns = t_ns
 
-    def unanswered(self, t_ns: int) -> list[str]:
-        """Lock-step: the topics whose applied value does not answer the output ``t_ns``."""
+    def unanswered(self, t_ns: int, clock: bool = False) -> list[str]:
+        """
+        Lock-step: the topics whose applied value does not answer the output ``t_ns``.
+
+        ``clock`` (``lockstep_answer`` clock): a stamped value answers when stamped at or
+        after ``t_ns``; an unstamped one (tagged with the output it followed) as in echo.
+        """
         tags = self._applied_tag
+        if clock and self.kind.stamped:
+            return [self.kind.topic_of(i) for i in self._indices if tags.get(i, -1) < t_ns]
         return [self.kind.topic_of(i) for i in self._indices if tags.get(i) != t_ns]
 
     def connected(self) -> bool:

@@ -150,7 +150,7 @@ class LockstepInputs:
             out += [self.brake.buffer.topics[k] for k in missing[:10]]
         for family, part in self._command_families():
             if family in families:
-                out += part.unanswered(t_ns)
+                out += part.unanswered(t_ns, self._ls_clock)
         return out
 
     def answered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> bool:
