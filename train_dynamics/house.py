@@ -17,6 +17,7 @@ from __future__ import annotations
 import ast
 from collections import Counter
 from dataclasses import dataclass
+import hashlib
 from pathlib import Path
 import sys
 
@@ -140,6 +141,10 @@ class House:
         for room in ROOMS:
             lines.append(f'uses {room}: ' + ' '.join(self.third_party.get(room, [])))
         return '\n'.join(lines) + '\n'
+
+    def digest(self) -> str:
+        """Return the SHA-256 of :meth:`text`, written into the figure it draws."""
+        return hashlib.sha256(self.text().encode()).hexdigest()
 
 
 def house(root: Path = PACKAGE) -> House:
@@ -269,7 +274,7 @@ def draw(h: House, out: Path) -> None:
     ax.set_ylim(boxes['top-level'][1] - 5, _FLOOR + 3)
     ax.set_axis_off()
     fig.tight_layout()
-    fig.savefig(out, dpi=100, metadata={'Software': None})
+    fig.savefig(out, dpi=100, metadata={'Software': None, 'Description': h.digest()})
     plt.close(fig)
 
 
