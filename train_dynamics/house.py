@@ -163,6 +163,19 @@ def house(root: Path = PACKAGE) -> House:
     return House(mods, dict(arrows), {r: sorted(s) for r, s in third.items()})
 
 
+def figure_digest(path: Path = FIGURE) -> str:
+    """Return the digest a figure of :func:`draw` carries (its PNG ``tEXt`` Description)."""
+    data = path.read_bytes()
+    at = 8                                   # after the PNG signature
+    while at + 8 <= len(data):
+        size = int.from_bytes(data[at:at + 4], 'big')
+        kind, body = data[at + 4:at + 8], data[at + 8:at + 8 + size]
+        if kind == b'tEXt' and body.startswith(b'Description\0'):
+            return body.split(b'\0', 1)[1].decode('latin-1')
+        at += 12 + size                      # length, type, data, CRC
+    return ''
+
+
 def broken_rules(h: House) -> list[str]:
     """Return one line per arrow or third-party import that the layer rules forbid."""
     bad = [f'{a} imports {b}' for (a, b) in sorted(h.arrows) if b not in MAY_IMPORT[a]]
