@@ -84,3 +84,14 @@ def test_a_forbidden_arrow_or_import_breaks_the_rules(tmp_path):
 def test_the_rules_name_every_room():
     assert set(MAY_IMPORT) == set(ROOMS)
     assert all(rooms <= set(ROOMS) for rooms in MAY_IMPORT.values())
+
+
+def test_the_drawing_is_the_same_at_every_run_and_carries_its_digest(tmp_path):
+    from train_dynamics.house import draw
+
+    h = house()
+    first, second = tmp_path / 'a.png', tmp_path / 'b.png'
+    draw(h, first)
+    draw(h, second)
+    assert first.read_bytes() == second.read_bytes()
+    assert figure_digest(first) == h.digest()
