@@ -261,16 +261,21 @@ def draw(h: House, out: Path) -> None:
         sa = _spots(len(outgoing[a]), xa, wa)[outgoing[a].index(b)]
         sb = _spots(len(incoming[b]), xb, wb)[incoming[b].index(a)]
         if floor_of[a] == floor_of[b]:
-            start, end, colour, rad = (sa, ya), (sb, yb), _SIDE, 0.35
+            start, end, colour = (sa, ya), (sb, yb), _SIDE
+            rad = 0.35 if sb > sa else -0.35            # bends below the floor
         elif floor_of[a] < floor_of[b]:
             start, end, colour, rad = (sa, ya), (sb, yb + hb), _DOWN, 0.0
         else:
             start, end, colour, rad = (sa, ya + ha), (sb, yb), _UP, 0.0
         ax.add_patch(FancyArrowPatch(start, end, arrowstyle='-|>', mutation_scale=9,
                                      lw=0.6 + 0.5 * n ** 0.5, color=colour, alpha=0.8,
-                                     connectionstyle=f'arc3,rad={rad}'))
-        ax.text(sa + (sb - sa) * 0.35, start[1] + (end[1] - start[1]) * 0.35, str(n),
-                fontsize=7, color=colour, ha='center', va='center',
+                                     connectionstyle=f'arc3,rad={rad}', zorder=0.5))
+        dx, dy = end[0] - start[0], end[1] - start[1]
+        along = min(0.5, 3.0 / max(1e-9, (dx * dx + dy * dy) ** 0.5))  # in the gap below
+        at = (start[0] + dx * along, start[1] + dy * along) if colour != _SIDE \
+            else (start[0] + dx * 0.1, start[1] - 2.5)
+        ax.text(*at, str(n), fontsize=7,
+                color=colour, ha='center', va='center', zorder=0.6,
                 bbox={'fc': 'white', 'ec': 'none', 'pad': 0.5})
     n_lines = sum(m.lines for m in h.modules.values())
     ax.set_title(f'train_dynamics: {len(h.modules)} modules, {n_lines} lines, '
@@ -279,7 +284,8 @@ def draw(h: House, out: Path) -> None:
             'a room per layer, a cell per module (its width by its lines, its name and lines); '
             'an arrow from a room to a room it imports, with the number of module-to-module '
             'imports it carries (to the ground from far floors: listed beside it)\n'
-            'dark: down to a lower floor; ochre: up; blue: across a floor. Grey under each '
+            'dark: down to a lower floor (behind the rooms it passes); ochre: up; blue: across a '
+            'floor. Grey under each '
             'room: the third-party packages it imports. Drawn from the imports in the source '
             '(ast): python -m train_dynamics.house', fontsize=7,
             va='top', color='#444444')
