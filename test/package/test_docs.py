@@ -92,3 +92,23 @@ def test_the_lockstep_parameter_names_each_family_from_the_inputs_rows():
     assert tuple(spec.choices) == families
     for kind in INPUT_KINDS:
         assert (kind.display in spec.description) == bool(kind.family), kind.name
+
+
+def test_no_other_page_keeps_a_table_of_the_outputs():
+    """Only the generated outputs table of ros_interface.md has a row per output topic."""
+    from train_dynamics.recording.output_specs import OUTPUTS
+
+    rows = tuple(f'| `{spec.topic}` |' for spec in OUTPUTS)
+    found = []
+    for page in PAGES:
+        if page.name == 'ros_interface.md':
+            continue
+        header = ''
+        for line in _text(page).splitlines():
+            if not line.startswith('|'):
+                header = ''
+            elif not header:
+                header = line
+            elif header.startswith('| topic |') and line.startswith(rows):
+                found.append(f'{page.relative_to(REPO)}: {line}')
+    assert not found, 'point to docs/ros_interface.md#outputs instead: ' + '; '.join(found)
