@@ -358,7 +358,7 @@ def markdown_table() -> str:
 
 
 def families() -> tuple[str, ...]:
-    """Return the lock-step families (``lockstep_inputs`` values) in row order."""
+    """Return the lock-step family names (the ``lockstep_inputs`` values) in row order."""
     return tuple(dict.fromkeys(k.family for k in INPUT_KINDS if k.family))
 
 
