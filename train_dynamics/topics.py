@@ -105,6 +105,16 @@ BRAKE_BLENDING_TOPIC = 'brake_blending'
 BRAKE_DEMAND_STATE_TOPIC = 'brake_demand/state'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 
+# -- typed messages (package train_dynamics_msgs: msgs/train_dynamics_msgs/msg/*.msg) ------------
+MSGS_PACKAGE = 'train_dynamics_msgs'
+TRAIN_STATE = 'train_dynamics_msgs/msg/TrainState'
+COUPLER_STATE = 'train_dynamics_msgs/msg/CouplerState'
+BRAKE_STATE = 'train_dynamics_msgs/msg/BrakeState'
+#: typed outputs beside the JointState ones (fields: recording/output_specs.py)
+TRAIN_STATE_TOPIC = 'train_state'
+COUPLER_STATE_TOPIC = 'coupler_state'
+BRAKE_STATE_TOPIC = 'brake_state'
+
 
 def input_topic(mode: str, coach: int | None = None) -> str:
     """Return the input topic of ``mode``; ``coach`` (1-based) for the per-coach modes."""
