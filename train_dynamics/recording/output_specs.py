@@ -279,6 +279,7 @@ def _typed(cfg: Any) -> bool:
     """Return True where the typed messages' definitions are found (always in the docs)."""
     return typed_msgs.available()
 
+
 #: every output topic, in the order a run publishes and records them
 OUTPUTS: tuple[OutputSpec, ...] = (
     OutputSpec(topics.COUPLERS_TOPIC, topics.JOINT_STATE, _couplers,
