@@ -208,6 +208,9 @@ SLOW_TABLE = {
     'test_couplings.py': {
         'test_kernel_follows_the_reference_with_preloaded_progressive_ends': 2.2,
     },
+    'test_downstream_typed_controller.py': {
+        'test_a_downstream_typed_controller_stops_at_the_target_byte_identical': 37.1,
+    },
     'test_flake8.py': {
         'test_flake8': 26.6,
     },
