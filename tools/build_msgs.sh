@@ -35,7 +35,16 @@ while IFS= read -r -d '' f; do
 done < <(grep -rlZE --include='*.cmake' "${WHEEL_PY}/" "$VENV/share" || true)
 echo "build_msgs: include paths fixed in $fixed .cmake files of the wheels"
 
-# 2. colcon build into the venv's prefix (merge layout: one prefix, as the wheels).
+# 2. A previous install of the package goes first (colcon never removes a file, and a message
+#    renamed or removed would stay importable).
+PURELIB=$("$VPY" -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')
+rm -rf "$VENV/share/train_dynamics_msgs" "$VENV/include/train_dynamics_msgs" \
+  "$PURELIB"/train_dynamics_msgs "$PURELIB"/train_dynamics_msgs-*
+rm -f "$VENV"/lib/libtrain_dynamics_msgs__*.so \
+  "$VENV"/share/ament_index/resource_index/*/train_dynamics_msgs \
+  "$VENV"/share/colcon-core/packages/train_dynamics_msgs
+
+# 3. colcon build into the venv's prefix (merge layout: one prefix, as the wheels).
 export PATH="$VENV/bin:$PATH"
 export CMAKE_PREFIX_PATH="$VENV${CMAKE_PREFIX_PATH:+:$CMAKE_PREFIX_PATH}"
 export AMENT_PREFIX_PATH="$VENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}"

@@ -27,7 +27,7 @@ def test_the_typestore_has_the_packages_message_definitions():
         assert f'train_dynamics_msgs/msg/{path.stem}' in types, path.name
     assert typed_msgs.array_fields('train_dynamics_msgs/msg/TrainState') == (
         'position', 'speed', 'acceleration', 'braking_force')
-    wsp = types['train_dynamics_msgs/msg/WspValves']
+    wsp = types['train_dynamics_msgs/msg/WspValve']
     assert (wsp.NORMAL, wsp.HOLD, wsp.VENT) == (0, 1, 2)
 
 
