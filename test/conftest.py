@@ -197,7 +197,8 @@ SLOW_TABLE = {
         'test_consist_files_run_one_second_or_are_refused_in_one_line': 8.1,
     },
     'test_consist_refusals.py': {
-        'test_item1_long_consist_file_is_parsed_once_by_libyaml_and_an_oversized_one_is_not_read': 2.1,
+        'test_item1_long_consist_file_is_parsed_once_by_libyaml_and_an_oversized_one_is_not_read':
+            2.1,
     },
     'test_controller_loop.py': {
         'test_harness_passes_the_pi_controller_and_fails_its_harsh_twin': 7.5,

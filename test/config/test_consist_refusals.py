@@ -138,7 +138,8 @@ def test_item2_memory_estimate_bounds_the_real_arrays_of_periods_and_pipe_cells(
 # -- item 1: the parsing cost of a consist file is bounded --------------------------------------
 def test_item1_long_consist_file_is_parsed_once_by_libyaml_and_an_oversized_one_is_not_read(
         tmp_path, monkeypatch):
-    """A long consist file is parsed once, by libyaml's parser; one over the limit not at all.
+    """
+    A long consist file is parsed once, by libyaml's parser; one over the limit not at all.
 
     The cost of a consist file was ~1.7x the pure-Python parse: the file was parsed more than
     once and by PyYAML's Python parser. What bounds the cost is counted here (parses and the

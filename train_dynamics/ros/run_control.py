@@ -52,7 +52,7 @@ from typing import Any, Callable
 from std_srvs.srv import Trigger
 
 from train_dynamics.physics.train import TrainSimulator
-from train_dynamics.ros.brake_inputs import BrakeInputs
+from train_dynamics.ros.controller_inputs import ControllerInputs
 from train_dynamics.ros.lockstep_inputs import CHEAP_TOPICS
 from train_dynamics.ros.publishers import Outputs
 
@@ -66,7 +66,7 @@ PROBE_PERIOD = 0.5         # [s wall] lock-step start: the input publishers' QoS
 class RunControl:
     """Pause/resume/step and the lock-step gate of one node (see the module documentation)."""
 
-    def __init__(self, node: Any, lock: Any, inputs: BrakeInputs, outputs: Outputs,
+    def __init__(self, node: Any, lock: Any, inputs: ControllerInputs, outputs: Outputs,
                  wake: Callable[[], None]) -> None:
         self._lock = lock
         self._inputs = inputs
