@@ -99,6 +99,16 @@ BRAKE_STATE = 'train_dynamics_msgs/msg/BrakeState'
 TRAIN_STATE_TOPIC = 'train_state'
 COUPLER_STATE_TOPIC = 'coupler_state'
 BRAKE_STATE_TOPIC = 'brake_state'
+#: the stamped commands: typed twins of the Float64 / Int8 commands, matched in lock-step by
+#: their header stamp (rows of train_dynamics/input_kinds.py)
+TRACTION_COMMAND = 'train_dynamics_msgs/msg/TractionCommand'
+EP_COMMAND = 'train_dynamics_msgs/msg/EpCommand'
+WSP_VALVE = 'train_dynamics_msgs/msg/WspValve'
+BRAKE_DEMAND = 'train_dynamics_msgs/msg/BrakeDemand'
+TRACTION_STAMPED_TOPIC = 'coach_{i}/traction/command_stamped'
+EP_COMMAND_STAMPED_TOPIC = 'brake_ep/command_stamped'
+WSP_VALVE_STAMPED_TOPIC = 'coach_{i}/wsp/valve_stamped'
+BRAKE_DEMAND_STAMPED_TOPIC = 'brake_demand_stamped'
 
 
 def input_topic(mode: str, coach: int | None = None) -> str:

@@ -11,9 +11,11 @@ from pathlib import Path
 
 import numpy as np
 
+from train_dynamics import topics
 from train_dynamics.cli import offline as cli
 from train_dynamics.recording import typed_msgs
-from train_dynamics.recording.bags import read_topics
+from train_dynamics.recording.bags import BagRecorder, read_topics
+from train_dynamics.recording.cdr import encode_fluid_pressure
 from train_dynamics.recording.messages import serialize, typestore
 
 REPO = Path(__file__).resolve().parents[2]
@@ -97,3 +99,40 @@ def test_the_pneumatic_brakes_typed_state_has_the_reservoirs(tmp_path):
         np.testing.assert_array_equal(typed.control_reservoir_pressure, joint.effort)
     # charged: the auxiliary reservoirs near the 5 bar gauge of a released brake
     assert 4.5e5 < got['brake_state'][-1].auxiliary_reservoir_pressure[0] < 5.5e5
+
+
+def _typed_command(msgtype: str, t_ns: int, **values) -> bytes:
+    """Return the CDR bytes of a stamped command of ``msgtype`` (rosbags' encoding)."""
+    types = typestore().types
+    sec, nanosec = divmod(t_ns, 1_000_000_000)
+    header = types['std_msgs/msg/Header'](
+        stamp=types['builtin_interfaces/msg/Time'](sec=sec, nanosec=nanosec), frame_id='')
+    return serialize(types[msgtype](header=header, **values))
+
+
+def test_a_stamped_traction_command_of_an_input_bag_drives_the_locomotive(tmp_path):
+    (tmp_path / 'train.yaml').write_text(
+        'vehicles:\n  - {type: electric_passenger_locomotive, traction_build_up_time: 1.0}\n'
+        '  - {type: passenger_coach, count: 3}\n')
+    params = tmp_path / 'p.yaml'
+    params.write_text('train_dynamics:\n  ros__parameters:\n    consist_file: train.yaml\n'
+                      '    initial_speed: 20.0\n')
+    inp = tmp_path / 'in'
+    rec = BagRecorder(inp)
+    rec.add_topic(topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE)
+    rec.add_topic('coach_1/traction/command_stamped', topics.TRACTION_COMMAND)
+    rec.write(topics.HEAD_PIPE_TOPIC, 0, encode_fluid_pressure(0, 601325.0))
+    rec.write('coach_1/traction/command_stamped', 0,
+              _typed_command(topics.TRACTION_COMMAND, 0, command=0.8))
+    rec.write('coach_1/traction/command_stamped', 1_000_000_000,          # refused: > 1
+              _typed_command(topics.TRACTION_COMMAND, 1_000_000_000, command=7.0))
+    rec.close()
+    out = tmp_path / 'out'
+    assert cli.main(['simulate', '--params', str(params), '--input', str(inp),
+                     '--duration', '3', '--output', str(out), '-q']) == 0
+    forces = [m for _, _, m in read_topics(out, [topics.VEHICLE_FORCES_TOPIC])][-1]
+    # 0.8 of the locomotive's 300 kN, built up over 1 s: more than half of it after 3 s
+    assert forces.position[0] > 0.5 * 300e3 * 0.8 and forces.position[1] == 0.0
+    recorded = [(t, m.command) for _, t, m in
+                read_topics(out, ['coach_1/traction/command_stamped'])]
+    assert recorded == [(0, 0.8)]
