@@ -11,6 +11,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import FluidPressure, JointState
 from sim_node_helpers import fluid
 
@@ -74,3 +75,37 @@ def test_a_stamped_traction_command_answers_the_output_of_its_stamp(harness, tmp
     answered = [r for r in recorded if r[0] == r[1]]
     assert [t for t, _, _ in answered[:7]] == outputs[:7]
     assert [c for _, _, c in answered[:5]] == [0.1 * k for k in (1, 2, 3, 4)] + [0.4]
+
+
+def test_on_the_clock_a_stamped_traction_command_answers_its_period(harness, tmp_path):
+    """
+    ``lockstep_answer: clock``: a controller on the simulation clock, typed traction only.
+
+    The probe answers each ``/clock`` tick with the brake pipe and a ``TractionCommand``
+    stamped with that time, as a timer on ``use_sim_time`` would; every period of the run is
+    answered and each command is recorded at its stamp.
+    """
+    traction = harness.probe.create_publisher(TractionCommand,
+                                              'coach_1/traction/command_stamped', RELIABLE)
+    brake = harness.probe.create_publisher(FluidPressure, 'brake_pipe/pressure', RELIABLE)
+    ticks = []
+
+    def on_clock(msg):
+        ticks.append(_ns(msg.clock))
+        out = fluid(5e5 + ATM)
+        out.header.stamp = msg.clock
+        brake.publish(out)
+        cmd = TractionCommand(command=0.5)
+        cmd.header.stamp = msg.clock
+        traction.publish(cmd)
+    harness.probe.create_subscription(Clock, '/clock', on_clock, RELIABLE)
+    bag = tmp_path / 'bag'
+    node = harness.start(consist_file=str(CONSIST), initial_speed=10.0, sync_mode='lockstep',
+                         lockstep_inputs=['brake', 'traction'], lockstep_answer='clock',
+                         real_time_factor=0.0, duration=0.3, record_bag=str(bag))
+    assert harness.wait(lambda: node.finished, WAIT)
+    assert node.exit_code == 0
+    harness.stop(node)                               # the bag closed
+    recorded = [(t, _ns(m.header.stamp)) for _, t, m in
+                read_topics(bag, ['coach_1/traction/command_stamped'])]
+    assert len(recorded) >= 30 and all(t == s for t, s in recorded)
