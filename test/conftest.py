@@ -362,6 +362,9 @@ SLOW_TABLE = {
         'test_sweep_consist_file_relative_to_the_sweep_file': 2.5,
         'test_sweep_resume_refuses_an_edited_consist': 2.0,
     },
+    'test_typed_commands.py': {
+        'test_a_stamped_traction_command_answers_the_output_of_its_stamp': 2.7,
+    },
     'test_wheel_slide_train.py': {
         'test_wheelset_solve_against_bisection': 2.5,
     },
