@@ -224,6 +224,9 @@ SLOW_TABLE = {
         'test_report_figures_are_off_unless_asked': 5.0,
         'test_shell_wrapped_controller_is_ended_after_a_timeout': 20.2,
     },
+    'test_house.py': {
+        'test_the_drawing_is_the_same_at_every_run_and_carries_its_digest': 4.6,
+    },
     'test_integrators.py': {
         'test_stage_solve_matches_dense_solve_with_held_coaches': 2.6,
     },
