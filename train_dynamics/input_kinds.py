@@ -22,7 +22,7 @@ know this table.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass, field as dc_field, replace
 import math
 import re
 from typing import Any, Callable
@@ -162,6 +162,9 @@ class InputKind:
     ``family`` ``''``: no lock-step period waits for the kind (its values act when they
     arrive). ``stamped``: the message has a ``header`` and answers the lock-step output of
     its stamp (an unstamped one answers the latest output published before it arrived).
+    ``twin``: the name of the kind this one is the stamped twin of (:func:`stamped_twin`: the
+    same input of the same vehicles from a typed ``train_dynamics_msgs`` message; the node
+    serves both in one channel, so a lock-step period takes either as a vehicle's answer).
     """
 
     name: str
@@ -185,6 +188,7 @@ class InputKind:
     #: a vehicle in the train that does not take it: the reason its messages are refused
     #: (the node's graph scan subscribes to such topics to count them); '' = not scanned
     idle_reason: str = ''
+    twin: str = ''
     pattern: re.Pattern = dc_field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -308,8 +312,36 @@ INPUT_KINDS: tuple[InputKind, ...] = (
               when='`blending: builtin`'),
 )
 
+
+def stamped_twin(plain: InputKind, topic: str, msgtype: str, field: str) -> InputKind:
+    """
+    Return the stamped twin of the command kind ``plain`` (a typed ``train_dynamics_msgs``).
+
+    Everything as ``plain`` (rule, setter, vehicles, family, fail-safe, staleness) but the
+    topic, the message type and field, and the header stamp that matches it in lock-step.
+    """
+    return replace(plain, name=f'{plain.name}_stamped', topic=topic, msgtype=msgtype,
+                   field=field, stamped=True, twin=plain.name, idle_reason='',
+                   meaning=f'as `{plain.display}`, stamped: {plain.meaning}')
+
+
+_PLAIN = {k.name: k for k in INPUT_KINDS}
+#: the stamped twins of the Float64 / Int8 commands (package train_dynamics_msgs)
+STAMPED_TWINS: tuple[InputKind, ...] = (
+    stamped_twin(_PLAIN['traction'], topics.TRACTION_STAMPED_TOPIC, topics.TRACTION_COMMAND,
+                 'command'),
+    stamped_twin(_PLAIN['ep'], topics.EP_COMMAND_STAMPED_TOPIC, topics.EP_COMMAND, 'command'),
+    stamped_twin(_PLAIN['wsp'], topics.WSP_VALVE_STAMPED_TOPIC, topics.WSP_VALVE, 'state'),
+    stamped_twin(_PLAIN['demand'], topics.BRAKE_DEMAND_STAMPED_TOPIC, topics.BRAKE_DEMAND,
+                 'demand'),
+)
+INPUT_KINDS += STAMPED_TWINS
+
 #: name -> row
 KINDS: dict[str, InputKind] = {k.name: k for k in INPUT_KINDS}
+#: a command kind's name -> its stamped twins
+TWINS: dict[str, tuple[InputKind, ...]] = {
+    k.name: tuple(t for t in STAMPED_TWINS if t.twin == k.name) for k in INPUT_KINDS}
 #: the brake-input kinds (``brake_input`` modes: one is active per run)
 BRAKE_KINDS = tuple(k for k in INPUT_KINDS if k.family == 'brake')
 #: the command kinds (every one whose ``takes`` is not empty is active)
@@ -363,8 +395,8 @@ def families() -> tuple[str, ...]:
 
 
 def family_rows(family: str) -> tuple[InputKind, ...]:
-    """Return the rows of lock-step ``family``, in the order a period applies them."""
-    return tuple(k for k in INPUT_KINDS if k.family == family)
+    """Return the rows of lock-step ``family`` (stamped twins apart), in the order applied."""
+    return tuple(k for k in INPUT_KINDS if k.family == family and not k.twin)
 
 
 def _answered_by(family: str) -> str:
@@ -374,18 +406,24 @@ def _answered_by(family: str) -> str:
         return "a message stamped with the output's stamp"
     types = ' / '.join(dict.fromkeys(f'`{k.msgtype}`' for k in rows))
     text = f'one {types} of each received after the output was published'
+    twins = [t for k in rows for t in TWINS[k.name]]
+    if twins:
+        text += (' (or its stamped twin, '
+                 + ' / '.join(dict.fromkeys(f'`{t.msgtype}`' for t in twins))
+                 + ", stamped with the output's stamp)")
     if len(rows) > 1:
-        text += (": a period's values are applied in the order "
+        text += ("; a period's values are applied in the order "
                  + ', '.join(k.label for k in rows) + ', whatever order they arrived in')
     return text
 
 
 def _family_topics(family: str, mark: str = '`') -> str:
     """Return the topics of ``family`` with the runs that have them (``mark``: code quote)."""
-    rows = family_rows(family)
+    def named(k: InputKind) -> str:
+        return ' or '.join(f'{mark}{t.display}{mark}' for t in (k, *TWINS[k.name]))
     one = f' (the one of {mark}brake_input{mark})' if family == 'brake' else ''
-    return '; '.join(f'{mark}{k.display}{mark} ({k.when.replace("`", mark)})'
-                     for k in rows) + one
+    return '; '.join(f'{named(k)} ({k.when.replace("`", mark)})'
+                     for k in family_rows(family)) + one
 
 
 def lockstep_table() -> str:
