@@ -389,5 +389,60 @@ def markdown_table() -> str:
     return '\n'.join(lines)
 
 
-if __name__ == '__main__':   # python -m train_dynamics.input_kinds: the docs' table
+def families() -> tuple[str, ...]:
+    """Return the lock-step family names (the ``lockstep_inputs`` values) in row order."""
+    return tuple(dict.fromkeys(k.family for k in INPUT_KINDS if k.family))
+
+
+def family_rows(family: str) -> tuple[InputKind, ...]:
+    """Return the rows of lock-step ``family`` (stamped twins apart), in the order applied."""
+    return tuple(k for k in INPUT_KINDS if k.family == family and not k.twin)
+
+
+def _answered_by(family: str) -> str:
+    """Return how one period's inputs of ``family`` answer an output (from the rows)."""
+    rows = family_rows(family)
+    if all(k.stamped for k in rows):
+        return "a message stamped with the output's stamp"
+    types = ' / '.join(dict.fromkeys(f'`{k.msgtype}`' for k in rows))
+    text = f'one {types} of each received after the output was published'
+    twins = [t for k in rows for t in TWINS[k.name]]
+    if twins:
+        text += (' (or its stamped twin, '
+                 + ' / '.join(dict.fromkeys(f'`{t.msgtype}`' for t in twins))
+                 + ", stamped with the output's stamp)")
+    if len(rows) > 1:
+        text += ("; a period's values are applied in the order "
+                 + ', '.join(k.label for k in rows) + ', whatever order they arrived in')
+    return text
+
+
+def _family_topics(family: str, mark: str = '`') -> str:
+    """Return the topics of ``family`` with the runs that have them (``mark``: code quote)."""
+    def named(k: InputKind) -> str:
+        return ' or '.join(f'{mark}{t.display}{mark}' for t in (k, *TWINS[k.name]))
+    one = f' (the one of {mark}brake_input{mark})' if family == 'brake' else ''
+    return '; '.join(f'{named(k)} ({k.when.replace("`", mark)})'
+                     for k in family_rows(family)) + one
+
+
+def lockstep_table() -> str:
+    """Return the lock-step families table of docs/ros_interface.md (``python -m``)."""
+    lines = ['| value | input topics | answered by |', '| --- | --- | --- |']
+    lines += [f'| `{f}` | {_family_topics(f)} | {_answered_by(f)} |' for f in families()]
+    return '\n'.join(lines)
+
+
+def lockstep_description() -> str:
+    """Return the description of the ``lockstep_inputs`` node parameter (from the rows)."""
+    parts = [f'{f}: {_family_topics(f, "")}, answered by {_answered_by(f).replace("`", "")}'
+             for f in families()]
+    return ('lockstep: the controller inputs each output period waits for, by family. '
+            + '. '.join(parts) + '. A listed input the train does not have is a '
+            'configuration error in lockstep.')
+
+
+if __name__ == '__main__':   # python -m train_dynamics.input_kinds: the docs' tables
     print(markdown_table())
+    print()
+    print(lockstep_table())

@@ -66,3 +66,49 @@ def test_no_other_page_keeps_a_table_of_the_inputs():
              if page.name != 'ros_interface.md'
              for line in _text(page).splitlines() if line.startswith(rows)]
     assert not found, 'point to docs/ros_interface.md#inputs instead: ' + '; '.join(found)
+
+
+def test_the_docs_show_the_generated_lockstep_table():
+    """The lock-step families table of ros_interface.md is printed from the inputs' rows."""
+    from train_dynamics.input_kinds import INPUT_KINDS, lockstep_table
+
+    page = (REPO / 'docs' / 'ros_interface.md').read_text(encoding='utf-8')
+    assert lockstep_table() in page, 'regenerate: python -m train_dynamics.input_kinds'
+    rows = {line.split(' | ')[0][2:].strip('`'): line
+            for line in lockstep_table().splitlines()[2:]}
+    assert set(rows) == {k.family for k in INPUT_KINDS if k.family}
+    for kind in INPUT_KINDS:      # each input is named in its family's row, in no other
+        holding = [f for f, line in rows.items() if f'`{kind.display}`' in line]
+        assert holding == ([kind.family] if kind.family else []), kind.name
+
+
+def test_the_lockstep_parameter_names_each_family_from_the_inputs_rows():
+    """``lockstep_inputs``: its choices and description come from the inputs' families."""
+    from train_dynamics.input_kinds import INPUT_KINDS
+    from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
+
+    spec = SIM_NODE_PARAMETERS['lockstep_inputs']
+    families = tuple(dict.fromkeys(k.family for k in INPUT_KINDS if k.family))
+    assert tuple(spec.choices) == families
+    for kind in INPUT_KINDS:
+        assert (kind.display in spec.description) == bool(kind.family), kind.name
+
+
+def test_no_other_page_keeps_a_table_of_the_outputs():
+    """Only the generated outputs table of ros_interface.md has a row per output topic."""
+    from train_dynamics.recording.output_specs import OUTPUTS
+
+    rows = tuple(f'| `{spec.topic}` |' for spec in OUTPUTS)
+    found = []
+    for page in PAGES:
+        if page.name == 'ros_interface.md':
+            continue
+        header = ''
+        for line in _text(page).splitlines():
+            if not line.startswith('|'):
+                header = ''
+            elif not header:
+                header = line
+            elif header.startswith('| topic |') and line.startswith(rows):
+                found.append(f'{page.relative_to(REPO)}: {line}')
+    assert not found, 'point to docs/ros_interface.md#outputs instead: ' + '; '.join(found)

@@ -3,8 +3,8 @@ The layering rule of the package, checked in fresh interpreters and in the sourc
 
 ``topics`` <- ``physics`` <- ``simulation`` <- ``recording`` <- ``ros`` / ``cli``: the physics
 and simulation layers never load rclpy, rosbags or matplotlib; the recording layer never loads
-rclpy; ``topics`` loads nothing of the project or of third parties. Only ``ros/`` imports
-rclpy.
+rclpy; ``topics`` loads nothing of the project or of third parties, and the physics layer
+never imports it (no topic names). Only ``ros/`` imports rclpy.
 """
 from __future__ import annotations
 
@@ -118,3 +118,20 @@ def test_parameter_files_layer_loads_no_ros_and_physics_knows_not_their_form():
     named = [str(f.relative_to(REPO)) for f in sorted((PACKAGE / 'physics').rglob('*.py'))
              if 'ros__parameters' in f.read_text(encoding='utf-8')]
     assert not named, named
+
+
+def test_physics_knows_no_topic_names():
+    # the physics layer labels couplers and vehicles by position; the topics' names
+    # (train_dynamics.topics) are given to it by the recording layer, never imported
+    import ast
+
+    bad = []
+    for path in sorted((PACKAGE / 'physics').rglob('*.py')):
+        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+            names = ([a.name for a in node.names] if isinstance(node, ast.Import) else
+                     [f'{node.module or ""}.{a.name}' for a in node.names]
+                     if isinstance(node, ast.ImportFrom) else [])
+            bad += [f'{path.relative_to(REPO)}: {n}' for n in names
+                    if n.endswith('.topics') or n == 'train_dynamics.topics'
+                    or n.startswith('train_dynamics.topics.')]
+    assert not bad, bad

@@ -127,8 +127,29 @@ def test_coupler_extremes_blocking_impacts_and_crossings_by_hand():
         (1, -820.0, pytest.approx(1.4), pytest.approx(1.4), pytest.approx(1.6))]
     assert r['train']['limit_crossings'] == 3
     level, message, values = m.diagnostic()
-    assert level == 'WARN' and 'coupler_1' in message and '-900' in message
+    assert level == 'WARN' and 'coupler 1' in message and '-900' in message
     assert dict(values)['limit_crossings'] == '3'
+
+
+def test_the_metrics_label_by_position_and_the_report_names_as_the_outputs():
+    from train_dynamics.recording.metrics_report import joint_labels, run_metrics
+
+    hist = coupler_history()
+    plain = feed(RunMetrics(2, coupler_force_limit=500.0), *hist)
+    assert [c['name'] for c in plain['couplers']] == ['coupler 1']
+    assert [v['name'] for v in plain['vehicles']] == ['vehicle 1', 'vehicle 2']
+    m = RunMetrics(2, coupler_force_limit=500.0, **joint_labels(2))
+    named = feed(m, *hist)
+    assert [c['name'] for c in named['couplers']] == topics.coupler_names(2) == ['coupler_1']
+    assert [v['name'] for v in named['vehicles']] == topics.coach_names(2)
+    assert {e['name'] for e in named['crossings']} == {'coupler_1'}
+    assert 'coupler_1 force -900' in m.diagnostic()[1]
+    cfg = SimConfig.from_dict({})
+    metrics = run_metrics(cfg)
+    assert metrics.coupler_names == topics.coupler_names(cfg.n_coaches)
+    assert metrics.vehicle_names == topics.coach_names(cfg.n_coaches)
+    with pytest.raises(ValueError, match='3 coupler names for 1 couplers'):
+        RunMetrics(2, coupler_names=['a', 'b', 'c'])
 
 
 def test_a_limit_set_live_acts_from_the_next_sample_on():

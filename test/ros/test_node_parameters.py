@@ -26,6 +26,21 @@ def test_node_parameters_are_not_the_simulators():
     assert all(spec.dynamic for spec in SIM_NODE_PARAMETERS.values())
 
 
+def test_the_node_reads_its_own_parameters_through_their_table_only():
+    """No ros/ module asks rclpy for a node parameter by name: the node reads them once."""
+    import ast
+
+    bad = []
+    for path in sorted((REPO / 'train_dynamics' / 'ros').glob('*.py')):
+        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+            if (isinstance(node, ast.Call) and isinstance(node.func, ast.Attribute)
+                    and node.func.attr == 'get_parameter' and node.args
+                    and isinstance(node.args[0], ast.Constant)
+                    and node.args[0].value in SIM_NODE_PARAMETERS):
+                bad.append(f'{path.name}:{node.lineno} {node.args[0].value}')
+    assert not bad, bad
+
+
 def test_diagnostics_come_at_the_period_set_live(harness):
     from diagnostic_msgs.msg import DiagnosticArray
     from rclpy.parameter import Parameter

@@ -31,8 +31,8 @@ import time
 
 from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel import compiler
-from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
+from train_dynamics.recording.metrics_report import run_metrics
 
 #: variant group -> the configurations (parameter overrides) whose runs compile it
 VARIANTS = {
@@ -79,7 +79,7 @@ def warm_metrics() -> None:
     """Feed the run metrics of the default train as the node does (``ros/publishers.py``)."""
     cfg = SimConfig.from_dict({})
     sim = TrainSimulator(cfg)
-    metrics = RunMetrics.for_run(cfg, sim)
+    metrics = run_metrics(cfg, sim)
     for _ in range(3):
         sim.advance(5)
         metrics.add(sim.t, sim.y, sim.ydot, sim.coupler_force, sim.x, sim.v, sim.brake_force)

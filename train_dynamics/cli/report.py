@@ -30,13 +30,14 @@ from train_dynamics.cli.output import output_dir, remove_created
 from train_dynamics.cli.scenario import load_config
 from train_dynamics.physics.config import ConfigError, SimConfig
 from train_dynamics.physics.fatigue import FatigueFeed
-from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
+from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.quoting import clip
 from train_dynamics.recording.bags import bag_info, BagError, shared_reader
 from train_dynamics.recording.blending_metrics import blending_metrics
 from train_dynamics.recording.history import History, natural_key, stream_history
-from train_dynamics.recording.metrics_report import (MetricsFeed, stop_error_from_bag,
-                                                     write_report)
+from train_dynamics.recording.metrics_report import (joint_labels, metrics_of_history,
+                                                     MetricsFeed, run_metrics,
+                                                     stop_error_from_bag, write_report)
 
 
 def add_parser(sub: argparse._SubParsersAction) -> None:
@@ -104,8 +105,8 @@ def metrics_factory(cfg: SimConfig | None, **overrides: Any) -> Callable[[int], 
     def make(n: int) -> RunMetrics:
         if cfg is not None and cfg.n_coaches != n:
             raise CliError(f'the bag has {n} vehicles, the parameters {cfg.n_coaches}')
-        return (RunMetrics.for_run(cfg, **overrides) if cfg is not None
-                else RunMetrics(n, **overrides))
+        return (run_metrics(cfg, **overrides) if cfg is not None
+                else RunMetrics(n, **joint_labels(n), **overrides))
     return make
 
 

@@ -20,8 +20,9 @@ from train_dynamics import topics
 from train_dynamics.cli import simulate
 from train_dynamics.cli.errors import check_runnable, CliError
 from train_dynamics.physics.config import SimConfig
-from train_dynamics.physics.metrics import FLAT_KEYS, RunMetrics
+from train_dynamics.physics.metrics import FLAT_KEYS
 from train_dynamics.recording.bags import BagRecorder
+from train_dynamics.recording.metrics_report import run_metrics
 from train_dynamics.recording.outputs import parameters_json
 from train_dynamics.recording.sinks import BagSink
 from train_dynamics.simulation.runner import InputSchedule, run_simulation
@@ -43,7 +44,7 @@ class _Metrics:
 
     def sample(self, s: Any) -> None:
         if self.metrics is None:
-            self.metrics = RunMetrics.for_run(self.cfg, s.sim)
+            self.metrics = run_metrics(self.cfg, s.sim)
         self.metrics.sample(s)
 
 

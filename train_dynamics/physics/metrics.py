@@ -2,7 +2,7 @@
 Run metrics: what an engineer asks of a run, computed from its output samples.
 
 One accumulator, :class:`RunMetrics`, is fed with the output samples of a run (per coupler
-t, y, ydot, F; per vehicle x, v, Fb: the contract's ``couplers`` and ``coaches`` topics) and
+t, y, ydot, F; per vehicle x, v, Fb: what the contract's coupler and vehicle outputs carry) and
 keeps running values, so the very same code serves the offline runner (:meth:`RunMetrics.
 sample` as a :func:`train_dynamics.simulation.runner.run_simulation` sink), the node (one
 :meth:`RunMetrics.add` per published sample) and ``train-dynamics report`` (a recorded
@@ -72,7 +72,6 @@ from typing import Any
 
 import numpy as np
 
-from train_dynamics import topics
 from train_dynamics.physics.kernel import couplers
 
 #: comfort window W [s] of the mean deceleration and of the jerk (EN 12299 practice)
@@ -198,6 +197,10 @@ class RunMetrics:
     ``draw_gear_slack`` (g_c, g_t [m]): None, a scalar or one value per coupler; None (or
     inf) stroke = never blocks, None slack = no free play. ``elastic_energy(y)`` returns the
     energy stored in each coupler at displacement y [J] (for the dissipated energy).
+    ``coupler_names`` / ``vehicle_names``: the labels of the couplers (front first) and the
+    vehicles in the rows, crossings and the diagnostic message; this layer knows only their
+    positions (default ``coupler 1`` ..., ``vehicle 1`` ...): the recording layer passes the
+    outputs' joint names (:func:`train_dynamics.recording.metrics_report.run_metrics`).
     """
 
     def __init__(self, n_vehicles: int, *, coupler_force_limit: float = 0.0,
@@ -207,13 +210,14 @@ class RunMetrics:
                  elastic_energy: Callable[[np.ndarray], np.ndarray] | None = None,
                  window: float = COMFORT_WINDOW, stop_speed: float = STOP_SPEED,
                  block: int = BLOCK, target_stop_position: float | None = None,
-                 track_origin: float = 0.0) -> None:
+                 track_origin: float = 0.0, coupler_names: Sequence[str] | None = None,
+                 vehicle_names: Sequence[str] | None = None) -> None:
         if n_vehicles < 2:
             raise ValueError('a train has at least 2 vehicles')
         n = self.n = int(n_vehicles)
         m = n - 1
-        self.coupler_names = topics.coupler_names(n)
-        self.vehicle_names = topics.coach_names(n)
+        self.coupler_names = _labels(coupler_names, m, 'coupler')
+        self.vehicle_names = _labels(vehicle_names, n, 'vehicle')
         self.window, self.stop_speed = float(window), float(stop_speed)
         self.gt = _per_coupler(draw_gear_slack, m, 0.0)
         self.gc = _per_coupler(buffer_slack, m, 0.0)
@@ -552,6 +556,15 @@ class RunMetrics:
         return cls(int(cfg.n_coaches), **opts)
 
 
+def _labels(names: Sequence[str] | None, count: int, what: str) -> list[str]:
+    """Return ``count`` labels: ``names`` (checked) or ``<what> 1`` ... by position."""
+    if names is None:
+        return [f'{what} {k}' for k in range(1, count + 1)]
+    if len(names) != count:
+        raise ValueError(f'{len(names)} {what} names for {count} {what}s')
+    return list(names)
+
+
 def _positive(value: Any) -> bool:
     try:
         return value is not None and float(value) > 0.0
@@ -573,18 +586,3 @@ def _fmt(value: Any) -> str:
     if isinstance(value, float):
         return f'{value:.6g}'
     return str(value)
-
-
-def metrics_of_history(hist: Any, metrics: RunMetrics) -> RunMetrics:
-    """
-    Feed a recorded run (``couplers`` and ``coaches`` time series) into ``metrics``.
-
-    ``hist`` has ``couplers`` and ``coaches`` with ``t``, ``position``, ``velocity`` and
-    ``effort`` arrays (:class:`train_dynamics.recording.history.History`); the two topics
-    are matched on their time stamps (samples present in both).
-    """
-    cp, co = hist.couplers, hist.coaches
-    t, ic, iv = np.intersect1d(np.round(cp.t, 9), np.round(co.t, 9), return_indices=True)
-    metrics.add_block(cp.t[ic], cp.position[ic], cp.velocity[ic], cp.effort[ic],
-                      co.position[iv], co.velocity[iv], co.effort[iv])
-    return metrics

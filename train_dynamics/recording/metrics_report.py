@@ -70,6 +70,38 @@ def write_report(result: dict[str, Any], hist: History, outdir: str | os.PathLik
     return paths
 
 
+def joint_labels(n_vehicles: int) -> dict[str, list[str]]:
+    """
+    Return the labels the run metrics give their couplers and vehicles (RunMetrics keywords).
+
+    The joint names of the ``couplers`` and ``coaches`` outputs the samples come from
+    (:func:`train_dynamics.topics.coupler_names`, :func:`~train_dynamics.topics.coach_names`):
+    the physics layer counts positions, the report names them as the topics do.
+    """
+    return {'coupler_names': topics.coupler_names(n_vehicles),
+            'vehicle_names': topics.coach_names(n_vehicles)}
+
+
+def run_metrics(cfg: Any, sim: Any = None, **overrides: Any) -> RunMetrics:
+    """Return :meth:`RunMetrics.for_run` of ``cfg`` (and ``sim``), labelled as the outputs."""
+    return RunMetrics.for_run(cfg, sim, **joint_labels(int(cfg.n_coaches)), **overrides)
+
+
+def metrics_of_history(hist: Any, metrics: RunMetrics) -> RunMetrics:
+    """
+    Feed a recorded run (``couplers`` and ``coaches`` time series) into ``metrics``.
+
+    ``hist`` has ``couplers`` and ``coaches`` with ``t``, ``position``, ``velocity`` and
+    ``effort`` arrays (:class:`train_dynamics.recording.history.History`); the two topics
+    are matched on their time stamps (samples present in both).
+    """
+    cp, co = hist.couplers, hist.coaches
+    t, ic, iv = np.intersect1d(np.round(cp.t, 9), np.round(co.t, 9), return_indices=True)
+    metrics.add_block(cp.t[ic], cp.position[ic], cp.velocity[ic], cp.effort[ic],
+                      co.position[iv], co.velocity[iv], co.effort[iv])
+    return metrics
+
+
 class MetricsFeed:
     """
     Feed :class:`train_dynamics.physics.metrics.RunMetrics` from a bag as it is read.
@@ -77,7 +109,7 @@ class MetricsFeed:
     Give :meth:`on_block` / :meth:`on_reset` to
     :func:`train_dynamics.recording.history.stream_history`. The samples fed are those where
     ``couplers`` and ``coaches`` share a header stamp (rounded to 1 ns, the first of equal
-    stamps), as :func:`train_dynamics.physics.metrics.metrics_of_history` takes them from
+    stamps), as :func:`metrics_of_history` takes them from
     whole arrays; they go to the metrics in blocks of :data:`FEED_ROWS` (a run of at most
     that many samples in one block: the very numbers of the in-memory report). Columns are
     those of each topic's first block in natural order (coupler_2 before coupler_10). A

@@ -354,7 +354,8 @@ OUTPUTS: tuple[OutputSpec, ...] = (
                lambda cfg: ['demand', 'achieved'], '`demand`, `achieved`',
                ('deceleration [m/s^2] (demand: after the jerk limit; achieved: ED + friction + '
                 'track forces over the inertial mass, resistance and gradient not counted)',
-                'brake force [N]', 'electro-dynamic brake force of the train [N]'),
+                'brake force [N] (demand: asked of the brakes; achieved: ED + friction + track)',
+                'electro-dynamic brake force of the train [N] (demand: commanded; achieved)'),
                _demand_state, lambda cfg: getattr(cfg, 'blending', 'none') == 'builtin',
                '`blending: builtin`'),
     OutputSpec(topics.TRAIN_STATE_TOPIC, topics.TRAIN_STATE, _vehicles, _EVERY_VEHICLE,

@@ -15,6 +15,7 @@ table without ROS.
 """
 from __future__ import annotations
 
+from train_dynamics.input_kinds import families, lockstep_description
 from train_dynamics.physics.config.docs import parameter_table
 from train_dynamics.physics.config.spec import (BOOL, DOUBLE, INTEGER, ParamSpec, STRING,
                                                 STRING_ARRAY)
@@ -42,18 +43,8 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'lockstep_inputs declares has answered it, then advances one output period '
               '(and starts only when the controller is connected both ways).',
               choices=('free', 'lockstep'), dynamic=True),
-    ParamSpec('lockstep_inputs', ['brake'], STRING_ARRAY,
-              'lockstep: the controller inputs each output period waits for. brake: every '
-              'active brake-input topic of brake_input, answered by a message stamped with '
-              "the output's stamp; traction: the command topic of every locomotive that "
-              'takes one, ep: brake_ep/command (brake_system ep or ecp), wsp: every '
-              "vehicle's coach_<i>/wsp/valve (wsp external), blending: brake_demand, "
-              'brake_emergency and ed_brake/trip, each of the three (blending builtin), or '
-              "every motor car's coach_<i>/ed_brake/force (blending external), each "
-              'answered by one command received after the output was published '
-              '(std_msgs/Float64 and Int8 have no stamp). A listed input the train does not '
-              'have is a configuration error in lockstep.',
-              choices=('brake', 'traction', 'ep', 'wsp', 'blending'), dynamic=True,
+    ParamSpec('lockstep_inputs', ['brake'], STRING_ARRAY, lockstep_description(),
+              choices=families(), dynamic=True,
               min_items=1),
     ParamSpec('lockstep_answer', 'echo', STRING,
               "lockstep: what answers a period. echo: a brake input stamped with the output's "

@@ -140,7 +140,7 @@ class Outputs:
     @publish_clock.setter
     def publish_clock(self, value: bool) -> None:
         """Publish the clock or not (``namespaced_clock``: where); executor thread."""
-        self.clock.configure(bool(value), bool(self._node.get_parameter('namespaced_clock').value))
+        self.clock.configure(bool(value), bool(self._node.node_value('namespaced_clock')))
 
     @property
     def run(self) -> OutputRun | None:

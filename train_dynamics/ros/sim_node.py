@@ -75,10 +75,10 @@ from std_srvs.srv import Trigger
 
 from train_dynamics import topics
 from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig
-from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.quoting import quote
 from train_dynamics.recording.bags import BagError, offered_qos
+from train_dynamics.recording.metrics_report import run_metrics
 from train_dynamics.recording.output_specs import OUTPUTS, target_of
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
 from train_dynamics.ros import parameters as ros_parameters
@@ -139,6 +139,9 @@ class SimNode(Node):
         #: parameter files with no section for this node (``main`` fills it; /diagnostics)
         self.parameter_file_warnings: list[str] = []
         ros_parameters.declare_parameters(self, SPECS)
+        #: the node's own parameters, read once through their table (SIM_NODE_PARAMETERS)
+        #: and kept current by every accepted set (``_apply_parameters``)
+        self._node_values = ros_parameters.parameter_values(self, SIM_NODE_PARAMETERS)
         cfg = SimConfig.from_dict(self._parameter_values())   # raises ConfigError (main: 2)
         self._check_lockstep(cfg)
         #: the configuration of the node's current parameter values (``_start`` sets it):
@@ -146,7 +149,6 @@ class SimNode(Node):
         #: from changes), the reset service builds it anew
         self._cfg: SimConfig | None = None
         self._checked: tuple[SimConfig, dict[str, Any], SimConfig] | None = None
-        self._flush_period = float(self.get_parameter('record_flush_period').value)
         if cfg.record_bag:
             check_bag_path(cfg.record_bag)
 
@@ -158,15 +160,16 @@ class SimNode(Node):
                                             self._outputs.record)
         self._pacer = Pacer(self._lock, self.get_logger(), self.context, self._inputs,
                             self._outputs)
-        self._pacer.duration = float(self.get_parameter('duration').value)
-        self._pacer.set_realtime_priority(self.get_parameter('realtime_priority').value)
+        node = self._node_values
+        self._pacer.duration = float(node['duration'])
+        self._pacer.set_realtime_priority(node['realtime_priority'])
         self._wake_latency: CpuWakeLatency | None = None
-        self._request_wake_latency(self.get_parameter('cpu_wake_latency').value)
+        self._request_wake_latency(node['cpu_wake_latency'])
         self._control = RunControl(self, self._lock, self._inputs, self._outputs,
                                    self._pacer.wake)
         self._pacer.control = self._control
         self._configure_control()
-        self._inputs.wait_for_input = float(self.get_parameter('wait_for_input').value)
+        self._inputs.wait_for_input = float(node['wait_for_input'])
         self._pub_diag = self.create_publisher(DiagnosticArray, topics.DIAGNOSTICS_TOPIC,
                                                OUTPUT_QOS)
         self._reset_srv = self.create_service(Trigger, '~/reset', self._on_reset)
@@ -178,8 +181,7 @@ class SimNode(Node):
                                             self._apply_parameters)
             # on a steady clock: with use_sim_time and no /clock they would never fire
             steady = Clock(clock_type=ClockType.STEADY_TIME)
-            self._diag_timer = self._diagnostics_timer(
-                self.get_parameter('diagnostics_period').value)
+            self._diag_timer = self._diagnostics_timer(node['diagnostics_period'])
             self._scan_timer = self.create_timer(
                 GRAPH_SCAN_PERIOD, shutdown_safe(self, self._inputs.scan_graph), clock=steady)
             self._clock_timer = self.create_timer(   # a second /clock publisher: a warning
@@ -194,14 +196,14 @@ class SimNode(Node):
     # -- parameters ------------------------------------------------------------------------
     def _configure_control(self) -> None:
         """Hand the run-control parameters to their parts (simulation lock held or unstarted)."""
-        value = self.get_parameter
-        sync_mode = value('sync_mode').value
-        self._control.configure(sync_mode, value('lockstep_timeout').value,
-                                value('lockstep_on_timeout').value, value('step_periods').value,
-                                tuple(value('lockstep_inputs').value),
-                                value('lockstep_answer').value, value('lockstep_period').value)
+        value = self._node_values
+        sync_mode = value['sync_mode']
+        self._control.configure(sync_mode, value['lockstep_timeout'],
+                                value['lockstep_on_timeout'], value['step_periods'],
+                                tuple(value['lockstep_inputs']),
+                                value['lockstep_answer'], value['lockstep_period'])
         self._outputs.publish_clock = self._publish_clock()
-        self._inputs.by_stamp = value('input_timing').value == 'stamp'
+        self._inputs.by_stamp = value['input_timing'] == 'stamp'
         # wake the simulation thread on each input only where it waits for them
         self._inputs.on_input = (self._pacer.wake if sync_mode == 'lockstep'
                                  or self._inputs.by_stamp else None)
@@ -214,15 +216,14 @@ class SimNode(Node):
     def _publish_clock(self) -> bool:
         """Return True if /clock goes out: publish_clock, or lock-step on the clock."""
         cfg = self._cfg
+        value = self._node_values
         return bool(cfg is not None and cfg.publish_clock) or (
-            self.get_parameter('sync_mode').value == 'lockstep'
-            and self.get_parameter('lockstep_answer').value == 'clock')
+            value['sync_mode'] == 'lockstep' and value['lockstep_answer'] == 'clock')
 
     def _check_lockstep(self, cfg: SimConfig, changes: dict[str, Any] | None = None) -> None:
         """Raise ConfigError if the lock-step declares an input the train of ``cfg`` lacks."""
         changes = changes or {}
-        value = {name: changes.get(name, self.get_parameter(name).value)
-                 for name in ('sync_mode', 'lockstep_inputs')}
+        value = {**self._node_values, **changes}
         why = (lockstep_input_error(cfg, tuple(value['lockstep_inputs']))
                if value['sync_mode'] == 'lockstep' else None)
         if why is not None:
@@ -238,6 +239,10 @@ class SimNode(Node):
                 f'cpu_wake_latency {limit_us} us: {self._wake_latency.status}; idle CPUs may '
                 'wake the simulation thread late (needs write access to /dev/cpu_dma_latency)')
         self._pacer.cpu_wake_latency = self._wake_latency.status
+
+    def node_value(self, name: str) -> Any:
+        """Return the current value of the node's own parameter ``name`` (its table's)."""
+        return self._node_values[name]
 
     def _parameter_values(self) -> dict[str, Any]:
         return ros_parameters.parameter_values(self, PARAMETERS)
@@ -256,6 +261,8 @@ class SimNode(Node):
     def _apply_parameters(self, changes: dict[str, Any]) -> None:
         """Post-set callback: apply live changes at once; report structural ones pending."""
         sim_changes = {k: v for k, v in changes.items() if k in PARAMETERS}
+        self._node_values.update(
+            (k, v) for k, v in changes.items() if k in SIM_NODE_PARAMETERS)
         checked, self._checked = self._checked, None
         if checked is not None and checked[0] is self._cfg and checked[1] == sim_changes:
             cfg = checked[2]
@@ -286,8 +293,6 @@ class SimNode(Node):
                 self._configure_control()
         if 'cpu_wake_latency' in changes:
             self._request_wake_latency(changes['cpu_wake_latency'])
-        if 'record_flush_period' in changes:
-            self._flush_period = changes['record_flush_period']
         if 'diagnostics_period' in changes:
             self.destroy_timer(self._diag_timer)
             self._diag_timer = self._diagnostics_timer(changes['diagnostics_period'])
@@ -327,7 +332,7 @@ class SimNode(Node):
         sim = TrainSimulator(cfg)
         self._cfg = cfg
         self._outputs.start(OutputEncoder.for_config(cfg), cfg.publish_rate, sim.h,
-                            self._publish_clock(), writer, metrics=RunMetrics.for_run(cfg, sim))
+                            self._publish_clock(), writer, metrics=run_metrics(cfg, sim))
         self._inputs.start(cfg, sim.n, recording=writer is not None)
         self._stop_target.start(target_of(cfg) is not None)
         self._control.start(sim)
@@ -356,9 +361,10 @@ class SimNode(Node):
         if not cfg.record_bag:
             return None
         path = cfg.record_bag if first else reset_bag_path(cfg.record_bag, self._resets)
+        node = self._node_values
         return open_bag(path, cfg, self.get_fully_qualified_name(), self.get_logger(),
-                        self._flush_period, self.resolve_topic_name, self._offered(),
-                        sim_time_split=self.get_parameter('sync_mode').value == 'lockstep')
+                        node['record_flush_period'], self.resolve_topic_name, self._offered(),
+                        sim_time_split=node['sync_mode'] == 'lockstep')
 
     @staticmethod
     def _offered() -> dict[str, Any]:

@@ -38,14 +38,13 @@ def preload(cfg: Any = None, figures: bool = False) -> None:
     import numpy as np
 
     import train_dynamics.cli.report  # noqa: F401
-    from train_dynamics.physics.metrics import RunMetrics
-    import train_dynamics.recording.metrics_report  # noqa: F401
+    from train_dynamics.recording.metrics_report import run_metrics
 
     if figures:
         import train_dynamics.recording.plots  # noqa: F401
 
     if cfg is not None:
-        metrics = RunMetrics.for_run(cfg)
+        metrics = run_metrics(cfg)
         n = int(cfg.n_coaches)
         couplers, vehicles = np.zeros((2, n - 1)), np.zeros((2, n))
         metrics.add_block(np.array([0.0, 0.01]), couplers, couplers, couplers, vehicles,
