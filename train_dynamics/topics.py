@@ -59,6 +59,13 @@ EP_COMMAND_TOPIC = 'brake_ep/command'
 WSP_VALVE_TOPIC = 'coach_{i}/wsp/valve'
 WSP_VALVE_TOPIC_PATTERN = re.compile(r'coach_(\d+)/wsp/valve')
 WSP_VALVE_TOPIC_DISPLAY = 'coach_<i>/wsp/valve'
+#: ``wsp: external`` with ``bogie_wheelsets``: the valves of bogie j (1 front, 2 rear) of
+#: vehicle i
+BOGIE_WSP_VALVE_TOPIC = 'coach_{i}/bogie_{j}/wsp/valve'
+BOGIE_WSP_VALVE_TOPIC_PATTERN = re.compile(r'coach_(\d+)/bogie_([12])/wsp/valve')
+BOGIE_WSP_VALVE_TOPIC_DISPLAY = 'coach_<i>/bogie_<j>/wsp/valve'
+#: bogies of a vehicle with ``bogie_wheelsets`` (kernel/bogie.py)
+BOGIES_PER_VEHICLE = 2
 INT8 = 'std_msgs/msg/Int8'
 
 # -- the stopping target (std_msgs/Float64, a track position [m]) -------------------------------
@@ -126,6 +133,19 @@ def ed_force_topic(vehicle: int) -> str:
 def wsp_valve_topic(vehicle: int) -> str:
     """Return the slide-protection valve topic of ``vehicle`` (1-based)."""
     return WSP_VALVE_TOPIC.format(i=vehicle)
+
+
+def bogie_wsp_valve_topic(vehicle: int, bogie: int) -> str:
+    """Return the slide-protection valve topic of ``bogie`` (1, 2) of ``vehicle`` (1-based)."""
+    return BOGIE_WSP_VALVE_TOPIC.format(i=vehicle, j=bogie)
+
+
+def wheelset_names(n_coaches: int, bogies: bool) -> list[str]:
+    """Return the joint names of ``wheelsets``: ``coach_<i>``, or ``coach_<i>_bogie_<j>``."""
+    if not bogies:
+        return coach_names(n_coaches)
+    return [f'coach_{i}_bogie_{j}' for i in range(1, n_coaches + 1)
+            for j in range(1, BOGIES_PER_VEHICLE + 1)]
 
 
 def coupler_names(n_coaches: int) -> list[str]:

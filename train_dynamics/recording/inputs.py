@@ -125,9 +125,11 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
                     rejected += 1
                     continue
                 rel_ns = t_ns - info.start_ns
-                i = wsp[topic]
+                i, j = wsp[topic]
+                name = (topics.bogie_wsp_valve_topic(i + 1, j) if j
+                        else topics.wsp_valve_topic(i + 1))
                 events.append(TractionEvent(step_of(rel_ns, h), rel_ns, i, int(msg.data),
-                                            topics.wsp_valve_topic(i + 1), msg, kind='wsp'))
+                                            name, msg, kind='wsp', bogie=j))
                 continue
             c = float(msg.data)
             i = selected[topic]
@@ -147,16 +149,18 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
 
 
 def _select_commands(info: BagInfo, cfg: Any, ns: str, warn: Callable[[str], None]
-                     ) -> tuple[dict[str, int], dict[str, int]]:
+                     ) -> tuple[dict[str, int], dict[str, tuple[int, int]]]:
     """
     Return the bag's usable command topics: Float64 -> vehicle (EP_INDEX), Int8 WSP -> vehicle.
 
     Traction commands of locomotives, ``brake_ep/command`` with an EP / ECP brake system,
-    ``coach_<i>/wsp/valve`` with ``wsp: external``; the others are named through ``warn``.
+    ``coach_<i>/wsp/valve`` with ``wsp: external`` (-> (vehicle, 0)), and
+    ``coach_<i>/bogie_<j>/wsp/valve`` with ``bogie_wheelsets`` too (-> (vehicle, j)); the
+    others are named through ``warn``.
     """
     locos = set(cfg.consist.commanded) if cfg.external_forces else set()
     selected: dict[str, int] = {}
-    wsp: dict[str, int] = {}
+    wsp: dict[str, tuple[int, int]] = {}
     for topic, (msgtype, _) in info.topics.items():
         rel = topic[len(ns) + 1:] if ns and topic.startswith(ns + '/') else topic
         if rel == topics.EP_COMMAND_TOPIC and (rel != topic or not ns):
@@ -167,16 +171,19 @@ def _select_commands(info: BagInfo, cfg: Any, ns: str, warn: Callable[[str], Non
             else:
                 selected[topic] = EP_INDEX
             continue
-        w = topics.WSP_VALVE_TOPIC_PATTERN.fullmatch(rel)
+        w = (topics.WSP_VALVE_TOPIC_PATTERN.fullmatch(rel)
+             or topics.BOGIE_WSP_VALVE_TOPIC_PATTERN.fullmatch(rel))
         if w is not None and not (ns and rel == topic):
             i = int(w.group(1)) - 1
+            j = int(w.group(2)) if w.re.groups > 1 else 0
             if msgtype != topics.INT8:
                 warn(f'input bag: {topic} has type {msgtype}, not {topics.INT8}; ignored')
-            elif cfg.wsp != 'external' or not 0 <= i < cfg.n_coaches:
-                warn(f'input bag: {topic}: needs wsp external and vehicle {i + 1} in the '
-                     'train; ignored')
+            elif cfg.wsp != 'external' or not 0 <= i < cfg.n_coaches or (
+                    j and not cfg.bogie_wheelsets):
+                warn(f'input bag: {topic}: needs wsp external (a bogie\'s valve also '
+                     f'bogie_wheelsets) and vehicle {i + 1} in the train; ignored')
             else:
-                wsp[topic] = i
+                wsp[topic] = (i, j)
             continue
         m = topics.TRACTION_TOPIC_PATTERN.fullmatch(rel)
         if m is None or (ns and rel == topic):

@@ -171,6 +171,10 @@ def _acceleration(sim: Any, t_ns: int, run: OutputRun) -> tuple:
 def _wheelsets(sim: Any, t_ns: int, run: OutputRun) -> tuple:
     """``wheelsets``: available adhesion, sensed wheel speed (speed_sensor), creep force."""
     cfg = sim.cfg
+    if cfg.bogie_wheelsets:     # per bogie: coach_<i>_bogie_<j>
+        return sim.wheelset_adhesion_available, speed_sensor(
+            sim.wheelset_speeds, t_ns, cfg.wheel_speed_resolution, cfg.wheel_speed_noise,
+            cfg.wheel_speed_seed), sim.wheelset_creep_forces
     return sim.adhesion_available, speed_sensor(
         sim.wheel_speed, t_ns, cfg.wheel_speed_resolution, cfg.wheel_speed_noise,
         cfg.wheel_speed_seed), sim.creep_force
@@ -284,7 +288,9 @@ OUTPUTS: tuple[OutputSpec, ...] = (
                                        sim.gradient_force),
                lambda cfg: bool(cfg.external_forces),
                'a train with resistance, track or traction'),
-    OutputSpec(topics.WHEELSETS_TOPIC, topics.JOINT_STATE, _vehicles, _EVERY_VEHICLE,
+    OutputSpec(topics.WHEELSETS_TOPIC, topics.JOINT_STATE,
+               lambda cfg: topics.wheelset_names(cfg.n_coaches, bool(cfg.bogie_wheelsets)),
+               _EVERY_VEHICLE + ' (`coach_<i>_bogie_<j>`, j = 1, 2, with `bogie_wheelsets`)',
                ("available adhesion at the vehicle's speed [-]",
                 'wheel peripheral speed [m/s] as the speed sensor reports it',
                 'creep force [N, positive retarding]'),

@@ -261,7 +261,8 @@ class BrakeInputs(LockstepInputs):
         self._update_subscriptions(mode, n)
         self.traction.start(cfg.consist.commanded if cfg.external_forces else [])
         self.ep.start(cfg.ep_commanded)
-        self.wsp.start(list(range(n)) if cfg.wsp == 'external' else [])
+        self.wsp.start(list(range(n)) if cfg.wsp == 'external' else [],
+                       bool(cfg.bogie_wheelsets))
         self.blending.start(cfg)
 
     def set_policy(self, timeout: float, on_timeout: str) -> None:

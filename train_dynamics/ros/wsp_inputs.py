@@ -1,6 +1,10 @@
 """
 The slide-protection inputs of ``sim_node``: ``coach_<i>/wsp/valve`` (``wsp: external``).
 
+With ``bogie_wheelsets`` one valve state per bogie instead: ``coach_<i>/bogie_<j>/wsp/valve``
+(j = 1 front, 2 rear; :mod:`train_dynamics.physics.kernel.bogie`), the same handling per
+bogie (staleness, lock-step: one state per bogie answering the output).
+
 ``std_msgs/Int8``: 0 normal, 1 hold, 2 vent, the hold and vent valves on vehicle i's brake
 cylinder (:mod:`train_dynamics.physics.kernel.wheelset`), subscribed best-effort keep-last 10
 for every vehicle while ``wsp`` is ``external``. A state takes effect at the next integration
@@ -49,10 +53,25 @@ class WspInputs(TractionInputs):
     LABEL = 'wsp valve'
     FAILSAFE = 0
     ALWAYS_FAILSAFE = True
-    topic = staticmethod(topics.wsp_valve_topic)
     decode = staticmethod(wsp_valve)
+    #: ``bogie_wheelsets``: one valve state per bogie, index 2 i + j - 1 for bogie j of
+    #: vehicle i (0-based), topic ``coach_<i>/bogie_<j>/wsp/valve``
+    bogies = False
 
-    @staticmethod
-    def put(sim: TrainSimulator, value: Any, index: int) -> None:
-        """Hand valve state ``value`` of vehicle ``index`` (0-based) to the simulator."""
-        sim.set_wsp_valve(int(value), index)
+    def start(self, vehicles: list[int], bogies: bool = False) -> None:
+        """Subscribe to the valves of ``vehicles`` (0-based), of each bogie with ``bogies``."""
+        self.bogies = bool(bogies)
+        super().start([2 * i + j for i in vehicles for j in (0, 1)] if bogies else vehicles)
+
+    def topic(self, k: int) -> str:
+        """Return the topic of valve channel ``k`` (1-based: a vehicle, or a bogie)."""
+        if not self.bogies:
+            return topics.wsp_valve_topic(k)
+        return topics.bogie_wsp_valve_topic((k + 1) // 2, 2 - k % 2)
+
+    def put(self, sim: TrainSimulator, value: Any, index: int) -> None:
+        """Hand valve state ``value`` of channel ``index`` (0-based) to the simulator."""
+        if self.bogies:
+            sim.set_wsp_valve(int(value), index // 2, index % 2 + 1)
+        else:
+            sim.set_wsp_valve(int(value), index)

@@ -59,12 +59,13 @@ class TractionEvent:
     topic: str                # relative topic name
     msg: Any = None           # the Float64 message of an input bag (None: a schedule)
     kind: str = 'traction'    # 'wsp': a slide-protection valve state (Int8) of ``index``
+    bogie: int = 0            # 'wsp' with bogie_wheelsets: bogie 1 or 2 (0: both)
 
 
 def _command(sim: TrainSimulator, e: TractionEvent) -> None:
     """Hand a command event (traction, EP, slide-protection valve) to ``sim``."""
     if e.kind == 'wsp':
-        sim.set_wsp_valve(int(e.command), e.index)
+        sim.set_wsp_valve(int(e.command), e.index, e.bogie)
     elif e.kind in BLENDING_TOPICS:      # the brake control unit's (simulation/demand.py)
         apply_blending_input(sim, e.kind, e.command)
     elif e.index == EP_INDEX:
