@@ -78,6 +78,8 @@ TARGET_STOP_TOPIC = 'target_stop_position'
 COUPLERS_TOPIC = 'couplers'
 COACHES_TOPIC = 'coaches'
 BRAKE_CYLINDERS_TOPIC = 'brake_cylinders'
+#: ``bogie_wheelsets``: each bogie's cylinder pressure and valve state
+BOGIE_CYLINDERS_TOPIC = 'bogie_cylinders'
 BRAKE_RESERVOIRS_TOPIC = 'brake_reservoirs'
 VEHICLE_FORCES_TOPIC = 'vehicle_forces'
 VEHICLE_MOTION_TOPIC = 'vehicle_motion'

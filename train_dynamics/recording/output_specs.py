@@ -296,6 +296,16 @@ OUTPUTS: tuple[OutputSpec, ...] = (
                 'creep force [N, positive retarding]'),
                _wheelsets, lambda cfg: bool(cfg.has_wheelsets),
                'rotating wheelsets (`wheelsets`, `wsp`, low `track_adhesion`)'),
+    OutputSpec(topics.BOGIE_CYLINDERS_TOPIC, topics.JOINT_STATE,
+               lambda cfg: topics.wheelset_names(cfg.n_coaches, True),
+               '`coach_<i>_bogie_<j>`, j = 1, 2',
+               ("bogie's brake-cylinder gauge pressure [Pa] (behind its slide-protection "
+                'valves; `brake_cylinders` shows the vehicle brake feeding both)', '',
+                "bogie's slide-protection valve state of the last step (0 normal, 1 hold, "
+                '2 vent)'),
+               lambda sim, t_ns, run: (sim.bogie_cylinder_pressures, None,
+                                       sim.wheelset_valves.astype(float)),
+               lambda cfg: bool(cfg.bogie_wheelsets), '`bogie_wheelsets`'),
     OutputSpec('train_brake_force', topics.JOINT_STATE, lambda cfg: ['train'], '`train`',
                ('', '', "the train's braking force [N, >= 0]: the sum of every Fb_i"),
                lambda sim, t_ns, run: (None, None, [sim.total_brake_force])),
