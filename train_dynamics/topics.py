@@ -109,6 +109,7 @@ ED_TRIP_TOPIC = 'ed_brake/trip'
 #: ``blending: external``: the ED brake force [N, >= 0] commanded of motor car i
 #: (physics/ed_force.py), ``.format(i=<1-based vehicle>)``
 ED_FORCE_TOPIC = 'coach_{i}/ed_brake/force'
+ED_FORCE_TOPIC_PATTERN = re.compile(r'coach_(\d+)/ed_brake/force')
 #: the brake control unit's outputs (fields: recording/output_specs.py)
 BRAKE_BLENDING_TOPIC = 'brake_blending'
 BRAKE_DEMAND_STATE_TOPIC = 'brake_demand/state'

@@ -10,9 +10,9 @@ integration step starting at or after that time
 rejected by the node's rule (:func:`train_dynamics.physics.config.input_rejection`:
 non-finite, negative or above 20 bar absolute), with a warning counting them per reason.
 A ``pipe_head`` run whose bag has no brake-pipe input but commands the run can use (the EP /
-ECP command of an EP train, traction, WSP valves: :func:`read_traction_bag`) keeps the pipe
-charged at ``pipe_nominal_pressure``, as ``sim_node`` holds it without a brake input (with a
-warning); a bag with neither is refused.
+ECP command of an EP train, traction, WSP valves, ED forces: :func:`read_traction_bag`) keeps
+the pipe charged at ``pipe_nominal_pressure``, as ``sim_node`` holds it without a brake input
+(with a warning); a bag with neither is refused.
 """
 from __future__ import annotations
 
@@ -24,6 +24,7 @@ from typing import Any
 from train_dynamics import topics
 from train_dynamics.physics.config import (ep_rejection, input_rejection, INPUT_VALUE_REASONS,
                                            traction_rejection, wsp_rejection)
+from train_dynamics.physics.ed_force import ed_force_rejection, ed_motor_cars
 from train_dynamics.recording.bags import bag_info, BagError, BagInfo, read_topics
 from train_dynamics.simulation.runner import (EP_INDEX, InputEvent, InputSchedule, step_of,
                                               TractionEvent)
@@ -114,12 +115,12 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
         info = bag_info(path)
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
-    selected, wsp = _select_commands(info, cfg, ns, warn)
+    selected, wsp, ed = _select_commands(info, cfg, ns, warn)
     h = float(cfg.integration_step)
     events: list[TractionEvent] = []
     rejected = 0
     try:
-        for topic, t_ns, msg in read_topics(path, list(selected) + list(wsp)):
+        for topic, t_ns, msg in read_topics(path, list(selected) + list(wsp) + list(ed)):
             if topic in wsp:
                 if wsp_rejection(int(msg.data)) is not None:
                     rejected += 1
@@ -132,6 +133,15 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
                                             name, msg, kind='wsp', bogie=j))
                 continue
             c = float(msg.data)
+            if topic in ed:
+                if ed_force_rejection(c) is not None:
+                    rejected += 1
+                    continue
+                rel_ns = t_ns - info.start_ns
+                events.append(TractionEvent(step_of(rel_ns, h), rel_ns, ed[topic], c,
+                                            topics.ed_force_topic(ed[topic] + 1), msg,
+                                            kind='ed_force'))
+                continue
             i = selected[topic]
             if (ep_rejection(c) if i == EP_INDEX else traction_rejection(c)) is not None:
                 rejected += 1
@@ -142,25 +152,28 @@ def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
     if rejected:
-        warn(f'input bag: {rejected} traction or EP command(s) not finite or out of range '
-             'rejected')
+        warn(f'input bag: {rejected} traction, EP, WSP or ED force command(s) not finite or '
+             'out of range rejected')
     events.sort(key=lambda e: e.t_ns)
     return events
 
 
 def _select_commands(info: BagInfo, cfg: Any, ns: str, warn: Callable[[str], None]
-                     ) -> tuple[dict[str, int], dict[str, tuple[int, int]]]:
+                     ) -> tuple[dict[str, int], dict[str, tuple[int, int]], dict[str, int]]:
     """
     Return the bag's usable command topics: Float64 -> vehicle (EP_INDEX), Int8 WSP -> vehicle.
 
     Traction commands of locomotives, ``brake_ep/command`` with an EP / ECP brake system,
     ``coach_<i>/wsp/valve`` with ``wsp: external`` (-> (vehicle, 0)), and
-    ``coach_<i>/bogie_<j>/wsp/valve`` with ``bogie_wheelsets`` too (-> (vehicle, j)); the
-    others are named through ``warn``.
+    ``coach_<i>/bogie_<j>/wsp/valve`` with ``bogie_wheelsets`` too (-> (vehicle, j)), and
+    the motor cars' ``coach_<i>/ed_brake/force`` with ``blending: external`` (the third
+    mapping, -> motor car); the others are named through ``warn``.
     """
     locos = set(cfg.consist.commanded) if cfg.external_forces else set()
     selected: dict[str, int] = {}
     wsp: dict[str, tuple[int, int]] = {}
+    ed: dict[str, int] = {}
+    motors = set(ed_motor_cars(cfg))
     for topic, (msgtype, _) in info.topics.items():
         rel = topic[len(ns) + 1:] if ns and topic.startswith(ns + '/') else topic
         if rel == topics.EP_COMMAND_TOPIC and (rel != topic or not ns):
@@ -185,6 +198,17 @@ def _select_commands(info: BagInfo, cfg: Any, ns: str, warn: Callable[[str], Non
             else:
                 wsp[topic] = (i, j)
             continue
+        e = topics.ED_FORCE_TOPIC_PATTERN.fullmatch(rel)
+        if e is not None and not (ns and rel == topic):
+            i = int(e.group(1)) - 1
+            if msgtype != topics.FLOAT64:
+                warn(f'input bag: {topic} has type {msgtype}, not {topics.FLOAT64}; ignored')
+            elif i not in motors:
+                warn(f'input bag: {topic}: needs blending external and vehicle {i + 1} a '
+                     'motor car (an ED brake); ignored')
+            else:
+                ed[topic] = i
+            continue
         m = topics.TRACTION_TOPIC_PATTERN.fullmatch(rel)
         if m is None or (ns and rel == topic):
             continue
@@ -195,7 +219,7 @@ def _select_commands(info: BagInfo, cfg: Any, ns: str, warn: Callable[[str], Non
             warn(f'input bag: {topic}: vehicle {i + 1} is not a locomotive; ignored')
         else:
             selected[topic] = i
-    return selected, wsp
+    return selected, wsp, ed
 
 
 def _select_topics(info: BagInfo, mode: str, ns: str, n_coaches: int,

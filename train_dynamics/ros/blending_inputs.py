@@ -177,10 +177,17 @@ class BlendingInputs:
         self._accepted += 1
         self._notify()
 
-    def apply(self, sim: TrainSimulator, record: Record) -> None:
-        """Put the values received since the last call into ``sim``'s brake control unit."""
+    def apply(self, sim: TrainSimulator, record: Record, now: float | None = None,
+              timeout: float = 0.0) -> None:
+        """
+        Put the values received since the last call into ``sim``'s brake control unit.
+
+        ``timeout`` [s wall] > 0: the ED force commands older than that at ``now``
+        (time.monotonic) release their car's ED (EdForceInputs' fail-safe).
+        """
         if sim.ed_force is not None and self.ed.active:     # blending external
-            self.ed.apply(time.monotonic(), sim, record, 0.0, False)
+            self.ed.apply(time.monotonic() if now is None else now, sim, record, timeout,
+                          False)
         if not self._subs or sim.bcu is None:
             return
         with self._lock:

@@ -221,18 +221,20 @@ class BrakeInputs(LockstepInputs):
     @property
     def stale(self) -> bool:
         """Return True while a brake input or a traction command is stale."""
-        return self._stale or bool(self.traction.stale_names or self.wsp.stale_names)
+        return self._stale or bool(self.traction.stale_names or self.wsp.stale_names
+                                   or self.blending.ed.stale_names)
 
     @property
     def emergency(self) -> bool:
         """Return True while a fail-safe holds (emergency brake, or a traction command 0)."""
-        return self._emergency or self.traction.emergency or self.wsp.emergency
+        return (self._emergency or self.traction.emergency or self.wsp.emergency
+                or self.blending.ed.emergency)
 
     @property
     def stale_names(self) -> list[str]:
         """Return the stale brake inputs, then the stale traction-command topics."""
         return ((self._stale_names if self._stale else []) + self.traction.stale_names
-                + self.wsp.stale_names)
+                + self.wsp.stale_names + self.blending.ed.stale_names)
 
     @property
     def accepted(self) -> int:
@@ -442,7 +444,8 @@ class BrakeInputs(LockstepInputs):
         with self._in_lock:
             ages = now - self._buffer.arrival
             age = float(np.max(ages)) if ages.size else 0.0
-        return max(age, self.traction.max_age(now), self.wsp.max_age(now))
+        return max(age, self.traction.max_age(now), self.wsp.max_age(now),
+                   self.blending.ed.max_age(now))
 
     # -- the simulation thread (simulation lock held) --------------------------------------
     def discard_records(self) -> None:
@@ -455,7 +458,7 @@ class BrakeInputs(LockstepInputs):
         self.traction.apply(now, sim, record, self.timeout, self.on_timeout == 'emergency')
         self.ep.apply(now, sim, record, self.timeout)
         self.wsp.apply(now, sim, record, self.timeout, False)
-        self.blending.apply(sim, record)
+        self.blending.apply(sim, record, now, self.timeout)
         if self._buffer.pending:        # input_timing stamp (or just switched off): those due
             self.schedule_due(sim, sim.t if self.by_stamp else math.inf, record)
         news = self._take(now)

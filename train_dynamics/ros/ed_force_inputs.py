@@ -9,14 +9,20 @@ at the car's speed, refreshed every ``blending_period``). A command takes effect
 integration step and is recorded as received. Rejected and counted with the traction
 commands' reasons: ``non_finite``, ``out_of_range`` (< 0), ``malformed``. Lock-step: part of
 the ``blending`` family (:mod:`train_dynamics.ros.blending_inputs`), answered as a traction
-command is. No staleness supervision (``input_timeout``) on these yet.
+command is.
+
+Staleness (``input_timeout`` > 0): a motor car whose force command has not been refreshed for
+``input_timeout`` wall seconds after a first one gets 0 N, whatever ``on_input_timeout``
+says: its ED brake fades out at its build-up rate (an ED force held from a dead controller
+would brake on unsupervised; without it the friction brake the controller commands, or the
+driver's, brakes alone), recorded as a 0 command; the next command restores it.
 """
 from __future__ import annotations
 
 from typing import Any
 
 from train_dynamics import topics
-from train_dynamics.physics.ed_force import ed_force_rejection
+from train_dynamics.physics.ed_force import ed_force_rejection, ed_motor_cars
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.ros.traction_inputs import float64_command, TractionInputs
 
@@ -35,6 +41,8 @@ class EdForceInputs(TractionInputs):
     """Subscribe to, check and hold every motor car's ED force command."""
 
     LABEL = 'ED force command'
+    FAILSAFE = 0.0          # [N]: the ED released
+    ALWAYS_FAILSAFE = True
     topic = staticmethod(topics.ed_force_topic)
     decode = staticmethod(ed_force_command)
 
@@ -46,8 +54,4 @@ class EdForceInputs(TractionInputs):
 
 def motor_cars(cfg: Any) -> list[int]:
     """Return the motor cars (0-based) of ``cfg``'s train that take ED force commands."""
-    if cfg.blending != 'external':
-        return []
-    consist = cfg.consist
-    force = consist.fields['max_dynamic_brake_force']
-    return [i for i in consist.commanded if force[i] > 0.0]
+    return ed_motor_cars(cfg)

@@ -66,6 +66,8 @@ def _command(sim: TrainSimulator, e: TractionEvent) -> None:
     """Hand a command event (traction, EP, slide-protection valve) to ``sim``."""
     if e.kind == 'wsp':
         sim.set_wsp_valve(int(e.command), e.index, e.bogie)
+    elif e.kind == 'ed_force':          # blending external: an ED force [N]
+        sim.ed_force.set_force(e.command, e.index)
     elif e.kind in BLENDING_TOPICS:      # the brake control unit's (simulation/demand.py)
         apply_blending_input(sim, e.kind, e.command)
     elif e.index == EP_INDEX:
