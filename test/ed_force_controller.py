@@ -2,8 +2,7 @@
 A lock-step ED force controller (test support, run as a process of its own).
 
 Answers every ``coaches`` output with ``force`` [N] on ``coach_<i>/ed_brake/force`` of each
-of ``motor_cars`` (std_msgs/Float64; ``blending: external``); with ``answers`` >= 0 only the
-first that many outputs, then it falls silent (a controller that died).
+of ``motor_cars`` (std_msgs/Float64; ``blending: external``).
 """
 import sys
 
@@ -21,16 +20,12 @@ class EdForceController(Node):
         super().__init__('ed_force_controller')
         self.force = self.declare_parameter('force', 30000.0).value           # [N]
         cars = self.declare_parameter('motor_cars', [1, 4]).value
-        self.answers = self.declare_parameter('answers', -1).value      # -1: every output
         qos = QoSProfile(depth=10, reliability=ReliabilityPolicy.RELIABLE)
         self.pubs = [self.create_publisher(Float64, f'coach_{i}/ed_brake/force', qos)
                      for i in cars]
         self.create_subscription(JointState, 'coaches', self.on_coaches, qos)
 
     def on_coaches(self, msg):
-        if self.answers == 0:
-            return
-        self.answers -= 1
         for pub in self.pubs:
             pub.publish(Float64(data=float(self.force)))
 
