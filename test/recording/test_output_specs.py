@@ -39,7 +39,7 @@ def test_a_run_has_the_rows_whose_condition_holds_in_table_order():
     assert always[:3] == ('couplers', 'coaches', 'brake_cylinders')      # the contract's
     assert {'vehicle_motion', 'odom'} <= set(always)
     rich = SimConfig.from_dict({'brake_model': 'pneumatic', 'brake_system': 'ep',
-                                'davis_a': 1000.0, 'wheelsets': True,
+                                'davis_a': 1000.0, 'bogie_wheelsets': True,
                                 'target_stop_position': [800.0]})
     unit_only = ('distributed_power/state', 'brake_blending', 'brake_demand/state')
     assert [s.topic for s in active(rich)] == [s.topic for s in OUTPUTS
