@@ -60,7 +60,7 @@ def _messages(cfg: SimConfig, t: float):
 
 def test_every_output_is_the_bytes_rosbags_gives_for_its_values():
     cfg = SimConfig.from_dict({'brake_model': 'pneumatic', 'brake_system': 'ecp',
-                               'davis_a': 1000.0, 'wheelsets': True,
+                               'davis_a': 1000.0, 'bogie_wheelsets': True,
                                'target_stop_position': [800.0], 'num_coaches': 4})
     _, _, out = _messages(cfg, 0.5)
     assert set(out) == set(output_topics(cfg)) and len(out) == len(OUTPUTS) - 3   # not DP
