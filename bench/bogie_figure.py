@@ -32,9 +32,9 @@ SCENARIO = os.path.join(ROOT, 'config', 'emu_flirt_4_wsp.yaml')
 FIGURE = os.path.join(ROOT, 'docs', 'figures', 'multiple_units_bogies.png')
 #: name -> overrides of the shipped scenario
 VARIANTS = {
-    'dry rail (emu_flirt_4.yaml)': {'bogie_wheelsets': False, 'wsp': 'none',
-                                     'rail_conditioning': 0.0, 'track_adhesion': [],
-                                     'track_adhesion_positions': []},
+    'dry rail (emu_flirt_4.yaml)': {
+        'bogie_wheelsets': False, 'wsp': 'none', 'rail_conditioning': 0.0,
+        'track_adhesion': [], 'track_adhesion_positions': []},
     'one wheelset per car, WSP': {'bogie_wheelsets': False, 'wheelsets': True,
                                   'rail_conditioning': 0.0},
     'per bogie, WSP, no conditioning': {'rail_conditioning': 0.0},

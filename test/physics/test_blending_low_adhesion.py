@@ -1,9 +1,8 @@
 """
-Builtin blending on a low-adhesion rail: the brake control unit counts on the ED force the
-rail carries, and the friction brakes make up the rest.
+Builtin blending on a low-adhesion rail: the unit counts on the ED force the rail carries.
 
-The FLIRT at 20 m/s on 0.06 adhesion (at low speed), 0.3 of full service (0.33 m/s^2): each
-motor car's ED is limited by its ``traction_adhesion`` scaled by the track's adhesion
+The friction brakes make up the rest. The FLIRT at 20 m/s on 0.06 adhesion (at low speed),
+0.3 of full service (0.33 m/s^2): each motor car's ED is limited by its ``traction_adhesion`` scaled by the track's adhesion
 (0.06 / 0.331, as the kernel applies it), about 0.045 m g at 20 m/s, far below its power
 limit; the unit must see that limit, or it leaves the make-up to an ED that is not there
 and the train brakes at two thirds of the demand. With it, ED and friction together give
@@ -18,9 +17,9 @@ import pytest
 
 from train_dynamics.physics.blending import ed_available
 from train_dynamics.physics.config import load_param_file
-from train_dynamics.physics.kernel.traction import traction_force
 from train_dynamics.physics.kernel.layout import VEHICLE
 from train_dynamics.physics.kernel.step import available_braking_force
+from train_dynamics.physics.kernel.traction import traction_force
 from train_dynamics.physics.train import TrainSimulator
 
 ROOT = Path(__file__).resolve().parents[2]

@@ -42,9 +42,9 @@ import math
 
 import numpy as np
 
+from train_dynamics.physics.kernel.creep import DRY_ADHESION
 from train_dynamics.physics.kernel.layout import INPUT, OUTPUT, PARAM, STATE, VEHICLE
 from train_dynamics.physics.kernel.step import available_braking_force
-from train_dynamics.physics.kernel.creep import DRY_ADHESION
 from train_dynamics.physics.kernel.traction import CK_AT_REST
 from train_dynamics.physics.track_brake import TrackBrakes
 

@@ -15,8 +15,8 @@ from __future__ import annotations
 import numpy as np
 
 from train_dynamics.physics import couplers
-from train_dynamics.physics.kernel.couplers import coupler_force_travel
 from train_dynamics.physics.kernel.bogie import conditioned
+from train_dynamics.physics.kernel.couplers import coupler_force_travel
 from train_dynamics.physics.kernel.layout import (COUPLER, OUTPUT, PARAM, STATE, TABLE_ROWS,
                                                   TOTAL, VEHICLE, WORK)
 from train_dynamics.physics.kernel.traction import adhesion

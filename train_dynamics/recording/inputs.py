@@ -193,7 +193,7 @@ def _select_commands(info: BagInfo, cfg: Any, ns: str, warn: Callable[[str], Non
                 warn(f'input bag: {topic} has type {msgtype}, not {topics.INT8}; ignored')
             elif cfg.wsp != 'external' or not 0 <= i < cfg.n_coaches or (
                     j and not cfg.bogie_wheelsets):
-                warn(f'input bag: {topic}: needs wsp external (a bogie\'s valve also '
+                warn(f"input bag: {topic}: needs wsp external (a bogie's valve also "
                      f'bogie_wheelsets) and vehicle {i + 1} in the train; ignored')
             else:
                 wsp[topic] = (i, j)
