@@ -1,8 +1,8 @@
 """
 Builtin blending on a low-adhesion rail: the unit counts on the ED force the rail carries.
 
-The friction brakes make up the rest. The FLIRT at 20 m/s on 0.06 adhesion (at low speed),
-0.3 of full service (0.33 m/s^2): each motor car's ED is limited by its ``traction_adhesion`` scaled by the track's adhesion
+The FLIRT at 20 m/s on 0.06 adhesion (at low speed), 0.3 of full service (0.33 m/s^2): each
+motor car's ED is limited by its ``traction_adhesion`` scaled by the track's adhesion
 (0.06 / 0.331, as the kernel applies it), about 0.045 m g at 20 m/s, far below its power
 limit; the unit must see that limit, or it leaves the make-up to an ED that is not there
 and the train brakes at two thirds of the demand. With it, ED and friction together give
