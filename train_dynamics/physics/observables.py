@@ -204,9 +204,17 @@ class TrainOutputs:
 
     @property
     def wheelset_adhesion_available(self) -> np.ndarray:
-        """Return each wheelset's available adhesion at its vehicle's speed [-]."""
+        """
+        Return each wheelset's available adhesion at its vehicle's speed [-].
+
+        Per bogie: the kernel's, at the speed of the last step's start (kernel/bogie.py; at
+        t = 0 computed here, as there: the track's low-speed adhesion, the trailing bogie's
+        conditioned, falling with speed as Curtius-Kniffler).
+        """
         if not getattr(self, 'bogies', False):
             return self.adhesion_available
+        if self.steps > 0:
+            return self._per_wheelset(OUTPUT.ADH_AVAIL, OUTPUT.ADH_AVAIL, OUTPUT.ADH_AVAIL_B2)
         out = np.empty(2 * self.n)
         c = float(self.sc[PARAM.CONDITION])
         for i, (v, low) in enumerate(zip(self.v, self.coach[OUTPUT.ADH_LOW])):
