@@ -28,7 +28,8 @@ import time
 
 import numpy as np
 
-from train_dynamics.physics.config import load_param_file, SimConfig
+from train_dynamics.param_files import load_param_file
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.simulation.runner import traction_schedule
 import vehicle_cost

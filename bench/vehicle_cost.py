@@ -56,7 +56,8 @@ def drive(sim, events, t: float) -> None:
 
 def _config(case: str):
     """Return the SimConfig of a case (see the module docstring)."""
-    from train_dynamics.physics.config import load_param_file, SimConfig
+    from train_dynamics.param_files import load_param_file
+    from train_dynamics.physics.config import SimConfig
     if case.endswith('+w'):
         return _config(case[:-2]).replace(wheelsets=True)
     if '+rw' in case:       # ``uniform100+mr1e-3+rw0.3``: multirate_reversal_weight 0.3

@@ -255,6 +255,9 @@ SLOW_TABLE = {
         'test_sigint_during_the_run_never_reports_a_timer_exception': 4.6,
         'test_wrong_type_publisher_on_an_input_topic_is_reported_in_diagnostics': 2.0,
     },
+    'test_node_parameters.py': {
+        'test_diagnostics_come_at_the_period_set_live': 4.7,
+    },
     'test_offline_memory_bounds.py': {
         'test_compare_memory_is_independent_of_duration': 12.2,
         'test_simulate_memory_is_independent_of_duration': 4.5,

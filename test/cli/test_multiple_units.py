@@ -12,7 +12,7 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 
 from train_dynamics import topics
 from train_dynamics.cli import offline as cli
-from train_dynamics.physics.config import load_param_file
+from train_dynamics.param_files import load_param_file
 from train_dynamics.recording import messages
 from train_dynamics.recording.bags import read_topics
 from train_dynamics.recording.cdr import encode_float64

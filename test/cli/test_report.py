@@ -15,7 +15,7 @@ import pytest
 from train_dynamics import topics
 from train_dynamics.cli.offline import main
 from train_dynamics.cli.scenario import valve_from_param_file
-from train_dynamics.physics.config import load_param_file
+from train_dynamics.param_files import load_param_file
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.recording.plots import png_size
 from train_dynamics.simulation.runner import InputSchedule, run_simulation, traction_schedule

@@ -11,7 +11,8 @@ import os
 import numpy as np
 import pytest
 
-from train_dynamics.physics.config import load_param_file, SimConfig
+from train_dynamics.param_files import load_param_file
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel import coupler_rows
 from train_dynamics.physics.kernel.layout import CACHE, COUNT, OUTPUT, STATE, WORK
 from train_dynamics.physics.train import TrainSimulator

@@ -15,8 +15,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from train_dynamics.param_files import load_param_file
 from train_dynamics.physics.blending import ed_available
-from train_dynamics.physics.config import load_param_file
 from train_dynamics.physics.kernel.layout import VEHICLE
 from train_dynamics.physics.kernel.step import available_braking_force
 from train_dynamics.physics.kernel.traction import traction_force

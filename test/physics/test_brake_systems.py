@@ -305,7 +305,7 @@ def test_shipped_passenger_scenario_carries_the_emergency_at_250_m_s():
     import os
 
     from train_dynamics.physics.brake_valve import BrakeValveModel
-    from train_dynamics.physics.config import load_param_file
+    from train_dynamics.param_files import load_param_file
     from train_dynamics.physics.train import TrainSimulator
 
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

@@ -19,9 +19,9 @@ from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.cli.errors import CliError, warn
-from train_dynamics.physics.brake_valve import BrakeValveModel, VALVE_PARAMETERS
-from train_dynamics.physics.config import (ConfigError, load_param_file, node_sections,
-                                           read_param_sections, SimConfig)
+from train_dynamics.param_files import load_param_file, valve_params
+from train_dynamics.physics.brake_valve import BrakeValveModel
+from train_dynamics.physics.config import ConfigError, SimConfig
 from train_dynamics.recording.demand_inputs import read_blending_bag
 from train_dynamics.recording.inputs import InputBagError, read_input_bag, read_traction_bag
 from train_dynamics.simulation.runner import blending_events, command_schedule, InputSchedule
@@ -96,12 +96,9 @@ def valve_from_param_file(path: str, cfg: Any) -> BrakeValveModel:
     released valve leaves the distributors released.
     """
     try:
-        wildcard, own = node_sections(read_param_sections(path), topics.VALVE_NODE_NAME)
+        params = valve_params(path)
     except ConfigError as exc:
         raise CliError(str(exc)) from None
-    # as rclpy: '/**' keys the valve does not declare are not its concern
-    params = {k: v for k, v in wildcard.items() if k in VALVE_PARAMETERS}
-    params.update(own)
     if 'schedule' not in params and 'position' not in params:
         params['schedule'] = list(DEFAULT_VALVE_SCHEDULE)
     params.setdefault('pipe_nominal_pressure', float(cfg.pipe_nominal_pressure))

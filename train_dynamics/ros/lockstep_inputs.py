@@ -39,8 +39,8 @@ import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
 from train_dynamics import topics
-from train_dynamics.physics.config import SIM_NODE_PARAMETERS
 from train_dynamics.ros.ed_force_inputs import motor_cars
+from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
 
 #: ``lockstep_inputs``: the controller inputs a lock-step period can wait for
 LOCKSTEP_INPUTS = SIM_NODE_PARAMETERS['lockstep_inputs'].choices

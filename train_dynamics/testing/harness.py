@@ -36,9 +36,9 @@ import time
 from typing import Any, Iterator, Mapping, Sequence
 
 from train_dynamics import topics
-from train_dynamics.physics.config import (ConfigError, PARAMETERS, SIM_NODE_PARAMETERS,
-                                           validate_value)
+from train_dynamics.physics.config import ConfigError, PARAMETERS, validate_value
 from train_dynamics.quoting import clip, quote
+from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
 from train_dynamics.testing.criteria import CriterionResult
 from train_dynamics.testing.processes import POLL, ProcessGroup, STOP_GRACE, wait_any
 from train_dynamics.testing.scenario import controller_params_document, Scenario
