@@ -2,7 +2,7 @@
 A lock-step slide-protection controller per bogie (test support, run as a process of its own).
 
 Answers every output once both its ``coaches`` and ``wheelsets`` (``bogie_wheelsets``: names
-``coach_<i>_bogie_<j>``) are in: the head brake pipe vented (0 bar gauge, stamped with the
+``coach_<i>/bogie_<j>``) are in: the head brake pipe vented (0 bar gauge, stamped with the
 output's stamp: an emergency brake), and on ``coach_<i>/bogie_<j>/wsp/valve`` of every bogie
 a valve state from the bogie's slip v_i - u_ij: vent above ``vent`` [m/s], hold above
 ``hold`` [m/s], else normal.
@@ -50,10 +50,10 @@ class BogieWsp(Node):
         self.brake.publish(out)
         v, wheels = got['v'].velocity, got['u']
         for k, name in enumerate(wheels.name):
-            car, bogie = name.split('_bogie_')
-            slip = v[int(car.split('_')[1]) - 1] - wheels.velocity[k]
+            car = int(name.split('/')[0].split('_')[1]) - 1      # coach_<i>/bogie_<j>
+            slip = v[car] - wheels.velocity[k]
             state = 2 if slip > self.vent else (1 if slip > self.hold else 0)
-            self.valves[f'{car}/bogie_{bogie}/wsp/valve'].publish(Int8(data=state))
+            self.valves[f'{name}/wsp/valve'].publish(Int8(data=state))
 
 
 def main(args=None):

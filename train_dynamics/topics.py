@@ -144,10 +144,14 @@ def bogie_wsp_valve_topic(vehicle: int, bogie: int) -> str:
 
 
 def wheelset_names(n_coaches: int, bogies: bool) -> list[str]:
-    """Return the joint names of ``wheelsets``: ``coach_<i>``, or ``coach_<i>_bogie_<j>``."""
+    """
+    Return the joint names of ``wheelsets``: ``coach_<i>``, or ``coach_<i>/bogie_<j>``.
+
+    Each name + ``/wsp/valve`` is the topic of that wheelset's slide-protection valves.
+    """
     if not bogies:
         return coach_names(n_coaches)
-    return [f'coach_{i}_bogie_{j}' for i in range(1, n_coaches + 1)
+    return [f'coach_{i}/bogie_{j}' for i in range(1, n_coaches + 1)
             for j in range(1, BOGIES_PER_VEHICLE + 1)]
 
 

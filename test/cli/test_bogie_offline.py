@@ -22,7 +22,7 @@ def test_bogie_valves_from_an_input_bag_and_each_bogie_recorded(tmp_path):
     coach_2/bogie_2 vented from t = 1 s: that cylinder alone falls as exp(-(t - 1) / VENT_TAU).
 
     coach_1/wsp/valve (a vehicle's topic) vents both bogies of vehicle 1; the wheelsets and
-    bogie_cylinders outputs name coach_<i>_bogie_<j>; a bogie valve without bogie_wheelsets
+    bogie_cylinders outputs name coach_<i>/bogie_<j>; a bogie valve without bogie_wheelsets
     would be ignored (named), here it is used.
     """
     p = tmp_path / 'p.yaml'
@@ -51,7 +51,7 @@ def test_bogie_valves_from_an_input_bag_and_each_bogie_recorded(tmp_path):
                      '--output', str(out), '-q']) == 0
     info = bag_info(str(out))
     assert info.topics['coach_2/bogie_2/wsp/valve'][0] == topics.INT8
-    names = [f'coach_{i}_bogie_{j}' for i in (1, 2, 3) for j in (1, 2)]
+    names = [f'coach_{i}/bogie_{j}' for i in (1, 2, 3) for j in (1, 2)]
     cyl = [m for _, _, m in read_topics(str(out), [topics.BOGIE_CYLINDERS_TOPIC])][-1]
     assert list(cyl.name) == names
     assert cyl.position[3] == pytest.approx(1.0e5 * np.exp(-1.0 / VENT_TAU), rel=1e-6)

@@ -43,7 +43,7 @@ def test_a_bogie_valve_topic_vents_that_bogie_only(harness):
                         15.0)
     assert harness.wait(sending(2, lambda: bogies[-1].position[3] < 0.1 * P), 15.0)
     last = bogies[-1]
-    assert list(last.name) == [f'coach_{i}_bogie_{j}' for i in (1, 2, 3) for j in (1, 2)]
+    assert list(last.name) == [f'coach_{i}/bogie_{j}' for i in (1, 2, 3) for j in (1, 2)]
     np.testing.assert_allclose(np.delete(np.array(last.position), 3), P, rtol=1e-9)
     assert list(last.effort) == [0.0, 0.0, 0.0, 2.0, 0.0, 0.0]
     assert list(wheels[-1].name) == list(last.name)

@@ -171,7 +171,7 @@ def _acceleration(sim: Any, t_ns: int, run: OutputRun) -> tuple:
 def _wheelsets(sim: Any, t_ns: int, run: OutputRun) -> tuple:
     """``wheelsets``: available adhesion, sensed wheel speed (speed_sensor), creep force."""
     cfg = sim.cfg
-    if cfg.bogie_wheelsets:     # per bogie: coach_<i>_bogie_<j>
+    if cfg.bogie_wheelsets:     # per bogie: coach_<i>/bogie_<j>
         return sim.wheelset_adhesion_available, speed_sensor(
             sim.wheelset_speeds, t_ns, cfg.wheel_speed_resolution, cfg.wheel_speed_noise,
             cfg.wheel_speed_seed), sim.wheelset_creep_forces
@@ -290,7 +290,7 @@ OUTPUTS: tuple[OutputSpec, ...] = (
                'a train with resistance, track or traction'),
     OutputSpec(topics.WHEELSETS_TOPIC, topics.JOINT_STATE,
                lambda cfg: topics.wheelset_names(cfg.n_coaches, bool(cfg.bogie_wheelsets)),
-               _EVERY_VEHICLE + ' (`coach_<i>_bogie_<j>`, j = 1, 2, with `bogie_wheelsets`)',
+               _EVERY_VEHICLE + ' (`coach_<i>/bogie_<j>`, j = 1, 2, with `bogie_wheelsets`)',
                ("available adhesion at the vehicle's speed [-]",
                 'wheel peripheral speed [m/s] as the speed sensor reports it',
                 'creep force [N, positive retarding]'),
@@ -298,7 +298,7 @@ OUTPUTS: tuple[OutputSpec, ...] = (
                'rotating wheelsets (`wheelsets`, `wsp`, low `track_adhesion`)'),
     OutputSpec(topics.BOGIE_CYLINDERS_TOPIC, topics.JOINT_STATE,
                lambda cfg: topics.wheelset_names(cfg.n_coaches, True),
-               '`coach_<i>_bogie_<j>`, j = 1, 2',
+               '`coach_<i>/bogie_<j>`, j = 1, 2',
                ("bogie's brake-cylinder gauge pressure [Pa] (behind its slide-protection "
                 'valves; `brake_cylinders` shows the vehicle brake feeding both)', '',
                 "bogie's slide-protection valve state of the last step (0 normal, 1 hold, "

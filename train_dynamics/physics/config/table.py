@@ -469,7 +469,7 @@ _PARAMS = [
               'one), each with half the axle load, inertia and friction brake, its own brake '
               'cylinder fed by the vehicle brake and its own slide-protection valves (wsp '
               'external: coach_<i>/bogie_<j>/wsp/valve); the wheelsets output then names '
-              'coach_<i>_bogie_<j>. Implies wheelsets. false: one wheelset per vehicle.'),
+              'coach_<i>/bogie_<j>. Implies wheelsets. false: one wheelset per vehicle.'),
     ParamSpec('rail_conditioning', 0.0, DOUBLE,
               'Per-bogie wheelsets: fraction c [-] of the gap to dry rail that the leading '
               "bogie's passage restores for the trailing one (its low-speed adhesion mu + c "
