@@ -314,6 +314,10 @@ SLOW_TABLE = {
     'test_sim_node_blending_lockstep.py': {
         'test_demand_emergency_and_trip_in_lockstep_give_byte_identical_bags': 5.7,
     },
+    'test_sim_node_bogie_wsp.py': {
+        'test_a_bogie_valve_topic_vents_that_bogie_only': 2.5,
+        'test_the_example_controller_protects_each_bogie': 18.5,
+    },
     'test_sim_node_brake_state.py': {
         'test_ecp_line_loss_is_published_recorded_and_diagnosed': 3.2,
         'test_radio_loss_is_published_and_diagnosed': 2.1,
