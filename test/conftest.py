@@ -184,6 +184,9 @@ SLOW_TABLE = {
     'test_bogie_wheelsets.py': {
         'test_two_equal_bogies_run_as_the_vehicles_lumped_wheelset_bit_for_bit': 5.8,
     },
+    'test_bogie_scenario.py': {
+        'test_the_per_bogie_scenario_stops_between_dry_rail_and_no_conditioning': 4.5,
+    },
     'test_brake_valve.py': {
         'test_node_live_position_change_and_invalid_values': 5.7,
         'test_node_publishes_absolute_pressure_following_schedule': 2.1,
