@@ -181,11 +181,11 @@ SLOW_TABLE = {
     'test_blending_controller_loop.py': {
         'test_external_blending_loop_is_byte_identical_and_passes_its_criteria': 16.5,
     },
-    'test_bogie_wheelsets.py': {
-        'test_two_equal_bogies_run_as_the_vehicles_lumped_wheelset_bit_for_bit': 5.8,
-    },
     'test_bogie_scenario.py': {
         'test_the_per_bogie_scenario_stops_between_dry_rail_and_no_conditioning': 4.5,
+    },
+    'test_bogie_wheelsets.py': {
+        'test_two_equal_bogies_run_as_the_vehicles_lumped_wheelset_bit_for_bit': 5.8,
     },
     'test_brake_valve.py': {
         'test_node_live_position_change_and_invalid_values': 5.7,
