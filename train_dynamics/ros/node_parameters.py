@@ -47,7 +47,8 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'active brake-input topic of brake_input, answered by a message stamped with '
               "the output's stamp; traction: the command topic of every locomotive that "
               'takes one, ep: brake_ep/command (brake_system ep or ecp), wsp: every '
-              "vehicle's coach_<i>/wsp/valve (wsp external), blending: brake_demand, "
+              "vehicle's coach_<i>/wsp/valve (wsp external; every bogie's "
+              'coach_<i>/bogie_<j>/wsp/valve with bogie_wheelsets), blending: brake_demand, '
               'brake_emergency and ed_brake/trip, each of the three (blending builtin), or '
               "every motor car's coach_<i>/ed_brake/force (blending external), each "
               'answered by one command received after the output was published '
