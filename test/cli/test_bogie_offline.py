@@ -17,13 +17,13 @@ def _int8(value: int) -> bytes:
     return b'\x00\x01\x00\x00' + struct.pack('<b', value)     # CDR little endian
 
 
-def test_bogie_valves_from_an_input_bag_and_each_bogie_recorded(tmp_path):
+def test_bogie_valves_from_an_input_bag_and_each_bogie_recorded(tmp_path, capsys):
     """
     coach_2/bogie_2 vented from t = 1 s: that cylinder alone falls as exp(-(t - 1) / VENT_TAU).
 
-    coach_1/wsp/valve (a vehicle's topic) vents both bogies of vehicle 1; the wheelsets and
-    bogie_cylinders outputs name coach_<i>/bogie_<j>; a bogie valve without bogie_wheelsets
-    would be ignored (named), here it is used.
+    coach_1/bogie_1 and coach_1/bogie_2 held from 1.5 s; a vehicle's topic (coach_1/wsp/valve)
+    is not taken with bogie_wheelsets (named, ignored); the wheelsets and bogie_cylinders
+    outputs name coach_<i>/bogie_<j>.
     """
     p = tmp_path / 'p.yaml'
     p.write_text("""train_dynamics:
@@ -41,14 +41,21 @@ def test_bogie_valves_from_an_input_bag_and_each_bogie_recorded(tmp_path):
         rec.write(f'coach_{i}/brake_cylinder/pressure', 0, encode_fluid_pressure(0, ATM + 1.0e5))
     rec.add_topic('coach_2/bogie_2/wsp/valve', topics.INT8)
     rec.add_topic('coach_1/wsp/valve', topics.INT8)
+    rec.add_topic('coach_1/bogie_1/wsp/valve', topics.INT8)
+    rec.add_topic('coach_1/bogie_2/wsp/valve', topics.INT8)
     rec.add_topic('coach_3/bogie_1/wsp/valve', topics.INT8)
     rec.write('coach_2/bogie_2/wsp/valve', 1_000_000_000, _int8(2))    # vent from t = 1 s
-    rec.write('coach_1/wsp/valve', 1_500_000_000, _int8(1))            # hold from 1.5 s
+    rec.write('coach_1/wsp/valve', 1_000_000_000, _int8(2))            # ignored
+    rec.write('coach_1/bogie_1/wsp/valve', 1_500_000_000, _int8(1))    # hold from 1.5 s
+    rec.write('coach_1/bogie_2/wsp/valve', 1_500_000_000, _int8(1))
     rec.write('coach_3/bogie_1/wsp/valve', 1_000_000_000, _int8(7))    # rejected
     rec.close()
     out = tmp_path / 'out'
     assert cli.main(['simulate', '--params', str(p), '--input', str(inp), '--duration', '2',
                      '--output', str(out), '-q']) == 0
+    err = capsys.readouterr().err
+    assert 'coach_1/wsp/valve' in err and 'coach_3/bogie_1/wsp/valve' not in err.split(
+        'rejected')[0]
     info = bag_info(str(out))
     assert info.topics['coach_2/bogie_2/wsp/valve'][0] == topics.INT8
     names = [f'coach_{i}/bogie_{j}' for i in (1, 2, 3) for j in (1, 2)]

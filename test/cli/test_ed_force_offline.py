@@ -51,7 +51,7 @@ def test_ed_force_commands_replayed_from_an_input_bag(tmp_path, capsys):
     assert cli.main(['simulate', '--params', str(p), '--input', str(inp), '--duration', '4',
                      '--output', str(out), '-q']) == 0
     err = capsys.readouterr().err
-    assert 'coach_2/ed_brake/force' in err and '1 traction, EP, WSP or ED force command' in err
+    assert 'coach_2/ed_brake/force' in err and 'rejected (ED force command: 1)' in err
     info = bag_info(str(out))
     assert info.topics['coach_1/ed_brake/force'][0] == topics.FLOAT64
     recorded = [m.data for _, _, m in read_topics(str(out), ['coach_1/ed_brake/force'])]

@@ -27,15 +27,6 @@ from train_dynamics.physics.blending import ed_available
 from train_dynamics.physics.kernel.layout import INPUT, VEHICLE
 
 
-def ed_motor_cars(cfg) -> list[int]:
-    """Return the motor cars (0-based) of ``cfg``'s train that take ED force commands."""
-    if cfg.blending != 'external':
-        return []
-    consist = cfg.consist
-    force = consist.fields['max_dynamic_brake_force']
-    return [i for i in consist.commanded if force[i] > 0.0]
-
-
 def ed_force_rejection(value: float) -> str | None:
     """Return why an ED force command [N] is refused ('non_finite', 'out_of_range')."""
     if not math.isfinite(value):

@@ -5,8 +5,9 @@ The model is :class:`train_dynamics.physics.train.TrainSimulator`, the same clas
 command runs. This module declares the node and wires its parts, each of which documents its
 behaviour and owns its state:
 
-- :mod:`train_dynamics.ros.brake_inputs`: the brake-input topics (absolute Pa), validation and
-  rejection counts, staleness and the fail-safe, the graph scan, ``wait_for_input``;
+- :mod:`train_dynamics.ros.controller_inputs`: the controller inputs, one channel per kind of
+  the input table (:mod:`train_dynamics.input_kinds`): validation and rejection counts,
+  staleness and the fail-safes, the graph scan, ``wait_for_input``;
 - :mod:`train_dynamics.ros.pacing`: the simulation thread (pacing at ``real_time_factor``,
   the lag policy, chunking), ``duration``, numerical faults;
 - :mod:`train_dynamics.ros.publishers`: the output topics of the run (the table
@@ -81,8 +82,9 @@ from train_dynamics.recording.bags import BagError, offered_qos
 from train_dynamics.recording.output_specs import OUTPUTS, target_of
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
 from train_dynamics.ros import parameters as ros_parameters
-from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INPUT_QOS,
-                                             MAX_ABSOLUTE_PRESSURE, REJECT_REASONS)
+from train_dynamics.ros.controller_inputs import (ControllerInputs, GRAPH_SCAN_PERIOD,
+                                                  INPUT_QOS, MAX_ABSOLUTE_PRESSURE,
+                                                  REJECT_REASONS)
 from train_dynamics.ros.diagnostics import (BrakeSystemReport, diagnostic_array, InputReport,
                                             SimulationReport)
 from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
@@ -149,7 +151,7 @@ class SimNode(Node):
             check_bag_path(cfg.record_bag)
 
         self._lock = SimulationLock()
-        self._inputs = BrakeInputs(self)
+        self._inputs = ControllerInputs(self)
         self._outputs = Outputs(self)
         self._outputs.on_output = self._inputs.output_published    # lock-step: Float64 answers
         self._stop_target = StopTargetInput(self, INPUT_QOS, self._lock, self._target_run,
