@@ -287,7 +287,7 @@ INPUT_KINDS: tuple[InputKind, ...] = (
               family='wsp', label='wsp valve', failsafe=0, on_stale='failsafe',
               meaning="0 normal, 1 hold, 2 vent: the valves on vehicle i's brake cylinder; "
                       'stale: 0', when='`wsp: external`, every vehicle (without '
-                      '`bogie_wheelsets`: with them, the bogies\' topics below)'),
+                      '`bogie_wheelsets`: with them, the bogie topics below)'),
     *(InputKind(f'wsp_bogie_{j}', topics.BOGIE_WSP_VALVE_TOPIC % j, msgtype=topics.INT8,
                 field='data', rule=wsp_rejection, reasons=('out_of_range',), integer=True,
                 apply=_bogie_valve(j), takes=_bogie_valves, family='wsp',
