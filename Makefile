@@ -42,13 +42,20 @@ help:
 
 venv: $(STAMP)
 
-$(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml Makefile
+# the typed-message package (msgs/train_dynamics_msgs), built into the venv by tools/build_msgs.sh
+MSGS_SOURCES := $(wildcard msgs/train_dynamics_msgs/msg/*.msg) msgs/train_dynamics_msgs/CMakeLists.txt \
+  msgs/train_dynamics_msgs/package.xml tools/build_msgs.sh
+
+$(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml Makefile $(MSGS_SOURCES)
 	@if [ ! -x "$(VPY)" ]; then \
 	  echo "creating $(VENV) with $$($(PYTHON) --version)"; \
 	  $(PYTHON) -m venv "$(VENV)"; \
 	fi
 	$(VPY) -m pip install --no-compile -r requirements.txt
 	$(VPY) -m pip install --no-deps --no-build-isolation --use-pep517 -e .
+	# the typed messages: colcon + rosidl into the venv's own prefix (~1 min; needs cmake and a
+	# C/C++ compiler; docs/install.md), where the venv's Python finds them without any setup
+	tools/build_msgs.sh "$(VENV)"
 	# byte-compile every installed module, on both cores (~30 s): where PYTHONDONTWRITEBYTECODE
 	# is set Python never writes a .pyc itself (why and what it costs: docs/development.md,
 	# "Python bytecode")

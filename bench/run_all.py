@@ -293,6 +293,17 @@ def adaptive_section() -> str:
                          '## Error-controlled stepping (bench/adaptive.py)')
 
 
+#: the speed targets beside the accuracy contract's metrics (hand-run: the references and the
+#: settings' runs take tens of minutes)
+CONTRACT_MD = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'contract_results.md')
+
+
+def contract_section() -> str:
+    """Return the speed-and-contract section, as last measured (bench/contract_results.md)."""
+    return saved_section(CONTRACT_MD, '<!-- contract: begin -->', '<!-- contract: end -->',
+                         '## Speed and the accuracy contract side by side')
+
+
 def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None,
            freight_rows: list[dict] | None = None) -> str:
     import node as nodebench
@@ -333,6 +344,7 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None,
                   '`~/.cache/train_dynamics/bench-reference/`). The plain fixed step is '
                   'judged by the same criteria for comparison. A FAIL says which criterion '
                   'failed.', '', targets_table(items), '']
+    parts += [contract_section(), '']
     if core_res:
         parts += [
             '## Physics core (ROS2 integrator at the default settings, numba kernel)', '',

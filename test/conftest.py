@@ -215,6 +215,9 @@ SLOW_TABLE = {
     'test_couplings.py': {
         'test_kernel_follows_the_reference_with_preloaded_progressive_ends': 2.2,
     },
+    'test_downstream_typed_controller.py': {
+        'test_a_downstream_typed_controller_stops_at_the_target_byte_identical': 37.1,
+    },
     'test_flake8.py': {
         'test_flake8': 26.6,
     },
@@ -226,6 +229,9 @@ SLOW_TABLE = {
         'test_controller_that_exits_0_before_the_run_ends_is_reported': 2.1,
         'test_report_figures_are_off_unless_asked': 5.0,
         'test_shell_wrapped_controller_is_ended_after_a_timeout': 20.2,
+    },
+    'test_house.py': {
+        'test_the_drawing_is_the_same_at_every_run_and_carries_its_digest': 4.6,
     },
     'test_integrators.py': {
         'test_stage_solve_matches_dense_solve_with_held_coaches': 2.6,
@@ -374,6 +380,9 @@ SLOW_TABLE = {
     'test_sweep_refusals.py': {
         'test_sweep_consist_file_relative_to_the_sweep_file': 2.5,
         'test_sweep_resume_refuses_an_edited_consist': 2.0,
+    },
+    'test_typed_commands.py': {
+        'test_a_stamped_traction_command_answers_the_output_of_its_stamp': 2.7,
     },
     'test_wheel_slide_train.py': {
         'test_wheelset_solve_against_bisection': 2.5,

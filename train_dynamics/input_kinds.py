@@ -22,7 +22,7 @@ know this table.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field as dc_field
+from dataclasses import dataclass, field as dc_field, replace
 import math
 import re
 from typing import Any, Callable
@@ -176,6 +176,9 @@ class InputKind:
     ``family`` ``''``: no lock-step period waits for the kind (its values act when they
     arrive). ``stamped``: the message has a ``header`` and answers the lock-step output of
     its stamp (an unstamped one answers the latest output published before it arrived).
+    ``twin``: the name of the kind this one is the stamped twin of (:func:`stamped_twin`: the
+    same input of the same vehicles from a typed ``train_dynamics_msgs`` message; the node
+    serves both in one channel, so a lock-step period takes either as a vehicle's answer).
     """
 
     name: str
@@ -199,6 +202,7 @@ class InputKind:
     #: a vehicle in the train that does not take it: the reason its messages are refused
     #: (the node's graph scan subscribes to such topics to count them); '' = not scanned
     idle_reason: str = ''
+    twin: str = ''
     pattern: re.Pattern = dc_field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
@@ -333,8 +337,36 @@ INPUT_KINDS: tuple[InputKind, ...] = (
               when='`blending: builtin`'),
 )
 
+
+def stamped_twin(plain: InputKind, topic: str, msgtype: str, field: str) -> InputKind:
+    """
+    Return the stamped twin of the command kind ``plain`` (a typed ``train_dynamics_msgs``).
+
+    Everything as ``plain`` (rule, setter, vehicles, family, fail-safe, staleness) but the
+    topic, the message type and field, and the header stamp that matches it in lock-step.
+    """
+    return replace(plain, name=f'{plain.name}_stamped', topic=topic, msgtype=msgtype,
+                   field=field, stamped=True, twin=plain.name, idle_reason='',
+                   meaning=f'as `{plain.display}`, stamped: {plain.meaning}')
+
+
+_PLAIN = {k.name: k for k in INPUT_KINDS}
+#: the stamped twins of the Float64 / Int8 commands (package train_dynamics_msgs)
+STAMPED_TWINS: tuple[InputKind, ...] = (
+    stamped_twin(_PLAIN['traction'], topics.TRACTION_STAMPED_TOPIC, topics.TRACTION_COMMAND,
+                 'command'),
+    stamped_twin(_PLAIN['ep'], topics.EP_COMMAND_STAMPED_TOPIC, topics.EP_COMMAND, 'command'),
+    stamped_twin(_PLAIN['wsp'], topics.WSP_VALVE_STAMPED_TOPIC, topics.WSP_VALVE, 'state'),
+    stamped_twin(_PLAIN['demand'], topics.BRAKE_DEMAND_STAMPED_TOPIC, topics.BRAKE_DEMAND,
+                 'demand'),
+)
+INPUT_KINDS += STAMPED_TWINS
+
 #: name -> row
 KINDS: dict[str, InputKind] = {k.name: k for k in INPUT_KINDS}
+#: a command kind's name -> its stamped twins
+TWINS: dict[str, tuple[InputKind, ...]] = {
+    k.name: tuple(t for t in STAMPED_TWINS if t.twin == k.name) for k in INPUT_KINDS}
 #: the brake-input kinds (``brake_input`` modes: one is active per run)
 BRAKE_KINDS = tuple(k for k in INPUT_KINDS if k.family == 'brake')
 #: the command kinds (every one whose ``takes`` is not empty is active)

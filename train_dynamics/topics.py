@@ -97,6 +97,26 @@ BRAKE_BLENDING_TOPIC = 'brake_blending'
 BRAKE_DEMAND_STATE_TOPIC = 'brake_demand/state'
 DIAGNOSTICS_TOPIC = '/diagnostics'
 
+# -- typed messages (package train_dynamics_msgs: msgs/train_dynamics_msgs/msg/*.msg) ------------
+MSGS_PACKAGE = 'train_dynamics_msgs'
+TRAIN_STATE = 'train_dynamics_msgs/msg/TrainState'
+COUPLER_STATE = 'train_dynamics_msgs/msg/CouplerState'
+BRAKE_STATE = 'train_dynamics_msgs/msg/BrakeState'
+#: typed outputs beside the JointState ones (fields: recording/output_specs.py)
+TRAIN_STATE_TOPIC = 'train_state'
+COUPLER_STATE_TOPIC = 'coupler_state'
+BRAKE_STATE_TOPIC = 'brake_state'
+#: the stamped commands: typed twins of the Float64 / Int8 commands, matched in lock-step by
+#: their header stamp (rows of train_dynamics/input_kinds.py)
+TRACTION_COMMAND = 'train_dynamics_msgs/msg/TractionCommand'
+EP_COMMAND = 'train_dynamics_msgs/msg/EpCommand'
+WSP_VALVE = 'train_dynamics_msgs/msg/WspValve'
+BRAKE_DEMAND = 'train_dynamics_msgs/msg/BrakeDemand'
+TRACTION_STAMPED_TOPIC = 'coach_{i}/traction/command_stamped'
+EP_COMMAND_STAMPED_TOPIC = 'brake_ep/command_stamped'
+WSP_VALVE_STAMPED_TOPIC = 'coach_{i}/wsp/valve_stamped'
+BRAKE_DEMAND_STAMPED_TOPIC = 'brake_demand_stamped'
+
 
 def input_topic(mode: str, coach: int | None = None) -> str:
     """Return the input topic of ``mode``; ``coach`` (1-based) for the per-coach modes."""

@@ -55,3 +55,14 @@ def test_the_docs_show_the_generated_inputs_table():
     table = markdown_table()
     assert table in page, 'regenerate: python -m train_dynamics.input_kinds'
     assert len(table.splitlines()) == len(INPUT_KINDS) + 2
+
+
+def test_no_other_page_keeps_a_table_of_the_inputs():
+    """Only the generated table of ros_interface.md has a row per input topic (one declaration)."""
+    from train_dynamics.input_kinds import INPUT_KINDS
+
+    rows = tuple(f'| `{k.display}` |' for k in INPUT_KINDS)
+    found = [f'{page.relative_to(REPO)}: {line}' for page in PAGES
+             if page.name != 'ros_interface.md'
+             for line in _text(page).splitlines() if line.startswith(rows)]
+    assert not found, 'point to docs/ros_interface.md#inputs instead: ' + '; '.join(found)

@@ -30,6 +30,7 @@ IMPORT_KEYS = {
     'std_msgs': 'std_msgs', 'std_srvs': 'std_srvs', 'diagnostic_msgs': 'diagnostic_msgs',
     'rosgraph_msgs': 'rosgraph_msgs', 'builtin_interfaces': 'builtin_interfaces',
     'nav_msgs': 'nav_msgs', 'geometry_msgs': 'geometry_msgs',
+    'train_dynamics_msgs': 'train_dynamics_msgs',
     'ament_index_python': 'ament_index_python', 'launch': 'launch', 'launch_ros': 'launch_ros',
     'numpy': 'python3-numpy', 'scipy': 'python3-scipy', 'numba': 'python3-numba',
     'llvmlite': 'python3-numba',          # a dependency of numba's Debian package
@@ -51,10 +52,21 @@ def _depends(kind: str) -> set[str]:
     return {e.text.strip() for e in root.iter() if e.tag in (kind, 'depend')}
 
 
+def _own_package(path: Path) -> bool:
+    """Return True for a file of a package of its own (a ``package.xml`` above it in test/)."""
+    return any((folder / 'package.xml').is_file() for folder in path.parents
+               if folder != REPO and REPO in folder.parents)
+
+
 def _imports(paths) -> dict[str, list[str]]:
-    """Return top-level module -> files, for the absolute imports outside the stdlib."""
+    """
+    Return top-level module -> files, for the absolute imports outside the stdlib.
+
+    A file of a package of its own (test/downstream/...: its package.xml declares its
+    dependencies) is not counted.
+    """
     found: dict[str, list[str]] = {}
-    for path in paths:
+    for path in (p for p in paths if not _own_package(p)):
         for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
             if isinstance(node, ast.Import):
                 names = [a.name for a in node.names]

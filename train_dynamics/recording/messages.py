@@ -17,12 +17,20 @@ import numpy as np
 from rosbags.typesys import get_typestore, Stores
 
 from train_dynamics import topics
+from train_dynamics.recording.typed_msgs import register
 
 
 @functools.cache
 def typestore():
-    """Return the ``rosbags`` typestore of ROS 2 Jazzy (built once)."""
-    return get_typestore(Stores.ROS2_JAZZY)
+    """
+    Return the ``rosbags`` typestore of ROS 2 Jazzy (built once).
+
+    With the typed messages of ``train_dynamics_msgs`` registered from their ``.msg`` files
+    (:func:`train_dynamics.recording.typed_msgs.register`), where they are found.
+    """
+    store = get_typestore(Stores.ROS2_JAZZY)
+    register(store)
+    return store
 
 
 def time_to_ns(t: float) -> int:

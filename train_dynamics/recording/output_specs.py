@@ -28,6 +28,7 @@ import numpy as np
 from train_dynamics import topics
 from train_dynamics.physics.blending import ed_forces
 from train_dynamics.physics.wheelset import speed_sensor
+from train_dynamics.recording import typed_msgs
 from train_dynamics.recording.cdr import (_cdr_align, _cdr_header, _cdr_string, _ENCAPSULATION,
                                           joint_state_layout, Layout)
 
@@ -86,6 +87,9 @@ def _odometry_layout(names: Sequence[str], fields: Sequence[str]) -> Layout:
 FORMS: dict[str, Callable[[Sequence[str], Sequence[str]], Layout]] = {
     topics.JOINT_STATE: _joint_state_layout,
     topics.ODOMETRY: _odometry_layout,
+    topics.TRAIN_STATE: typed_msgs.stamped_arrays_layout,
+    topics.COUPLER_STATE: typed_msgs.stamped_arrays_layout,
+    topics.BRAKE_STATE: typed_msgs.stamped_arrays_layout,
 }
 
 
@@ -100,7 +104,8 @@ class OutputSpec:
     ``read(sim, t_ns, run)``: the values of the fields (None for an empty one) of ``sim``'s
     present state at ``t_ns`` [ns]; ``run`` is the :class:`OutputRun` (state kept between
     outputs, the stopping target). ``when(cfg)``: whether a run of ``cfg`` has the topic;
-    ``when_text``: that in the docs ('' = always).
+    ``when_text``: that in the docs ('' = always). ``field_when``: per field, None or
+    ``when(cfg)``: whether a run of ``cfg`` fills it (else its array is empty).
     """
 
     topic: str
@@ -111,10 +116,18 @@ class OutputSpec:
     read: Callable[[Any, int, Any], tuple]
     when: Callable[[Any], bool] = lambda cfg: True
     when_text: str = ''
+    field_when: tuple[Callable[[Any], bool] | None, ...] = ()
+
+    def fields_of(self, cfg: Any) -> tuple[str, ...]:
+        """Return :attr:`fields` of a run of ``cfg``: '' where ``field_when`` says empty."""
+        if not self.field_when:
+            return self.fields
+        return tuple(meaning if when is None or when(cfg) else ''
+                     for meaning, when in zip(self.fields, self.field_when))
 
     def layout(self, cfg: Any) -> Layout:
         """Return the byte layout of this topic's messages in a run of ``cfg`` (stamp 0)."""
-        return FORMS[self.msgtype](self.names(cfg), self.fields)
+        return FORMS[self.msgtype](self.names(cfg), self.fields_of(cfg))
 
     def content(self) -> str:
         """Return the docs' words for the message: names and each field's meaning."""
@@ -126,6 +139,9 @@ class OutputSpec:
             if empty:
                 parts.append(' and '.join(empty) + ' empty')
             return '; '.join(parts)
+        if self.msgtype in TYPED:
+            return '; '.join(f'{name} = {meaning}' for name, meaning in
+                             zip(typed_msgs.array_fields(self.msgtype), self.fields))
         return f'child_frame_id {self.names_text}; ' + '; '.join(
             f'{name} = {meaning}' for name, meaning in zip(ODOMETRY_FIELDS, self.fields))
 
@@ -151,21 +167,39 @@ def target_of(cfg: Any) -> float | None:
 
 
 # -- how each output reads the simulator --------------------------------------------------------
-def _acceleration(sim: Any, t_ns: int, run: OutputRun) -> tuple:
+def _mean_acceleration(sim: Any, t_ns: int, run: OutputRun, key: str) -> np.ndarray:
     """
-    ``vehicle_motion``: front track position [m], v [m/s], mean acceleration [m/s^2].
+    Return each vehicle's mean acceleration [m/s^2] since the previous output of ``key``.
 
-    (v(t_k) - v(t_{k-1})) / (t_k - t_{k-1}) since the previous output (0 at the first, or
-    when the time went back: a reset).
+    (v(t_k) - v(t_{k-1})) / (t_k - t_{k-1}) (0 at the first, or when the time went back: a
+    reset); ``run.memo[key]`` keeps (t_k, v(t_k)).
     """
     v = sim.v
-    last = run.memo.get(topics.VEHICLE_MOTION_TOPIC)
+    last = run.memo.get(key)
     if last is None or t_ns <= last[0]:
         accel = v * 0.0
     else:
         accel = (v - last[1]) / ((t_ns - last[0]) * 1e-9)
-    run.memo[topics.VEHICLE_MOTION_TOPIC] = (t_ns, v)
-    return sim.track_position, v, accel
+    run.memo[key] = (t_ns, v)
+    return accel
+
+
+def _acceleration(sim: Any, t_ns: int, run: OutputRun) -> tuple:
+    """``vehicle_motion``: front track position [m], v [m/s], mean acceleration [m/s^2]."""
+    return (sim.track_position, sim.v,
+            _mean_acceleration(sim, t_ns, run, topics.VEHICLE_MOTION_TOPIC))
+
+
+def _train_state(sim: Any, t_ns: int, run: OutputRun) -> tuple:
+    """``train_state``: front track position [m], v [m/s], mean acceleration, Fb [N]."""
+    return (sim.track_position, sim.v,
+            _mean_acceleration(sim, t_ns, run, topics.TRAIN_STATE_TOPIC), sim.brake_force)
+
+
+def _brake_state(sim: Any, t_ns: int, run: OutputRun) -> tuple:
+    """``brake_state``: pipe, cylinder, auxiliary and control reservoir pressures [Pa gauge]."""
+    return (sim.pipe_pressure, sim.cylinder_pressure, sim.auxiliary_pressure,
+            sim.control_pressure)
 
 
 def _wheelsets(sim: Any, t_ns: int, run: OutputRun) -> tuple:
@@ -241,6 +275,14 @@ def _lead(cfg: Any) -> list[str]:
 
 
 _EVERY_VEHICLE = '`coach_1`..`coach_N`'
+#: the typed messages (package train_dynamics_msgs): a header and float64 arrays
+TYPED = (topics.TRAIN_STATE, topics.COUPLER_STATE, topics.BRAKE_STATE)
+
+
+def _typed(cfg: Any) -> bool:
+    """Return True where the typed messages' definitions are found (always in the docs)."""
+    return typed_msgs.available()
+
 
 #: every output topic, in the order a run publishes and records them
 OUTPUTS: tuple[OutputSpec, ...] = (
@@ -331,6 +373,21 @@ OUTPUTS: tuple[OutputSpec, ...] = (
                 'brake force [N]', 'electro-dynamic brake force of the train [N]'),
                _demand_state, lambda cfg: getattr(cfg, 'blending', 'none') == 'builtin',
                '`blending: builtin`'),
+    OutputSpec(topics.TRAIN_STATE_TOPIC, topics.TRAIN_STATE, _vehicles, _EVERY_VEHICLE,
+               ("track position of the vehicle's front [m] (as `vehicle_motion`)", 'v_i [m/s]',
+                'acceleration [m/s^2, forward > 0], the mean over the last output period',
+                'braking force Fb_i [N, >= 0]'),
+               _train_state, _typed),
+    OutputSpec(topics.COUPLER_STATE_TOPIC, topics.COUPLER_STATE, _couplers,
+               '`coupler_1`..`coupler_{N-1}`',
+               ('F_i [N], > 0 tension', 'y_i [m], > 0 extension', 'ydot_i [m/s]'),
+               lambda sim, t_ns, run: (sim.coupler_force, sim.y, sim.ydot), _typed),
+    OutputSpec(topics.BRAKE_STATE_TOPIC, topics.BRAKE_STATE, _vehicles, _EVERY_VEHICLE,
+               ('local brake-pipe gauge pressure [Pa]', 'brake-cylinder gauge pressure [Pa]',
+                'auxiliary-reservoir gauge pressure [Pa] (empty unless `brake_reservoirs` is '
+                'published)', 'control-reservoir gauge pressure [Pa] (empty as the former)'),
+               _brake_state, _typed,
+               field_when=(None, None, has_reservoirs, has_reservoirs)),
 )
 
 #: topic -> its row

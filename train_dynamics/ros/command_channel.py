@@ -21,6 +21,11 @@ published before it arrived (the node tags it with that output's stamp,
 stamp. A period waits until the applied value of every vehicle answers its output
 (:meth:`CommandChannel.unanswered`); a second answer to one output is not used (counted).
 
+A kind's stamped twins (``train_dynamics_msgs`` messages; rows whose ``twin`` names the kind)
+are served by the same channel: their topics are subscribed beside the kind's, a value from
+either is the vehicle's value (recorded on the topic it came by), and either answers a
+lock-step period for the vehicle.
+
 Staleness (``input_timeout`` > 0 s wall after a first value; the row's ``on_stale``):
 ``policy``: with ``on_input_timeout`` emergency the value falls to the fail-safe (recorded)
 until a new one arrives or the policy changes, with ``hold`` the last one holds; ``failsafe``:
@@ -76,21 +81,27 @@ class CommandChannel:
     """Subscribe to, check and hold one command input kind of one node (see the module)."""
 
     def __init__(self, kind: InputKind, node: Node, qos: Any, reject: Reject,
-                 notify: Callable[[], None] = lambda: None) -> None:
+                 notify: Callable[[], None] = lambda: None,
+                 twins: tuple[InputKind, ...] = ()) -> None:
         self.kind = kind
+        #: the kind and its stamped twins: the rows whose topics this channel subscribes
+        self.kinds = (kind,) + tuple(twins)
         self._node = node
         self._qos = qos
         self._reject = reject           # (resolved topic, reason, detail): count and warn
         self._notify = notify           # called after each accepted value (wakes lock-step)
         self._log = node.get_logger()
         self._subs: dict[str, Any] = {}
+        self._vehicle: dict[str, int] = {}         # resolved topic -> its 0-based vehicle
         self._lock = threading.Lock()
         self._cfg: Any = None
         self._indices: list[int] = []
         self._value: dict[int, Any] = {}
         self._arrival: dict[int, float] = {}       # [s wall] of each vehicle's last value
-        self._dirty: dict[int, bytes] = {}         # accepted since the last apply
-        self._raw: dict[int, bytes] = {}           # each vehicle's last accepted value (CDR)
+        #: accepted since the last apply: (the row it came by, CDR)
+        self._dirty: dict[int, tuple[InputKind, bytes]] = {}
+        #: each vehicle's last accepted value: (the row it came by, CDR)
+        self._raw: dict[int, tuple[InputKind, bytes]] = {}
         self._period_ns = -1                       # stamp of the latest output published
         self._tag: dict[int, int] = {}             # the output each last value answers
         self._applied_tag: dict[int, int] = {}     # simulation lock: of the value applied
@@ -132,21 +143,41 @@ class CommandChannel:
         self._subscribe_all()
 
     def subscriptions(self) -> list[Any]:
-        """Return the subscriptions of the run's topics of this kind."""
+        """Return the subscriptions of the run's topics of this kind (and of its twins)."""
         return list(self._subs.values())
 
+    def unconnected(self) -> list[str]:
+        """Return the topics of the vehicles none of whose topics (kind, twins) has a publisher."""
+        live = {self._vehicle[name] for name, sub in self._subs.items()
+                if sub.get_publisher_count() > 0}
+        return [self._node.resolve_topic_name(self.kind.topic_of(i))
+                for i in self._indices if i not in live]
+
     def _subscribe_all(self) -> None:
-        wanted = {self._node.resolve_topic_name(self.kind.topic_of(i)): i
-                  for i in self._indices}
+        wanted = {self._node.resolve_topic_name(kind.topic_of(i)): (i, kind)
+                  for kind in self._available() for i in self._indices}
+        self._vehicle = {name: i for name, (i, _) in wanted.items()}
         for name in list(self._subs):
             if name not in wanted:
                 self._node.destroy_subscription(self._subs.pop(name))
-        cls = message_class(self.kind.msgtype)
-        for name, i in wanted.items():
+        for name, (i, kind) in wanted.items():
             if name not in self._subs:
-                cb = functools.partial(self._on_message, name, i)
-                self._subs[name] = self._node.create_subscription(cls, name, cb, self._qos,
-                                                                  raw=True)
+                cb = functools.partial(self._on_message, name, i, kind)
+                self._subs[name] = self._node.create_subscription(
+                    message_class(kind.msgtype), name, cb, self._qos, raw=True)
+
+    def _available(self) -> list[InputKind]:
+        """Return the kind and those of its twins whose message class imports (warned once)."""
+        out = [self.kind]
+        for twin in self.kinds[1:]:
+            try:
+                message_class(twin.msgtype)
+            except ImportError as exc:
+                self._log.warning(f'{twin.display} not subscribed: {exc} (build the typed '
+                                  'messages: tools/build_msgs.sh)', once=True)
+                continue
+            out.append(twin)
+        return out
 
     @property
     def active(self) -> bool:
@@ -157,9 +188,9 @@ class CommandChannel:
         """Return True if ``resolved`` is one of this run's topics of the kind."""
         return resolved in self._subs
 
-    def _on_message(self, resolved: str, index: int, data: bytes) -> None:
+    def _on_message(self, resolved: str, index: int, kind: InputKind, data: bytes) -> None:
         try:
-            value, stamp_ns = decode(self.kind, data, self._cfg)
+            value, stamp_ns = decode(kind, data, self._cfg)
         except ValueError as exc:
             self._reject(resolved, *exc.args)
             return
@@ -172,7 +203,7 @@ class CommandChannel:
             if not duplicate:
                 self._value[index] = value
                 self._arrival[index] = time.monotonic()
-                self._dirty[index] = self._raw[index] = bytes(data)
+                self._dirty[index] = self._raw[index] = (kind, bytes(data))
                 self._tag[index] = tag
         if duplicate:          # lock-step: the first value after the output answers it
             self.duplicates += 1
@@ -200,8 +231,8 @@ class CommandChannel:
         return [self.kind.topic_of(i) for i in self._indices if tags.get(i) != t_ns]
 
     def connected(self) -> bool:
-        """Return True if every topic of the kind has a publisher."""
-        return all(sub.get_publisher_count() > 0 for sub in self._subs.values())
+        """Return True if every vehicle has a publisher on its topic or a twin's."""
+        return not self.unconnected()
 
     @property
     def _supervised(self) -> bool:
@@ -248,11 +279,11 @@ class CommandChannel:
             for i in dirty:
                 self._applied_tag[i] = self._tag[i]
         t_ns = time_ns(sim.t)
-        for i, raw in dirty.items():
+        for i, (came, raw) in dirty.items():
             self._stale.discard(i)
             self._held.discard(i)
             kind.apply(sim, kind.sim_value(values[i], self._cfg), i)
-            record(kind.topic_of(i), kind.msgtype, t_ns, raw)
+            record(came.topic_of(i), came.msgtype, t_ns, raw)
         if kind.on_stale == 'line':
             self._supervise_line(sim, not stale)
             return
@@ -261,8 +292,9 @@ class CommandChannel:
         failsafe = stale if kind.on_stale == 'failsafe' or (
             kind.on_stale == 'policy' and emergency) else set()
         for i in sorted(self._held - failsafe):       # the last value holds again
+            came, raw = raws[i]
             kind.apply(sim, kind.sim_value(values[i], self._cfg), i)
-            record(kind.topic_of(i), kind.msgtype, t_ns, raws[i])
+            record(came.topic_of(i), came.msgtype, t_ns, raw)
         if failsafe - self._held:
             fail = failsafe_value(kind, self._cfg)
             raw = self._synthetic(sim, fail)

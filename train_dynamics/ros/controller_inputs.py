@@ -34,7 +34,7 @@ from typing import Any, Callable
 from rclpy.node import Node
 
 from train_dynamics import topics
-from train_dynamics.input_kinds import BRAKE_KINDS, COMMAND_KINDS, InputKind
+from train_dynamics.input_kinds import BRAKE_KINDS, COMMAND_KINDS, InputKind, TWINS
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.ros.brake_channel import (BrakeChannel, INPUT_QOS, MAX_EXTRA_SUBSCRIPTIONS,
                                               Record)
@@ -82,9 +82,9 @@ class ControllerInputs(LockstepInputs):
         self.on_input: Callable[[], None] | None = None
         self.brake = BrakeChannel(node, self._reject, self._notify, self._duplicate_answer,
                                   self.duplicate)
-        self.channels: dict[str, CommandChannel] = {
-            k.name: CommandChannel(k, node, INPUT_QOS, self._reject, self._notify)
-            for k in COMMAND_KINDS}
+        self.channels: dict[str, CommandChannel] = {   # a twin is served by its kind's
+            k.name: CommandChannel(k, node, INPUT_QOS, self._reject, self._notify, TWINS[k.name])
+            for k in COMMAND_KINDS if not k.twin}
 
     def _notify(self) -> None:
         """Tell the simulation thread that an input was accepted (executor thread)."""

@@ -167,9 +167,15 @@ class LockstepInputs:
     def unconnected(self, families: tuple[str, ...], limit: int = 10) -> list[str]:
         """Return (up to ``limit``) input topics of ``families`` without a publisher."""
         out = []
-        for sub in self._lockstep_subscriptions(families):
-            if sub.get_publisher_count() == 0:
-                out.append(sub.topic_name)
+        if BRAKE in families:
+            for sub in self.brake.active:
+                if sub.get_publisher_count() == 0:
+                    out.append(sub.topic_name)
+                    if len(out) >= limit:
+                        return out
+        for family, part in self._command_families():    # a vehicle: its topic or a twin's
+            if family in families:
+                out += part.unconnected()[:limit - len(out)]
                 if len(out) >= limit:
                     break
         return out

@@ -103,8 +103,9 @@ class Outputs:
             self._node.destroy_publisher(self._pubs.pop(topic))
         for topic, msgtype in zip(encoder.topics, encoder.msgtypes):
             if topic not in self._pubs:
-                self._pubs[topic] = self._node.create_publisher(
-                    message_class(msgtype), topic, OUTPUT_QOS)
+                cls = self._message_class(msgtype)
+                if cls is not None:
+                    self._pubs[topic] = self._node.create_publisher(cls, topic, OUTPUT_QOS)
         self.rate = float(rate)
         self._h = h
         self.publish_clock = bool(publish_clock)
@@ -114,6 +115,22 @@ class Outputs:
         self.published = 0
         self.last_step = -1
         self.last_t_ns = -1
+
+    def _message_class(self, msgtype: str) -> Any:
+        """
+        Return the rclpy class of ``msgtype``; None for a typed one not built (warned once).
+
+        The typed messages (``train_dynamics_msgs``) need the package that
+        ``tools/build_msgs.sh`` builds; without it their topics are recorded, not published.
+        """
+        try:
+            return message_class(msgtype)
+        except ImportError as exc:
+            if not msgtype.startswith(topics.MSGS_PACKAGE + '/'):
+                raise
+            self._node.get_logger().warning(
+                f'{msgtype} not published: {exc} (build it: tools/build_msgs.sh)', once=True)
+            return None
 
     @property
     def publish_clock(self) -> bool:
@@ -170,8 +187,11 @@ class Outputs:
             self.on_output(t_ns)
         encoder = self._encoder
         encoded = encoder.encode(t_ns, sim)
+        pubs = self._pubs
         for topic, data in zip(encoder.topics, encoded):
-            self._pubs[topic].publish(data)
+            pub = pubs.get(topic)
+            if pub is not None:
+                pub.publish(data)
         self.metrics.put(sim)
         clock = self.clock.publish(stamp(t_ns))
         w = self.writer

@@ -24,7 +24,7 @@ from train_dynamics.physics.kernel.coupler_rows import (eval_couplers, eval_coup
                                                         invalidate_caches)
 from train_dynamics.physics.kernel.couplers import TANH
 from train_dynamics.physics.kernel.layout import CACHE, OPTION, PARAM, STATE, TOTAL, VEHICLE, WORK
-from train_dynamics.physics.kernel.multirate import refine
+from train_dynamics.physics.kernel.multirate import refine, scratch_size
 from train_dynamics.physics.kernel.rosenbrock2 import GAMMA
 from train_dynamics.physics.kernel.step import (accept_external, accept_step, brake_system_step,
                                                 braking_force_trapezoid, external_step,
@@ -132,6 +132,11 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
         iv[CACHE.STEADY] = 0
         iv[CACHE.WS_VALID] = 1
     wheels = iv[OPTION.WHEELS]
+    multirate = sc[PARAM.MRTOL] > 0.0 and iv[OPTION.MODEL] == TANH
+    # the refinement's memory, once per call (its groups allocate nothing)
+    n = coach.shape[1]
+    mr_scratch = np.empty(scratch_size(coach.shape[0], ws.shape[0], n) if multirate else 0)
+    mr_held = np.empty(n if multirate else 0, dtype=np.bool_)
     for step in range(n_steps):
         if iv[OPTION.ADHESION]:
             wheelset.track_adhesion(coach, aprof)
@@ -154,8 +159,9 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
             extra_work = active_set_step(sc[PARAM.H], coach, cpl, sc, iv, held, ws, gprof)
             # multirate: events re-integrated in sub-steps; the tanh law only (the sign law
             # jumps at zero relative speed: no local error estimate converges there)
-            if sc[PARAM.MRTOL] > 0.0 and iv[OPTION.MODEL] == TANH:
-                work_fix = refine(sc[PARAM.H], coach, cpl, sc, iv, held, ws, gprof)
+            if multirate:
+                work_fix = refine(sc[PARAM.H], coach, cpl, sc, iv, held, ws, gprof,
+                                  mr_scratch, mr_held)
         status = fault_check(ws, sc[PARAM.YLIM])
         if status != OK:
             return step, status

@@ -46,7 +46,8 @@ import numpy as np
 
 from train_dynamics.physics.kernel.compiler import jit
 from train_dynamics.physics.kernel.coupler_rows import eval_couplers
-from train_dynamics.physics.kernel.layout import COUNT, COUPLER, OPTION, PARAM, STATE, WORK
+from train_dynamics.physics.kernel.layout import (COUNT, COUPLER, OPTION, PARAM, STATE, VEHICLE,
+                                                  WORK)
 from train_dynamics.physics.kernel.rosenbrock2 import GAMMA, ros2_step
 
 #: vehicles added to a flagged coupler's group on either side. Measured (bench/accuracy.py,
@@ -152,7 +153,13 @@ def _landing(hs, rem):
 
 
 @jit(inline=True)
-def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof):
+def scratch_size(coach_rows, work_rows, n):
+    """Return the length of :func:`refine`'s scratch for n vehicles (:func:`_refine_group`)."""
+    return (coach_rows + work_rows + 5) * n
+
+
+@jit(inline=True)
+def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof, scratch, sheld):
     """
     Re-integrate vehicles a..b over the long step h [s] in sub-steps; return (done, work).
 
@@ -164,17 +171,37 @@ def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof):
     force envelope (WORK.FHI, FLO) with every sub-step's forces. Returns (False, 0) without
     writing when a vehicle would reverse (the long step stands), else (True, the correction
     [J] of the couplers' work: sub-step trapezoids less the long step's).
+
+    No allocation: the group's arrays are views of ``scratch`` (:func:`scratch_size`) and
+    ``sheld`` (n flags), made once per driver call. The sub-chain's vehicle rows hold only
+    what :func:`~.rosenbrock2.ros2_step` reads without external forces (STATE.X, V,
+    VEHICLE.MASS; the other rows are not initialised), its couplers are a view of ``cpl``
+    (read only), its workspace is zeroed as a new one would be. (Copying every row of the
+    vehicles and couplers and allocating nine arrays cost ~60 kB of memory traffic per
+    group of 30 vehicles.)
     """
     n = coach.shape[1]
     nc = b - a + 1
     model = iv[OPTION.MODEL]
     u = sc[PARAM.U]
-    sub = coach[:, a:b + 1].copy()
-    scpl = cpl[:, a:b].copy()
-    sws = np.zeros((ws.shape[0], nc))
-    held = np.zeros(nc, dtype=np.bool_)
+    rows_c = coach.shape[0]
+    rows_w = ws.shape[0]
+    sub = scratch[:rows_c * nc].reshape((rows_c, nc))
+    off = rows_c * nc
+    sws = scratch[off:off + rows_w * nc].reshape((rows_w, nc))
+    off += rows_w * nc
+    rows = scratch[off:off + 5 * (nc - 1)].reshape((5, nc - 1))
+    sws[:, :] = 0.0
+    scpl = cpl[:, a:b]
+    held = sheld[:nc]
+    held[:] = False
     x = sub[STATE.X]
     v = sub[STATE.V]
+    mass = sub[VEHICLE.MASS]
+    for i in range(nc):
+        x[i] = coach[STATE.X, a + i]
+        v[i] = coach[STATE.V, a + i]
+        mass[i] = coach[VEHICLE.MASS, a + i]
     signed = sws[WORK.SIGNED]
     for i in range(nc):
         k = a + i
@@ -190,11 +217,14 @@ def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof):
     x_new = sws[WORK.XNEW]
     F = sws[WORK.F]
     err = sws[WORK.ERR]
-    f_old = np.empty(nc - 1)
-    f_hi = np.zeros(nc - 1)
-    f_lo = np.zeros(nc - 1)
-    y_old = np.empty(nc - 1)
-    work = np.zeros(nc - 1)
+    f_old = rows[0]
+    f_hi = rows[1]
+    f_lo = rows[2]
+    y_old = rows[3]
+    work = rows[4]
+    f_hi[:] = 0.0
+    f_lo[:] = 0.0
+    work[:] = 0.0
     s = 0.0
     hs = h * min(0.5, max(0.05, SAFETY / np.sqrt(err0)))
     nsub = 0
@@ -256,7 +286,7 @@ def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof):
 
 
 @jit(inline=True)
-def refine(h, coach, cpl, sc, iv, held, ws, gprof):
+def refine(h, coach, cpl, sc, iv, held, ws, gprof, scratch, sheld):
     """
     Re-integrate in sub-steps the groups around couplers over tolerance; return work [J].
 
@@ -265,6 +295,7 @@ def refine(h, coach, cpl, sc, iv, held, ws, gprof):
     flagged coupler with EXTEND vehicles either side, touching groups merged, is
     re-integrated (:func:`_refine_group`) unless it holds a vehicle at rest or stopping
     (:func:`_declines`). Returns the correction of the couplers' work [J] for TOTAL.WC.
+    ``scratch``, ``sheld``: the groups' memory (:func:`_refine_group`).
     """
     n = coach.shape[1]
     m = n - 1
@@ -290,7 +321,8 @@ def refine(h, coach, cpl, sc, iv, held, ws, gprof):
         if _declines(a, b, held, ws):
             iv[COUNT.MR_DECLINED] += 1
             continue
-        done, dw = _refine_group(a, b, h, tol_f, e0 / tol_f, coach, cpl, sc, iv, ws, gprof)
+        done, dw = _refine_group(a, b, h, tol_f, e0 / tol_f, coach, cpl, sc, iv, ws, gprof,
+                                 scratch, sheld)
         if done:
             iv[COUNT.MR_CLUSTERS] += 1
             corr += dw
