@@ -4,8 +4,9 @@ Speed of a 2 x 8-car multiple unit with builtin blending: offline and in the nod
 Train: two ICE 3 units coupled (``config/consist_ice3_8.yaml``'s cars twice: 16 cars, 8 motor
 cars; written to a temporary consist file), the settings of ``config/hs_ice3_8.yaml``
 (``blending: builtin``, 2 ms step, 100 Hz output), a full-service demand at t = 1 s from
-300 km/h. Cases: ``lumped`` (no wheelsets) and ``wheelsets`` (``wheelsets: true``: one
-lumped wheelset per car; per-bogie wheelsets, two per car, are not in the kernel).
+300 km/h. Cases: ``lumped`` (no wheelsets), ``wheelsets`` (``wheelsets: true``: one
+lumped wheelset per car) and ``bogies`` (``bogie_wheelsets: true``: two per car, one per
+bogie, with the builtin WSP per bogie: the issue's case).
 
 - offline: the offline command's loop writing the bag (``bench/offline_speed.py``'s
   ``run_inprocess`` mode ``bag``: ``simulate`` minus its start-up) over ``--offline-duration``
@@ -47,7 +48,8 @@ SETTINGS = {'initial_speed': 83.333, 'brake_input': 'cylinder_per_coach',
             'demand_schedule_values': [1.0], 'buffer_stiffness': 2.0e7,
             'buffer_friction': 5.0e6, 'draw_gear_stiffness': 2.0e7,
             'draw_gear_friction': 5.0e6, 'integration_step': 0.002, 'publish_rate': 100.0}
-CASES = {'lumped': {}, 'wheelsets': {'wheelsets': True}}
+CASES = {'lumped': {}, 'wheelsets': {'wheelsets': True},
+         'bogies': {'bogie_wheelsets': True, 'wsp': 'builtin'}}
 
 
 def write_train(tmp: str, extra: dict) -> tuple[str, str]:

@@ -14,7 +14,8 @@ into the moving part and the part with every vehicle at rest at an output period
 - ``paperN``: the same with the strokes out of reach (the paper's idealisation, as a
   kernel without strokes computed it);
 - ``<case>+w``: the case with rotating wheelsets (``wheelsets: true``: the creep-law sub-step
-  per vehicle and step, dry rail), against the case without.
+  per vehicle and step, dry rail), against the case without; ``<case>+b``: two per vehicle
+  (``bogie_wheelsets: true``: one per bogie).
 - ``CASE+mrTOL``, ``CASE+tolTOL``: any of these with ``multirate_tolerance`` or
   ``integration_tolerance`` TOL (e.g. ``uniform100+mr1e-3``).
 
@@ -61,6 +62,8 @@ def _config(case: str):
     from train_dynamics.physics.config import SimConfig
     if case.endswith('+w'):
         return _config(case[:-2]).replace(wheelsets=True)
+    if case.endswith('+b'):     # two wheelsets per vehicle, one per bogie
+        return _config(case[:-2]).replace(bogie_wheelsets=True)
     if '+rw' in case:       # ``uniform100+mr1e-3+rw0.3``: multirate_reversal_weight 0.3
         case, w = case.split('+rw')
         return _config(case).replace(multirate_reversal_weight=float(w))

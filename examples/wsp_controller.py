@@ -31,7 +31,9 @@ class WspController(Node):
         u = list(msg.velocity)
         dt = t - self.last[0] if self.last is not None and t > self.last[0] else None
         for i, name in enumerate(msg.name):
-            v = self.speed[i] if self.speed is not None else u[i]
+            # coach_<i> or, with bogie_wheelsets, coach_<i>/bogie_<j>: its vehicle's speed
+            k = int(name.split('/')[0].split('_')[1]) - 1
+            v = self.speed[k] if self.speed is not None else u[i]
             slip = v - u[i]
             decel = (self.last[1][i] - u[i]) / dt if dt else 0.0
             if v < 0.05:            # (nearly) at rest: leave the brake alone

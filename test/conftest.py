@@ -181,6 +181,12 @@ SLOW_TABLE = {
     'test_blending_controller_loop.py': {
         'test_external_blending_loop_is_byte_identical_and_passes_its_criteria': 16.5,
     },
+    'test_bogie_scenario.py': {
+        'test_the_per_bogie_scenario_stops_between_dry_rail_and_no_conditioning': 4.5,
+    },
+    'test_bogie_wheelsets.py': {
+        'test_two_equal_bogies_run_as_the_vehicles_lumped_wheelset_bit_for_bit': 5.8,
+    },
     'test_brake_valve.py': {
         'test_node_live_position_change_and_invalid_values': 5.7,
         'test_node_publishes_absolute_pressure_following_schedule': 2.1,
@@ -237,6 +243,9 @@ SLOW_TABLE = {
     },
     'test_layout.py': {
         'test_layer_loads_no_forbidden_module': 2.2,
+    },
+    'test_lockstep_bogie_wsp.py': {
+        'test_per_bogie_wsp_in_lockstep_is_answered_per_bogie_and_reproducible': 16.3,
     },
     'test_lockstep_clock.py': {
         'test_timer_driven_controller_on_sim_time_runs_in_lockstep_byte_identical': 5.2,
@@ -315,12 +324,19 @@ SLOW_TABLE = {
     'test_sim_node_blending_lockstep.py': {
         'test_demand_emergency_and_trip_in_lockstep_give_byte_identical_bags': 5.7,
     },
+    'test_sim_node_bogie_wsp.py': {
+        'test_a_bogie_valve_topic_vents_that_bogie_only': 2.5,
+        'test_the_example_controller_protects_each_bogie': 18.5,
+    },
     'test_sim_node_brake_state.py': {
         'test_ecp_line_loss_is_published_recorded_and_diagnosed': 3.2,
         'test_radio_loss_is_published_and_diagnosed': 2.1,
     },
     'test_sim_node_ep.py': {
         'test_ep_command_applied_validated_and_train_line_supervised': 2.1,
+    },
+    'test_sim_node_ed_force_stale.py': {
+        'test_stale_ed_force_command_releases_the_ed_brake': 2.9,
     },
     'test_sim_node_hardening.py': {
         'test_bad_inputs_are_rejected_counted_and_a_flood_does_not_slow_the_node': 8.1,

@@ -141,6 +141,20 @@ def _set_ed_force(sim: Any, value: Any, index: int) -> None:
     sim.ed_force.set_force(float(value), index)
 
 
+def _bogie_valves(cfg: Any) -> list[int]:
+    """Return the vehicles whose bogies take valve states (wsp external, bogie_wheelsets)."""
+    if cfg.wsp != 'external' or not getattr(cfg, 'bogie_wheelsets', False):
+        return []
+    return list(range(int(cfg.n_coaches)))
+
+
+def _bogie_valve(bogie: int) -> Callable[[Any, Any, int], None]:
+    """Return the setter of bogie ``bogie``'s (1, 2) valve state of a vehicle."""
+    def apply(sim: Any, value: Any, index: int) -> None:
+        sim.set_wsp_valve(int(value), index, bogie)
+    return apply
+
+
 def _bcu(sim: Any, topic: str) -> Any:
     if sim.bcu is None:
         raise ValueError(f'{topic} needs blending builtin')
@@ -272,14 +286,25 @@ INPUT_KINDS: tuple[InputKind, ...] = (
     InputKind('wsp', topics.WSP_VALVE_TOPIC, msgtype=topics.INT8, field='data',
               rule=wsp_rejection, reasons=('out_of_range',), integer=True,
               apply=lambda sim, v, i: sim.set_wsp_valve(int(v), i),
-              takes=lambda cfg: list(range(int(cfg.n_coaches))) if cfg.wsp == 'external'
-              else [], family='wsp', label='wsp valve', failsafe=0, on_stale='failsafe',
+              takes=lambda cfg: list(range(int(cfg.n_coaches))) if (
+                  cfg.wsp == 'external' and not getattr(cfg, 'bogie_wheelsets', False)) else [],
+              family='wsp', label='wsp valve', failsafe=0, on_stale='failsafe',
               meaning="0 normal, 1 hold, 2 vent: the valves on vehicle i's brake cylinder; "
-                      'stale: 0', when='`wsp: external`, every vehicle'),
+                      'stale: 0', when='`wsp: external`, every vehicle (without '
+                      '`bogie_wheelsets`: with them, the bogie topics below)'),
+    *(InputKind(f'wsp_bogie_{j}', topics.BOGIE_WSP_VALVE_TOPIC % j, msgtype=topics.INT8,
+                field='data', rule=wsp_rejection, reasons=('out_of_range',), integer=True,
+                apply=_bogie_valve(j), takes=_bogie_valves, family='wsp',
+                label=f'bogie {j} wsp valve', failsafe=0, on_stale='failsafe',
+                meaning=f"0 normal, 1 hold, 2 vent: the valves on bogie {j}'s brake cylinder "
+                        f"of vehicle i ({('front', 'rear')[j - 1]}; physics/kernel/bogie.py); "
+                        'stale: 0', when='`wsp: external` and `bogie_wheelsets`, every vehicle')
+      for j in range(1, topics.BOGIES_PER_VEHICLE + 1)),
     InputKind('ed_force', topics.ED_FORCE_TOPIC, **_FLOAT, rule=ed_force_rule,
               reasons=_FRACTION, apply=_set_ed_force, takes=motor_cars, family='blending',
-              label='ED force command',
-              meaning='ED brake force [N, >= 0] commanded of motor car i',
+              label='ED force command', failsafe=0.0, on_stale='failsafe',
+              meaning='ED brake force [N, >= 0] commanded of motor car i; stale: 0 N (its ED '
+                      'fades out, the friction brakes brake alone)',
               when='`blending: external`, each motor car'),
     InputKind('demand', topics.BRAKE_DEMAND_TOPIC, **_FLOAT, rule=_demand_rule,
               reasons=_FRACTION, takes=_blending_builtin, family='blending',

@@ -44,6 +44,11 @@ EP_COMMAND_TOPIC = 'brake_ep/command'
 # -- slide protection (std_msgs/Int8: 0 normal, 1 hold, 2 vent) -----------------------------------
 #: ``wsp: external``: the hold and vent valves on vehicle i's brake cylinder
 WSP_VALVE_TOPIC = 'coach_{i}/wsp/valve'
+#: ``wsp: external`` with ``bogie_wheelsets``: the valves of bogie j (1 front, 2 rear) of
+#: vehicle i (input_kinds.py: a row per bogie, ``{i}`` the vehicle)
+BOGIE_WSP_VALVE_TOPIC = 'coach_{i}/bogie_%d/wsp/valve'
+#: bogies of a vehicle with ``bogie_wheelsets`` (kernel/bogie.py)
+BOGIES_PER_VEHICLE = 2
 INT8 = 'std_msgs/msg/Int8'
 
 # -- the stopping target (std_msgs/Float64, a track position [m]) -------------------------------
@@ -56,6 +61,8 @@ TARGET_STOP_TOPIC = 'target_stop_position'
 COUPLERS_TOPIC = 'couplers'
 COACHES_TOPIC = 'coaches'
 BRAKE_CYLINDERS_TOPIC = 'brake_cylinders'
+#: ``bogie_wheelsets``: each bogie's cylinder pressure and valve state
+BOGIE_CYLINDERS_TOPIC = 'bogie_cylinders'
 BRAKE_RESERVOIRS_TOPIC = 'brake_reservoirs'
 VEHICLE_FORCES_TOPIC = 'vehicle_forces'
 VEHICLE_MOTION_TOPIC = 'vehicle_motion'
@@ -116,6 +123,18 @@ def input_topic(mode: str, coach: int | None = None) -> str:
     if mode == PIPE_HEAD:
         return HEAD_PIPE_TOPIC
     return COACH_INPUT_TOPIC[mode].format(i=coach)
+
+
+def wheelset_names(n_coaches: int, bogies: bool) -> list[str]:
+    """
+    Return the joint names of ``wheelsets``: ``coach_<i>``, or ``coach_<i>/bogie_<j>``.
+
+    Each name + ``/wsp/valve`` is the topic of that wheelset's slide-protection valves.
+    """
+    if not bogies:
+        return coach_names(n_coaches)
+    return [f'coach_{i}/bogie_{j}' for i in range(1, n_coaches + 1)
+            for j in range(1, BOGIES_PER_VEHICLE + 1)]
 
 
 def coupler_names(n_coaches: int) -> list[str]:

@@ -40,7 +40,7 @@ def test_a_run_has_the_rows_whose_condition_holds_in_table_order():
     assert always[:3] == ('couplers', 'coaches', 'brake_cylinders')      # the contract's
     assert {'vehicle_motion', 'odom'} <= set(always)
     rich = SimConfig.from_dict({'brake_model': 'pneumatic', 'brake_system': 'ep',
-                                'davis_a': 1000.0, 'wheelsets': True,
+                                'davis_a': 1000.0, 'bogie_wheelsets': True,
                                 'target_stop_position': [800.0]})
     unit_only = ('distributed_power/state', 'brake_blending', 'brake_demand/state')
     assert [s.topic for s in active(rich)] == [s.topic for s in OUTPUTS
@@ -61,7 +61,7 @@ def _messages(cfg: SimConfig, t: float):
 
 def test_every_output_is_the_bytes_rosbags_gives_for_its_values():
     cfg = SimConfig.from_dict({'brake_model': 'pneumatic', 'brake_system': 'ecp',
-                               'davis_a': 1000.0, 'wheelsets': True,
+                               'davis_a': 1000.0, 'bogie_wheelsets': True,
                                'target_stop_position': [800.0], 'num_coaches': 4})
     _, _, out = _messages(cfg, 0.5)
     assert set(out) == set(output_topics(cfg)) and len(out) == len(OUTPUTS) - 3   # not DP

@@ -42,6 +42,7 @@ import math
 
 import numpy as np
 
+from train_dynamics.physics.kernel.creep import DRY_ADHESION
 from train_dynamics.physics.kernel.layout import INPUT, OUTPUT, PARAM, STATE, VEHICLE
 from train_dynamics.physics.kernel.step import available_braking_force
 from train_dynamics.physics.kernel.traction import CK_AT_REST
@@ -55,13 +56,18 @@ def ed_available(c: np.ndarray, motors: list[int], speed: np.ndarray | None = No
     """
     Return the ED force each motor car can give at its speed [N] (``kernel/traction.py``).
 
-    min(F_db, P_db / |v|, mu(v) m g) min(|v| / v_fade, 1); ``speed`` [m/s] overrides the
-    vehicles' present speeds (one per motor car).
+    min(F_db, P_db / |v|, mu(v) m g) min(|v| / v_fade, 1), mu(v) from ``traction_adhesion``
+    scaled by the track's adhesion (OUTPUT.ADH_LOW / DRY_ADHESION, as the kernel does);
+    ``speed`` [m/s] overrides the vehicles' present speeds (one per motor car).
     """
     idx = np.asarray(motors, dtype=int)
     v = np.abs(c[STATE.V, idx] if speed is None else np.asarray(speed, dtype=float))
-    # kernel/traction.py, available_force and traction_force, on arrays
-    mu = c[VEHICLE.T_ADH, idx] * (0.161 + 7.5 / (3.6 * v + 44.0)) / CK_AT_REST
+    # kernel/traction.py, available_force and traction_force, on arrays; the track's
+    # adhesion scales the vehicle's as in the kernel (kernel/rosenbrock2.py, traction)
+    mu0 = c[VEHICLE.T_ADH, idx]
+    low = c[OUTPUT.ADH_LOW, idx]
+    mu0 = np.where(low != DRY_ADHESION, mu0 * (low / DRY_ADHESION), mu0)
+    mu = mu0 * (0.161 + 7.5 / (3.6 * v + 44.0)) / CK_AT_REST
     f = np.minimum(c[VEHICLE.DB_FORCE, idx], mu * c[VEHICLE.WEIGHT, idx])
     power = c[VEHICLE.DB_POWER, idx]
     f = np.where(power < f * v, power / np.where(v > 0.0, v, 1.0), f)

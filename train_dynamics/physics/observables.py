@@ -15,9 +15,10 @@ from __future__ import annotations
 import numpy as np
 
 from train_dynamics.physics import couplers
+from train_dynamics.physics.kernel.bogie import conditioned
 from train_dynamics.physics.kernel.couplers import coupler_force_travel
-from train_dynamics.physics.kernel.layout import (COUPLER, OUTPUT, STATE, TABLE_ROWS, TOTAL,
-                                                  VEHICLE, WORK)
+from train_dynamics.physics.kernel.layout import (COUPLER, OUTPUT, PARAM, STATE, TABLE_ROWS,
+                                                  TOTAL, VEHICLE, WORK)
 from train_dynamics.physics.kernel.traction import adhesion
 
 
@@ -179,6 +180,60 @@ class TrainOutputs:
         """Return the distance each vehicle ran on sliding wheels since t = 0 [m]."""
         return self.coach[OUTPUT.SLIDE_X].copy()
 
+    # -- per wheelset: a vehicle's, or its two bogies' (bogie_wheelsets, kernel/bogie.py) ---
+    def _per_wheelset(self, one, bogie1, bogie2) -> np.ndarray:
+        """Return ``one`` row per vehicle, or bogie 1 and 2 of each vehicle in turn."""
+        if not getattr(self, 'bogies', False):
+            return self.coach[one].copy()
+        out = np.empty(2 * self.coach.shape[1])
+        out[0::2] = self.coach[bogie1]
+        out[1::2] = self.coach[bogie2]
+        return out
+
+    @property
+    def wheelset_speeds(self) -> np.ndarray:
+        """Return each wheelset's peripheral speed [m/s] (names: ``topics.wheelset_names``)."""
+        if not getattr(self, 'bogies', False):
+            return self.wheel_speed
+        return self._per_wheelset(STATE.WHEEL, STATE.WHEEL, STATE.WHEEL_B2)
+
+    @property
+    def wheelset_creep_forces(self) -> np.ndarray:
+        """Return each wheelset's creep force of the last step [N, positive retarding]."""
+        return self._per_wheelset(OUTPUT.F_CREEP, OUTPUT.F_CREEP, OUTPUT.F_CREEP_B2)
+
+    @property
+    def wheelset_adhesion_available(self) -> np.ndarray:
+        """
+        Return each wheelset's available adhesion at its vehicle's speed [-].
+
+        Per bogie: the kernel's, at the speed of the last step's start (kernel/bogie.py; at
+        t = 0 computed here, as there: the track's low-speed adhesion, the trailing bogie's
+        conditioned, falling with speed as Curtius-Kniffler).
+        """
+        if not getattr(self, 'bogies', False):
+            return self.adhesion_available
+        if self.steps > 0:
+            return self._per_wheelset(OUTPUT.ADH_AVAIL, OUTPUT.ADH_AVAIL, OUTPUT.ADH_AVAIL_B2)
+        out = np.empty(2 * self.n)
+        c = float(self.sc[PARAM.CONDITION])
+        for i, (v, low) in enumerate(zip(self.v, self.coach[OUTPUT.ADH_LOW])):
+            lows = conditioned(float(low), v >= 0.0, c)
+            out[2 * i:2 * i + 2] = [adhesion(v, a) for a in lows]
+        return out
+
+    @property
+    def wheelset_valves(self) -> np.ndarray:
+        """Return each wheelset's slide-protection valve state of the last step (0, 1, 2)."""
+        return self._per_wheelset(OUTPUT.VALVE, OUTPUT.VALVE, OUTPUT.VALVE_B2).astype(np.int8)
+
+    @property
+    def bogie_cylinder_pressures(self) -> np.ndarray:
+        """Return each bogie's brake-cylinder pressure, gauge [Pa] (bogie_wheelsets; else [])."""
+        if not getattr(self, 'bogies', False):
+            return np.zeros(0)
+        return self._per_wheelset(STATE.PCYL_B1, STATE.PCYL_B1, STATE.PCYL_B2)
+
     @property
     def pipe_pressure(self) -> np.ndarray:
         return self.coach[STATE.PPIPE].copy()
@@ -280,6 +335,9 @@ class TrainBalances:
         """Return the kinetic energy of the wheelsets' rotation [J] (0 without wheelsets)."""
         if not self.wheelsets:
             return 0.0
+        if getattr(self, 'bogies', False):     # each bogie: half the reduced mass
+            return float(0.25 * np.sum(self.coach[VEHICLE.WHEEL_MASS] * (
+                self.coach[STATE.WHEEL] ** 2 + self.coach[STATE.WHEEL_B2] ** 2)))
         return float(0.5 * np.sum(self.coach[VEHICLE.WHEEL_MASS] * self.coach[STATE.WHEEL] ** 2))
 
     @property

@@ -96,6 +96,8 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         #: rotating wheelsets with the creep law (kernel/wheelset.py), and the WSP mode
         self.wheelsets = cfg.has_wheelsets
         self.wsp = wheelset.WSP_MODES.index(cfg.wsp)
+        #: two wheelsets per vehicle, one per bogie (kernel/bogie.py)
+        self.bogies = bool(cfg.bogie_wheelsets)
         self.ws = make_workspace(n)
         self.model_type = cfg.model_type
         self.u = float(cfg.scale_factor)
@@ -219,6 +221,9 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         iv[OPTION.BUDGET] = int(cfg.integration_max_steps)
         iv[OPTION.WHEELS] = int(self.wheelsets)
         iv[OPTION.WSP] = self.wsp
+        # two wheelsets per vehicle, one per bogie (kernel/bogie.py)
+        sc[PARAM.BOGIES] = float(self.bogies)
+        sc[PARAM.CONDITION] = float(cfg.rail_conditioning)
         iv[OPTION.ADHESION] = int(self.aprof.shape[1] > 0)
 
     def reset(self) -> None:
@@ -245,6 +250,7 @@ class TrainSimulator(TrainInputs, TrainOutputs, TrainBalances):
         c[INPUT.PIPE] = p_nom
         c[STATE.HELD] = (c[STATE.V] == 0.0)
         c[STATE.WHEEL] = abs(float(cfg.initial_speed))      # rolling
+        c[STATE.WHEEL_B2] = c[STATE.WHEEL]
         c[OUTPUT.ADH_LOW] = wheelset.DRY_ADHESION
         if self.iv[OPTION.ADHESION]:
             c[OUTPUT.ADH_LOW] = self.track_adhesion_low()

@@ -126,8 +126,13 @@ class TrainInputs:
             out[i] = wheelset.DRY_ADHESION + profile_mean(lo, hi, *self.aprof)
         return out
 
-    def set_wsp_valve(self, state: int, index: int) -> None:
-        """Set vehicle ``index``'s (0-based) slide-protection valve: 0, 1, 2 (wsp external)."""
+    def set_wsp_valve(self, state: int, index: int, bogie: int = 0) -> None:
+        """
+        Set vehicle ``index``'s (0-based) slide-protection valve: 0, 1, 2 (wsp external).
+
+        ``bogie`` 1 or 2: that bogie's valves only (``bogie_wheelsets``); 0: the vehicle's
+        (with ``bogie_wheelsets`` both bogies' valves).
+        """
         if self.wsp != wheelset.WSP_EXTERNAL:
             raise ValueError('coach_<i>/wsp/valve needs wsp external')
         if state not in (wheelset.NORMAL, wheelset.HOLD, wheelset.VENT):
@@ -135,7 +140,10 @@ class TrainInputs:
                              f'{quote(state)}')
         if not 0 <= int(index) < self.n:
             raise ValueError(f'vehicle {int(index) + 1}: the train has {self.n} vehicles')
-        self.coach[INPUT.VALVE, int(index)] = float(state)
+        if bogie not in ((0, 1, 2) if self.bogies else (0,)):
+            raise ValueError(f'bogie {quote(bogie)}: needs bogie_wheelsets and 1 or 2')
+        rows = {0: [INPUT.VALVE, INPUT.VALVE_B2], 1: [INPUT.VALVE], 2: [INPUT.VALVE_B2]}
+        self.coach[rows[int(bogie)], int(index)] = float(state)
 
     @property
     def locomotives(self) -> list[int]:

@@ -205,6 +205,10 @@ def _brake_state(sim: Any, t_ns: int, run: OutputRun) -> tuple:
 def _wheelsets(sim: Any, t_ns: int, run: OutputRun) -> tuple:
     """``wheelsets``: available adhesion, sensed wheel speed (speed_sensor), creep force."""
     cfg = sim.cfg
+    if cfg.bogie_wheelsets:     # per bogie: coach_<i>/bogie_<j>
+        return sim.wheelset_adhesion_available, speed_sensor(
+            sim.wheelset_speeds, t_ns, cfg.wheel_speed_resolution, cfg.wheel_speed_noise,
+            cfg.wheel_speed_seed), sim.wheelset_creep_forces
     return sim.adhesion_available, speed_sensor(
         sim.wheel_speed, t_ns, cfg.wheel_speed_resolution, cfg.wheel_speed_noise,
         cfg.wheel_speed_seed), sim.creep_force
@@ -326,12 +330,24 @@ OUTPUTS: tuple[OutputSpec, ...] = (
                                        sim.gradient_force),
                lambda cfg: bool(cfg.external_forces),
                'a train with resistance, track or traction'),
-    OutputSpec(topics.WHEELSETS_TOPIC, topics.JOINT_STATE, _vehicles, _EVERY_VEHICLE,
+    OutputSpec(topics.WHEELSETS_TOPIC, topics.JOINT_STATE,
+               lambda cfg: topics.wheelset_names(cfg.n_coaches, bool(cfg.bogie_wheelsets)),
+               _EVERY_VEHICLE + ' (`coach_<i>/bogie_<j>`, j = 1, 2, with `bogie_wheelsets`)',
                ("available adhesion at the vehicle's speed [-]",
                 'wheel peripheral speed [m/s] as the speed sensor reports it',
                 'creep force [N, positive retarding]'),
                _wheelsets, lambda cfg: bool(cfg.has_wheelsets),
                'rotating wheelsets (`wheelsets`, `wsp`, low `track_adhesion`)'),
+    OutputSpec(topics.BOGIE_CYLINDERS_TOPIC, topics.JOINT_STATE,
+               lambda cfg: topics.wheelset_names(cfg.n_coaches, True),
+               '`coach_<i>/bogie_<j>`, j = 1, 2',
+               ("bogie's brake-cylinder gauge pressure [Pa] (behind its slide-protection "
+                'valves; `brake_cylinders` shows the vehicle brake feeding both)', '',
+                "bogie's slide-protection valve state of the last step (0 normal, 1 hold, "
+                '2 vent)'),
+               lambda sim, t_ns, run: (sim.bogie_cylinder_pressures, None,
+                                       sim.wheelset_valves.astype(float)),
+               lambda cfg: bool(cfg.bogie_wheelsets), '`bogie_wheelsets`'),
     OutputSpec('train_brake_force', topics.JOINT_STATE, lambda cfg: ['train'], '`train`',
                ('', '', "the train's braking force [N, >= 0]: the sum of every Fb_i"),
                lambda sim, t_ns, run: (None, None, [sim.total_brake_force])),

@@ -167,6 +167,8 @@ class SimConfig:
     wheel_speed_resolution: float = 0.0               # speed sensor: quantisation [m/s]
     wheel_speed_noise: float = 0.0                    # speed sensor: noise std [m/s]
     wheel_speed_seed: int = 0                         # speed sensor: seed of the noise
+    bogie_wheelsets: bool = False                     # two wheelsets per vehicle (bogies)
+    rail_conditioning: float = 0.0                    # bogies: leading bogie cleans [-]
     traction_schedule_times: list[float] = field(default_factory=list)    # [s], increasing
     traction_schedule_commands: list[float] = field(default_factory=list)  # [-1, 1]
     ep_schedule_times: list[float] = field(default_factory=list)          # [s], increasing
@@ -299,7 +301,7 @@ class SimConfig:
     @property
     def has_wheelsets(self) -> bool:
         """Return True when the vehicles run on rotating wheelsets (``wheelsets``, implied)."""
-        return bool(self.wheelsets or self.wsp != 'none'
+        return bool(self.wheelsets or self.wsp != 'none' or self.bogie_wheelsets
                     or any(a < track.DRY_ADHESION for a in self.track_adhesion))
 
     def fill_table(self, regime: str = '') -> tuple[list[float], list[float]]:

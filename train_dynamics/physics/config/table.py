@@ -463,6 +463,18 @@ _PARAMS = [
     ParamSpec('wheel_speed_seed', 0, INTEGER,
               'Wheelsets: seed of the speed-sensor noise (with the output time stamp [ns] it '
               "seeds each sample's draws: reproducible).", low=0, high=2 ** 31 - 1),
+    # Per-bogie wheelsets (kernel/bogie.py).
+    ParamSpec('bogie_wheelsets', False, BOOL,
+              'Wheelsets: two lumped wheelsets per vehicle, one per bogie (bogie 1 the front '
+              'one), each with half the axle load, inertia and friction brake, its own brake '
+              'cylinder fed by the vehicle brake and its own slide-protection valves (wsp '
+              'external: coach_<i>/bogie_<j>/wsp/valve); the wheelsets output then names '
+              'coach_<i>/bogie_<j>. Implies wheelsets. false: one wheelset per vehicle.'),
+    ParamSpec('rail_conditioning', 0.0, DOUBLE,
+              'Per-bogie wheelsets: fraction c [-] of the gap to dry rail that the leading '
+              "bogie's passage restores for the trailing one (its low-speed adhesion mu + c "
+              '(0.331 - mu); the cleaning effect, Voltr and Lata 2015); 0 = none; the size is '
+              'a model figure, not a measured one.', low=0.0, high=1.0),
     ParamSpec('traction_schedule_times', [], DOUBLE_ARRAY,
               'Offline runs without a traction bag: times [s] (increasing) from which every '
               'locomotive holds the matching traction_schedule_commands entry; refused for a '

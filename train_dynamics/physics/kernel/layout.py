@@ -109,12 +109,21 @@ STATE = _group('StateRows', [
     'WHEEL',        # wheelsets: wheel peripheral speed [m/s] (>= 0, in the motion's sense)
     'WDECEL',       # wheelsets: wheel deceleration over the last step [m/s^2]
     'WSP_CUT',      # 1.0 while the slide-protection valves keep the cylinder below its input
+    # per-bogie wheelsets (PARAM.BOGIES, kernel/bogie.py): bogie 1 (the front one) keeps
+    # WHEEL, WDECEL; each bogie has its own cylinder behind its own valves, fed by PCYL
+    'WHEEL_B2',     # bogies: wheel peripheral speed of bogie 2 [m/s]
+    'WDECEL_B2',    # bogies: its wheel deceleration over the last step [m/s^2]
+    'PCYL_B1',      # bogies: brake-cylinder pressure of bogie 1, gauge [Pa]
+    'PCYL_B2',      # bogies: brake-cylinder pressure of bogie 2, gauge [Pa]
+    'CUT_B1',       # bogies: 1.0 while bogie 1's valves keep its cylinder below PCYL
+    'CUT_B2',       # bogies: the same for bogie 2
 ], after=(VEHICLE,))
 INPUT = _group('InputRows', [
     'PIPE',         # local pipe pressure (pipe_per_coach), gauge [Pa]
     'CYL',          # cylinder pressure (cylinder_per_coach, or the pneumatic brake's) [Pa]
     'T_CMD',        # traction command in [-1, 1]
     'VALVE',        # slide-protection valve (wsp external): 0 normal, 1 hold, 2 vent
+    'VALVE_B2',     # bogies: bogie 2's valve (wsp external); bogie 1's is VALVE
 ], after=(VEHICLE, STATE))
 OUTPUT = _group('OutputRows', [
     'FB_APPLIED',   # |braking force| applied over the last step [N]
@@ -129,6 +138,12 @@ OUTPUT = _group('OutputRows', [
     'SLIDE_T',      # wheelsets (or adhesion limit): time the wheels slid since t = 0 [s]
     'SLIDE_X',      # wheelsets: distance the vehicle ran on sliding wheels since t = 0 [m]
     'ADH_CUT',      # adhesion limit: braking force beyond mu(v) m g, cut off [N] (0: none)
+    # per-bogie wheelsets: bogie 1 keeps F_CREEP, ADH_USED, ADH_AVAIL, VALVE; SLIDE_T and
+    # SLIDE_X count the vehicle (either bogie sliding)
+    'F_CREEP_B2',   # bogies: creep force of bogie 2 [N, positive retarding]
+    'ADH_USED_B2',  # bogies: its creep force / axle load [-]
+    'ADH_AVAIL_B2',  # bogies: its available adhesion (rail conditioned by bogie 1) [-]
+    'VALVE_B2',     # bogies: its valve state of the last step (0, 1, 2)
 ], after=(VEHICLE, STATE, INPUT))
 #: all rows of ``coach``; VEHICLE first, so ``coach[len(VEHICLE):]`` is what reset() rewrites
 COACH = range(len(VEHICLE) + len(STATE) + len(INPUT) + len(OUTPUT))
@@ -179,6 +194,8 @@ PARAM = _group('ParamSlots', [
     'MRTOL',        # multirate_tolerance: local coupler-force error / force level [-]; 0 off
     'MRVW',         # multirate_reversal_weight: velocity error at the reversal slope [-]; 0 off
     'ADHLIM',       # 1.0: braking force limited by the adhesion (adhesion_limit, no wheelsets)
+    'BOGIES',       # 1.0: two wheelsets per vehicle, one per bogie (kernel/bogie.py)
+    'CONDITION',    # bogies: rail conditioning by the leading bogie [-] (rail_conditioning)
 ])
 TOTAL = _group('TotalSlots', [
     'WB',           # work of the brakes since t = 0 [J]
@@ -302,4 +319,6 @@ WORK = _group('WorkRows', [
     # multirate (multirate.py)
     'ERR',          # local error of coupler j's force over the step [N] (scratch)
     'NSUB',         # sub-steps coupler j took since reset (0: only long steps)
+    # per-bogie wheelsets (bogie.py)
+    'UMEAN_B2',     # mean wheel speed of bogie 2 over the step [m/s]
 ])
