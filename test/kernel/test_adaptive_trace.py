@@ -1,21 +1,16 @@
 """
-The traced copy of the error-controlled driver (bench/adaptive_trace.py) is the driver.
+The traced copy of the error-controlled driver (``kernel/adaptive_trace.py``) is the driver.
 
 ``trace_adaptive`` writes the driver's chain loop out to log every attempted step; with the
 kernel's controller constants and error norm (``default_ctl(0)``) it must leave the very state
 ``advance_adaptive`` leaves, bit for bit, and log one row per chain step the kernel counts.
 """
-from pathlib import Path
-import sys
-
 import numpy as np
 import pytest
 
 from train_dynamics.physics.config import SimConfig
+from train_dynamics.physics.kernel import adaptive_trace
 from train_dynamics.physics.train import TrainSimulator
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / 'bench'))
-import adaptive_trace  # noqa: E402, I100
 
 
 def _drive(sim, seconds: float) -> None:
