@@ -398,6 +398,23 @@ ALL = '*'
 #: (they wait on events with generous bounds), but two of them at once would take both cores
 #: for minutes.
 MACHINE_TABLE = {
+    'test_colcon_install.py': ALL,          # a colcon build, then the installed nodes
+    'test_colcon_test.py': ALL,             # a colcon build and colcon test
+    'test_sweep.py': {                      # Dask clusters of several worker processes
+        'test_sweep_on_a_local_cluster_and_on_dask_workers_equals_sequential_runs',
+        'test_resume_after_an_interrupted_sweep_runs_only_the_missing_cases',
+        'test_a_killed_worker_s_case_is_rescheduled',
+    },
+    'test_sim_node_wsp.py': {               # a controller in the loop at real time
+        'test_external_wsp_node_keeps_the_wheels_turning',
+    },
+    'test_sim_node_hardening.py': {         # the node's pace and its wall-clock timeouts
+        'test_bad_inputs_are_rejected_counted_and_a_flood_does_not_slow_the_node',
+        'test_stale_input_emergency_then_fresh_then_hold',
+    },
+    'test_sim_node_traction_stale.py': {    # wall-clock staleness of the traction command
+        'test_stale_traction_command_in_diagnostics_emergency_then_fresh_then_hold',
+    },
 }
 
 #: fixtures (here and in sim_node_helpers) that initialise rclpy
