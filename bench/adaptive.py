@@ -90,13 +90,14 @@ def unequal4_schedule(t: float):
 
 def _events_unequal4(h: float, duration: float):
     from train_dynamics import topics
-    from train_dynamics.simulation.runner import InputEvent, step_of
+    from train_dynamics.simulation.runner import CommandEvent, step_of
     events = []
     for k in range(int(round(duration / OUTPUT_DT)) + 1):
         t_ns = int(round(k * OUTPUT_DT * 1e9))
         for i, p in enumerate(unequal4_schedule(k * OUTPUT_DT)):
-            events.append(InputEvent(step_of(t_ns, h), t_ns, i, float(p),
-                                     topics.input_topic(topics.CYLINDER_PER_COACH, i + 1), None))
+            events.append(CommandEvent(topics.CYLINDER_PER_COACH, i, float(p), t_ns,
+                                       step_of(t_ns, h),
+                                       topics.input_topic(topics.CYLINDER_PER_COACH, i + 1)))
     return events
 
 
@@ -126,7 +127,7 @@ def case_setup(case: str, tol: float, budget: int, extra: dict | None = None):
     from train_dynamics import topics
     from train_dynamics.cli.scenario import load_config, valve_from_param_file
     from train_dynamics.physics.config import SimConfig
-    from train_dynamics.simulation.runner import InputSchedule, InputEvent
+    from train_dynamics.simulation.runner import CommandEvent, InputSchedule
     over = {'integration_tolerance': tol, 'integration_max_steps': budget, **(extra or {})}
     duration = CASES[case]
     if case == 'paper':
@@ -142,7 +143,7 @@ def case_setup(case: str, tol: float, budget: int, extra: dict | None = None):
     if case.endswith('p'):      # the paper's law: strokes out of reach (bench/core.py)
         over.update(buffer_stroke=10.0, draw_gear_stroke=10.0)
     cfg = SimConfig.from_dict({'num_coaches': n, **over})
-    vent = InputEvent(0, 0, None, 0.0, topics.PIPE_HEAD, None)
+    vent = CommandEvent(topics.PIPE_HEAD, None, 0.0, 0, 0, topics.HEAD_PIPE_TOPIC)
     return cfg, InputSchedule(topics.PIPE_HEAD, [vent]), duration
 
 

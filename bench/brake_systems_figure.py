@@ -20,8 +20,8 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, ROOT)
 
+from train_dynamics.param_files import load_param_file  # noqa: E402
 from train_dynamics.physics.brake_valve import BrakeValveModel  # noqa: E402
-from train_dynamics.physics.config import load_param_file  # noqa: E402
 from train_dynamics.physics.pneumatic import propagation_speed  # noqa: E402
 from train_dynamics.physics.train import TrainSimulator  # noqa: E402
 

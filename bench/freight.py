@@ -28,9 +28,10 @@ import time
 
 import numpy as np
 
-from train_dynamics.physics.config import load_param_file, SimConfig
+from train_dynamics.param_files import load_param_file
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.train import TrainSimulator
-from train_dynamics.simulation.runner import traction_schedule
+from train_dynamics.simulation.runner import schedule_events
 import vehicle_cost
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -43,7 +44,7 @@ REFERENCE_H = 1.0e-4
 def _run(cfg: SimConfig) -> dict:
     """Run the scenario; return peaks, stop and the wall time of the integration."""
     sim = TrainSimulator(cfg)
-    events = sorted(traction_schedule(cfg), key=lambda e: e.step)
+    events = sorted(schedule_events(cfg), key=lambda e: e.step)
     per = int(round(SAMPLE / sim.h))
     f_max = f_min = 0.0
     t_stop = None
@@ -103,7 +104,7 @@ def _sampled(cfg: SimConfig, t_end: float = T_END) -> dict:
     instant at which a vehicle is at rest or held (None if none before ``t_end``).
     """
     sim = TrainSimulator(cfg)
-    events = sorted(traction_schedule(cfg), key=lambda e: e.step)
+    events = sorted(schedule_events(cfg), key=lambda e: e.step)
     k_end = int(round(t_end / SAMPLE))
     F = np.empty((k_end, sim.n - 1))
     Y = np.empty_like(F)
@@ -122,7 +123,7 @@ def _sampled(cfg: SimConfig, t_end: float = T_END) -> dict:
 def _timed(cfg: SimConfig, t_span: float) -> tuple[float, float]:
     """Return wall and CPU time [s] of a whole run over [0, t_span] (inputs, 100 Hz read-out)."""
     sim = TrainSimulator(cfg)
-    events = sorted(traction_schedule(cfg), key=lambda e: e.step)
+    events = sorted(schedule_events(cfg), key=lambda e: e.step)
     c0 = time.process_time()
     t0 = time.perf_counter()
     for k in range(int(round(t_span / SAMPLE))):

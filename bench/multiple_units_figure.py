@@ -22,7 +22,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 sys.path.insert(0, ROOT)
 
-from train_dynamics.physics.config import load_param_file  # noqa: E402
+from train_dynamics.param_files import load_param_file  # noqa: E402
 from train_dynamics.physics.train import TrainSimulator  # noqa: E402
 
 FIGURES = os.path.join(ROOT, 'docs', 'figures')

@@ -45,18 +45,20 @@ def drive(sim, events, t: float) -> None:
     """
     Set the freight scenario's inputs at output instant ``t`` [s]; the caller advances.
 
-    ``events``: the traction schedule (``runner.traction_schedule``) or none; the head pipe
+    ``events``: the traction schedule (``runner.schedule_events``) or none; the head pipe
     at 5 bar gauge until T_EMERGENCY, then vented (emergency).
     """
+    from train_dynamics.simulation.runner import apply_event
     for e in events:
         if abs(e.t_ns * 1e-9 - t) < 1e-9:
-            sim.set_traction_command(e.command, e.index)
+            apply_event(sim, e)
     sim.set_head_pipe_pressure(0.0 if t >= T_EMERGENCY - 1e-9 else 500000.0)
 
 
 def _config(case: str):
     """Return the SimConfig of a case (see the module docstring)."""
-    from train_dynamics.physics.config import load_param_file, SimConfig
+    from train_dynamics.param_files import load_param_file
+    from train_dynamics.physics.config import SimConfig
     if case.endswith('+w'):
         return _config(case[:-2]).replace(wheelsets=True)
     if '+rw' in case:       # ``uniform100+mr1e-3+rw0.3``: multirate_reversal_weight 0.3
@@ -89,8 +91,8 @@ def measure(case: str) -> dict:
     sim = TrainSimulator(cfg)
     events = []
     if case == 'freight':
-        from train_dynamics.simulation.runner import traction_schedule
-        events = sorted(traction_schedule(cfg), key=lambda e: e.step)
+        from train_dynamics.simulation.runner import schedule_events
+        events = sorted(schedule_events(cfg), key=lambda e: e.step)
     per = int(round(SAMPLE / sim.h))
     cpu = [0.0, 0.0]        # moving, stopped (every vehicle at rest at the period's start)
     steps = [0, 0]

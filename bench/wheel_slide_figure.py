@@ -25,7 +25,7 @@ sys.path.insert(0, ROOT)
 
 from train_dynamics import topics  # noqa: E402
 from train_dynamics.cli.scenario import valve_from_param_file  # noqa: E402
-from train_dynamics.physics.config import load_param_file  # noqa: E402
+from train_dynamics.param_files import load_param_file  # noqa: E402
 from train_dynamics.physics.metrics import RunMetrics  # noqa: E402
 from train_dynamics.simulation.runner import InputSchedule, run_simulation  # noqa: E402
 

@@ -6,6 +6,8 @@ One folder per layer; a layer imports only the layers before it in this list:
 - ``topics``: names and types on the wire (standard library only).
 - ``physics``: the model (couplers, brakes, train, integrators, parameters, brake valve);
   never rclpy, rosbags or matplotlib.
+- ``param_files``: ROS 2 parameter files (``<node>: ros__parameters:``), read alike by the
+  nodes and the offline command; never rclpy or rosbags.
 - ``simulation``: running the model (the time grid of outputs and inputs shared by node and
   offline command, the inputs of an offline run, the offline run loop); never rclpy, rosbags
   or matplotlib.

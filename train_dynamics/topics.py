@@ -4,11 +4,11 @@ Names and types on the wire: the topics of the product contract, written once.
 Every layer takes its topic names, message type strings and joint names from here: the node
 (``ros/``), the bag reader, writer and plots (``recording/``) and the offline command
 (``cli/``). Relative names, so that namespaces and remapping work. No imports beyond the
-standard library: the physics layer may use it too.
+standard library: the physics layer may use it too. What each controller input is (its
+message field, rule, setter, who takes it, lock-step family): the input table
+:data:`train_dynamics.input_kinds.INPUT_KINDS` (here only the names).
 """
 from __future__ import annotations
-
-import re
 
 NODE_NAME = 'train_dynamics'
 VALVE_NODE_NAME = 'brake_valve'
@@ -25,30 +25,17 @@ ODOMETRY = 'nav_msgs/msg/Odometry'
 PIPE_HEAD = 'pipe_head'
 PIPE_PER_COACH = 'pipe_per_coach'
 CYLINDER_PER_COACH = 'cylinder_per_coach'
-BRAKE_INPUT_MODES = (PIPE_HEAD, PIPE_PER_COACH, CYLINDER_PER_COACH)
 
 HEAD_PIPE_TOPIC = 'brake_pipe/pressure'
 #: per-coach input topic of each per-coach mode, ``.format(i=<1-based coach>)``
 COACH_INPUT_TOPIC = {PIPE_PER_COACH: 'coach_{i}/brake_pipe/pressure',
                      CYLINDER_PER_COACH: 'coach_{i}/brake_cylinder/pressure'}
-#: input topic (relative name) of each mode as a regular expression; group 1 = coach number
-INPUT_TOPIC_PATTERNS = {
-    PIPE_HEAD: re.compile(r'brake_pipe/pressure'),
-    PIPE_PER_COACH: re.compile(r'coach_(\d+)/brake_pipe/pressure'),
-    CYLINDER_PER_COACH: re.compile(r'coach_(\d+)/brake_cylinder/pressure'),
-}
-#: how the README and error messages name the input topics of each mode
-INPUT_TOPIC_DISPLAY = {PIPE_HEAD: HEAD_PIPE_TOPIC,
-                       PIPE_PER_COACH: 'coach_<i>/brake_pipe/pressure',
-                       CYLINDER_PER_COACH: 'coach_<i>/brake_cylinder/pressure'}
 #: Inputs above this ABSOLUTE pressure [Pa] (20 bar) are rejected as implausible.
 MAX_ABSOLUTE_PRESSURE = 2.0e6
 
 # -- traction inputs (std_msgs/Float64, a fraction in [-1, 1]) ------------------------------------
 #: traction / dynamic-brake command of locomotive i, ``.format(i=<1-based vehicle>)``
 TRACTION_TOPIC = 'coach_{i}/traction/command'
-TRACTION_TOPIC_PATTERN = re.compile(r'coach_(\d+)/traction/command')
-TRACTION_TOPIC_DISPLAY = 'coach_<i>/traction/command'
 
 # -- EP / ECP train-line command (std_msgs/Float64, a fraction of full service in [0, 1]) ---------
 #: brake_system ep / ecp: the command every vehicle's EP valves / car control device follows
@@ -57,8 +44,6 @@ EP_COMMAND_TOPIC = 'brake_ep/command'
 # -- slide protection (std_msgs/Int8: 0 normal, 1 hold, 2 vent) -----------------------------------
 #: ``wsp: external``: the hold and vent valves on vehicle i's brake cylinder
 WSP_VALVE_TOPIC = 'coach_{i}/wsp/valve'
-WSP_VALVE_TOPIC_PATTERN = re.compile(r'coach_(\d+)/wsp/valve')
-WSP_VALVE_TOPIC_DISPLAY = 'coach_<i>/wsp/valve'
 INT8 = 'std_msgs/msg/Int8'
 
 # -- the stopping target (std_msgs/Float64, a track position [m]) -------------------------------
@@ -111,21 +96,6 @@ def input_topic(mode: str, coach: int | None = None) -> str:
     if mode == PIPE_HEAD:
         return HEAD_PIPE_TOPIC
     return COACH_INPUT_TOPIC[mode].format(i=coach)
-
-
-def traction_topic(vehicle: int) -> str:
-    """Return the traction-command topic of ``vehicle`` (1-based)."""
-    return TRACTION_TOPIC.format(i=vehicle)
-
-
-def ed_force_topic(vehicle: int) -> str:
-    """Return the ED force command topic of motor car ``vehicle`` (1-based)."""
-    return ED_FORCE_TOPIC.format(i=vehicle)
-
-
-def wsp_valve_topic(vehicle: int) -> str:
-    """Return the slide-protection valve topic of ``vehicle`` (1-based)."""
-    return WSP_VALVE_TOPIC.format(i=vehicle)
 
 
 def coupler_names(n_coaches: int) -> list[str]:

@@ -18,8 +18,8 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from train_dynamics.cli import offline as cli
 from train_dynamics.cli.errors import EXIT_FAULT, EXIT_INTERRUPT, EXIT_TERMINATED
 from train_dynamics.cli.progress import progress_bar
+from train_dynamics.param_files import load_param_file
 from train_dynamics.physics import train
-from train_dynamics.physics.config import load_param_file
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording import messages
 from train_dynamics.recording.bags import bag_info, BagRecorder, read_topics

@@ -12,11 +12,11 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 
 from train_dynamics import topics
 from train_dynamics.cli import offline as cli
-from train_dynamics.physics.config import load_param_file
+from train_dynamics.param_files import load_param_file
 from train_dynamics.recording import messages
 from train_dynamics.recording.bags import read_topics
 from train_dynamics.recording.cdr import encode_float64
-from train_dynamics.simulation.runner import blending_events, InputSchedule, run_simulation
+from train_dynamics.simulation.runner import command_events, InputSchedule, run_simulation
 
 CONFIG = Path(__file__).resolve().parents[2] / 'config'
 EPOCH_NS = 1_700_000_000_000_000_000
@@ -25,7 +25,7 @@ EPOCH_NS = 1_700_000_000_000_000_000
 def _stop(params: str, duration: float):
     """Run ``params`` offline; return the config, the simulator and the stop (t, distance)."""
     cfg = load_param_file(str(CONFIG / params))
-    inputs = InputSchedule(cfg.brake_input, [], None, 'schedule', blending_events(cfg, []))
+    inputs = InputSchedule(cfg.brake_input, [], None, 'schedule', command_events(cfg, []))
     t_demand = cfg.demand_schedule_times[0]
     state = {}
 

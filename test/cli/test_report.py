@@ -15,10 +15,10 @@ import pytest
 from train_dynamics import topics
 from train_dynamics.cli.offline import main
 from train_dynamics.cli.scenario import valve_from_param_file
-from train_dynamics.physics.config import load_param_file
+from train_dynamics.param_files import load_param_file
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.recording.plots import png_size
-from train_dynamics.simulation.runner import InputSchedule, run_simulation, traction_schedule
+from train_dynamics.simulation.runner import InputSchedule, run_simulation, schedule_events
 import yaml
 
 PAPER = os.path.join(
@@ -133,7 +133,7 @@ def test_report_reads_slack_and_strokes_from_the_consist_as_the_simulator_does(t
     cfg = load_param_file(params)
     live = RunMetrics.for_run(cfg, TrainSimulator(cfg))
     inputs = InputSchedule(topics.PIPE_HEAD, [], valve_from_param_file(params, cfg), 'valve')
-    inputs.traction = traction_schedule(cfg)
+    inputs.commands = schedule_events(cfg)
     run_simulation(cfg, 25.0, inputs, on_sample=live.sample)
     expected = live.result()['train']
     assert expected['impact_count'] > 0

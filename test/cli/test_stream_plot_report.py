@@ -19,7 +19,7 @@ import pytest
 
 from train_dynamics.cli import offline
 from train_dynamics.cli.report import report_metrics
-from train_dynamics.physics.config import load_param_file
+from train_dynamics.param_files import load_param_file
 from train_dynamics.recording import history as history_mod
 from train_dynamics.recording import metrics_report as report_mod
 from train_dynamics.recording.bags import BagRecorder

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from train_dynamics.physics.config import (ConfigError, load_param_file, PARAMETERS, SimConfig,
-                                           validate_value)
+from train_dynamics.param_files import load_param_file
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig, validate_value
 from train_dynamics.physics.config.docs import markdown_table
 from train_dynamics.physics.train import TrainSimulator
 
@@ -115,17 +115,20 @@ def test_simconfig_declares_every_parameter_with_the_tables_type_and_default():
     assert cfg.values['scale_factor'] == 5.0 and list(cfg.values) == list(PARAMETERS)
 
 
-def test_a_configuration_changes_only_by_replace_or_its_live_values():
+def test_a_configuration_never_changes_a_live_value_makes_a_new_one():
     cfg = SimConfig.from_dict({})
     with pytest.raises(dataclasses.FrozenInstanceError):
         cfg.num_coaches = 5
-    with pytest.raises(ConfigError, match='not a live parameter'):
-        cfg.set_live(num_coaches=5)
-    cfg.set_live(scale_factor=20)
-    assert cfg.scale_factor == 20.0
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        cfg.scale_factor = 20.0                        # live or not: never in place
+    live = cfg.replace(scale_factor=20)
+    assert live.scale_factor == 20.0 and cfg.scale_factor == 1000.0
+    assert live.consist is cfg.consist                 # a live change reads no file
     assert cfg.replace(num_coaches=5).n_coaches == 5 and cfg.n_coaches == 3
     with pytest.raises(ConfigError, match='unknown parameter'):
         cfg.replace(no_such=1)
+    with pytest.raises(ConfigError, match='k_f < k_e'):
+        cfg.replace(scale_factor=20, buffer_friction=3.0e6)    # checked as a whole
 
 
 CONSIST = 'vehicles: [{type: paper_coach, count: %d}]\n'

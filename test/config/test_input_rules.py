@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from train_dynamics.physics.config import traction_rejection
+from train_dynamics.input_kinds import traction_rejection
 
 
 @pytest.mark.parametrize('command, reason', [
@@ -17,20 +17,29 @@ def test_traction_rule(command, reason):
     assert (why and why[0]) == reason or (why is None and reason is None)
 
 
-def test_node_and_offline_use_the_one_rule(monkeypatch):
+def test_the_node_decodes_a_command_by_its_rows_rule():
+    from dataclasses import replace
+
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Float64
 
-    from train_dynamics.ros import traction_inputs
+    from train_dynamics.input_kinds import KINDS
+    from train_dynamics.ros.command_channel import decode
 
     calls = []
 
-    def rule(c):
+    def rule(c, cfg):
         calls.append(c)
         return ('out_of_range', 'test') if c == 0.5 else None
 
-    monkeypatch.setattr(traction_inputs, 'traction_rejection', rule)
-    assert traction_inputs.traction_command(serialize_message(Float64(data=0.25))) == 0.25
+    kind = replace(KINDS['traction'], rule=rule)
+    assert decode(kind, serialize_message(Float64(data=0.25)), None) == (0.25, None)
     with pytest.raises(ValueError) as exc:
-        traction_inputs.traction_command(serialize_message(Float64(data=0.5)))
+        decode(kind, serialize_message(Float64(data=0.5)), None)
     assert exc.value.args == ('out_of_range', 'test') and calls == [0.25, 0.5]
+    with pytest.raises(ValueError) as exc:       # the table's own rule: |c| <= 1
+        decode(KINDS['traction'], serialize_message(Float64(data=1.5)), None)
+    assert exc.value.args[0] == 'out_of_range'
+    with pytest.raises(ValueError) as exc:
+        decode(KINDS['traction'], b'\x00\x01', None)
+    assert exc.value.args[0] == 'malformed'

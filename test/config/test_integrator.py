@@ -14,7 +14,8 @@ import numpy as np
 import pytest
 
 from train_dynamics.cli import offline
-from train_dynamics.physics.config import ConfigError, load_param_file, PARAMETERS, SimConfig
+from train_dynamics.param_files import load_param_file
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig
 from train_dynamics.physics.config.integrator import ADAPTIVE_TOLERANCE, INTEGRATORS
 from train_dynamics.physics.kernel.drivers import (advance_error_controlled, advance_fixed,
                                                    DRIVERS)

@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 
 from train_dynamics.cli import simulate as simulate_cmd
+from train_dynamics.input_kinds import pressure_rejection as input_rejection
 from train_dynamics.physics.brake_valve import BrakeValveModel, MAX_SCHEDULE_TIME
-from train_dynamics.physics.config import (ConfigError, input_rejection, MAX_SIMULATOR_MEMORY,
-                                           PARAMETERS, SimConfig, simulator_memory,
-                                           validate_value)
+from train_dynamics.physics.config import (ConfigError, MAX_SIMULATOR_MEMORY, PARAMETERS,
+                                           SimConfig, simulator_memory, validate_value)
 from train_dynamics.physics.config.budgets import SIMULATOR_FIXED_BYTES
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import BagRecorder, read_topics

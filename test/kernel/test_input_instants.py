@@ -8,7 +8,7 @@ from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel import couplers
 from train_dynamics.physics.reference import reference_solution
 from train_dynamics.physics.train import TrainSimulator
-from train_dynamics.simulation.runner import InputEvent, InputSchedule, run_simulation, step_of
+from train_dynamics.simulation.runner import CommandEvent, InputSchedule, run_simulation, step_of
 
 
 def _square_events(cfg, period_ms, t_end):
@@ -19,9 +19,9 @@ def _square_events(cfg, period_ms, t_end):
         t_ns = j * period_ms * 1_000_000
         gauge = pmax if j % 2 == 0 else 0.0
         for i in range(cfg.consist.n):
-            events.append(InputEvent(step_of(t_ns, cfg.integration_step), t_ns, i, gauge,
-                                     topics.input_topic(topics.CYLINDER_PER_COACH, i + 1),
-                                     None))
+            events.append(CommandEvent(topics.CYLINDER_PER_COACH, i, gauge, t_ns,
+                                       step_of(t_ns, cfg.integration_step),
+                                       topics.input_topic(topics.CYLINDER_PER_COACH, i + 1)))
     return events
 
 

@@ -11,11 +11,12 @@ import os
 import numpy as np
 import pytest
 
-from train_dynamics.physics.config import load_param_file, SimConfig
+from train_dynamics.param_files import load_param_file
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel import coupler_rows
 from train_dynamics.physics.kernel.layout import CACHE, COUNT, OUTPUT, STATE, WORK
 from train_dynamics.physics.train import TrainSimulator
-from train_dynamics.simulation.runner import traction_schedule
+from train_dynamics.simulation.runner import apply_event, schedule_events
 
 CONFIG = os.path.join(
     os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__)))), 'config')
@@ -43,9 +44,9 @@ def _twins(cfg, phases):
     """
     a, b = TrainSimulator(cfg), TrainSimulator(cfg)
     for sim in (a, b):
-        for e in traction_schedule(cfg):
+        for e in schedule_events(cfg):
             if e.t_ns == 0:
-                sim.set_traction_command(e.command, e.index)
+                apply_event(sim, e)
     per = int(round(0.1 / a.h))
     skipped = 0
     for seconds, head in phases:

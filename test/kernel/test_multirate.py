@@ -5,8 +5,9 @@ from input_cases import khz_case, mixed_consist, replay
 import numpy as np
 import pytest
 
+from train_dynamics.param_files import load_param_file
 from train_dynamics.physics.chain_reference import ChainLaw, solve_chain
-from train_dynamics.physics.config import load_param_file, SimConfig
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel import multirate
 from train_dynamics.physics.kernel.coupler_rows import eval_couplers
 from train_dynamics.physics.kernel.layout import COUPLER, OPTION, PARAM, STATE, VEHICLE, WORK

@@ -45,3 +45,13 @@ def test_every_manual_page_is_in_the_index():
     index = _text(REPO / 'docs' / 'README.md')
     missing = [p.name for p in PAGES[1:] if p.name != 'README.md' and f'({p.name})' not in index]
     assert not missing, f'docs/README.md does not list {missing}'
+
+
+def test_the_docs_show_the_generated_inputs_table():
+    """docs/ros_interface.md holds the inputs table exactly as the input table prints it."""
+    from train_dynamics.input_kinds import INPUT_KINDS, markdown_table
+
+    page = (REPO / 'docs' / 'ros_interface.md').read_text(encoding='utf-8')
+    table = markdown_table()
+    assert table in page, 'regenerate: python -m train_dynamics.input_kinds'
+    assert len(table.splitlines()) == len(INPUT_KINDS) + 2

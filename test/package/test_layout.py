@@ -108,3 +108,13 @@ def test_import_line_scan_sees_indented_imports():
     text = 'def f():\n    import rclpy.node\n    from rosbags.typesys import Stores\n'
     names = {(a or b).split('.', 1)[0] for a, b in _IMPORT_LINE.findall(text)}
     assert names == {'rclpy', 'rosbags'}
+
+
+def test_parameter_files_layer_loads_no_ros_and_physics_knows_not_their_form():
+    # the ROS 2 parameter-file form is read by train_dynamics.param_files, for cli and ros
+    # alike, without rclpy; the physics never sees a `<node>: ros__parameters:` nesting
+    bad = roots(loaded_by('train_dynamics.param_files')) & {'rclpy', 'rosbags', 'matplotlib'}
+    assert not bad, bad
+    named = [str(f.relative_to(REPO)) for f in sorted((PACKAGE / 'physics').rglob('*.py'))
+             if 'ros__parameters' in f.read_text(encoding='utf-8')]
+    assert not named, named

@@ -307,3 +307,29 @@ def test_reset_releases_the_track_brakes_and_restarts_the_unit(unit, tmp_path):
     assert not sim.bcu.emergency and sim.bcu.track.force.sum() == 0.0
     sim.advance(500)
     assert sim.brake_force.sum() == 0.0 and sim.bcu.ed_force().sum() == 0.0
+
+
+def test_track_brake_command_applies_the_track_brakes_without_the_emergency(unit, tmp_path):
+    """
+    ``track_brake/command`` (a row of the input table): the track brakes alone, then released.
+
+    Applied at t = 1 s, acting from 1 s + ``track_brake_delay`` d with F_T per motor car
+    (constant: v_h huge), released at 3 s, the force booked until the brake control unit's
+    next cycle (its cycle at 3 s ran before the command): their impulse is
+    2 F_T (3 + ``blending_period`` - 1 - d); no demand, no emergency, no friction brake.
+    """
+    from train_dynamics.simulation.runner import CommandEvent, InputSchedule, run_simulation
+    f_t, delay = 30000.0, 0.5
+    (tmp_path / 'tb.yaml').write_text(UNIT.replace(
+        'dynamic_brake_fade_speed: 2.0', 'dynamic_brake_fade_speed: 2.0\n'
+        f'    track_brake_force: {f_t}\n    track_brake_half_speed: 1.0e9'))
+    cfg = unit(consist_file=str(tmp_path / 'tb.yaml'), track_brake_delay=delay).cfg
+    h = cfg.integration_step
+    events = [CommandEvent.at('track_brake', None, 1.0, 1_000_000_000, h),
+              CommandEvent.at('track_brake', None, 0.0, 3_000_000_000, h)]
+    sim = run_simulation(cfg, 4.0, InputSchedule(cfg.brake_input, commands=events),
+                         on_sample=lambda s: None)
+    assert sim.fault is None and not sim.bcu.emergency
+    held = 3.0 + cfg.blending_period - 1.0 - delay
+    assert sim.bcu.track.impulse == pytest.approx(2 * f_t * held, rel=1e-6)
+    assert np.all(sim.bcu.track.force == 0.0) and np.all(sim.brake_force == 0.0)

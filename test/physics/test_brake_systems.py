@@ -259,8 +259,7 @@ def test_simulator_dp_traction_and_ep_command_through_the_run_loop(tmp_path):
     from train_dynamics.physics.config import ConfigError, SimConfig
     from train_dynamics.physics.kernel.layout import INPUT
     from train_dynamics.physics.train import TrainSimulator
-    from train_dynamics.simulation.runner import (EP_INDEX, InputSchedule, run_simulation,
-                                                  TractionEvent)
+    from train_dynamics.simulation.runner import CommandEvent, InputSchedule, run_simulation
     from train_dynamics import topics
     (tmp_path / 'dp.yaml').write_text(DP_CONSIST)
     base = {'consist_file': str(tmp_path / 'dp.yaml'), 'brake_model': 'pneumatic',
@@ -283,9 +282,10 @@ def test_simulator_dp_traction_and_ep_command_through_the_run_loop(tmp_path):
     cfg = SimConfig.from_dict({'brake_model': 'pneumatic', 'brake_system': 'ep',
                                'num_coaches': 4, 'initial_speed': 10.0})
     t_ns = 1_000_000_000
-    events = [TractionEvent(500, t_ns, EP_INDEX, 0.5, topics.EP_COMMAND_TOPIC)]
+    events = [CommandEvent.at('ep', None, 0.5, t_ns, cfg.integration_step)]
+    assert events[0].topic == topics.EP_COMMAND_TOPIC
     seen = []
-    sim = run_simulation(cfg, 4.0, InputSchedule(topics.PIPE_HEAD, traction=events),
+    sim = run_simulation(cfg, 4.0, InputSchedule(topics.PIPE_HEAD, commands=events),
                          on_sample=lambda s: None, on_input=seen.append)
     assert seen == events and sim.fault is None
     assert sim.pneu.cylinder_pressure == pytest.approx(np.full(4, 0.5 * P_MAX), abs=0.05 * BAR)
@@ -305,7 +305,7 @@ def test_shipped_passenger_scenario_carries_the_emergency_at_250_m_s():
     import os
 
     from train_dynamics.physics.brake_valve import BrakeValveModel
-    from train_dynamics.physics.config import load_param_file
+    from train_dynamics.param_files import load_param_file
     from train_dynamics.physics.train import TrainSimulator
 
     root = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

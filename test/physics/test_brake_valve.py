@@ -10,10 +10,10 @@ import time
 
 import pytest
 
+from train_dynamics.param_files import load_valve_model, section_node
 from train_dynamics.physics.brake_valve import (BrakeValveModel, parse_schedule,
                                                 target_pressure, validate_settings,
                                                 VALVE_PARAMETERS)
-from train_dynamics.physics.config.files import section_node
 
 DEFAULTS = {name: spec.default for name, spec in VALVE_PARAMETERS.items()}
 
@@ -184,11 +184,11 @@ def test_from_params_and_param_file(tmp_path):
     f.write_text('train_dynamics:\n  ros__parameters:\n    num_coaches: 4\n'
                  'brake_valve:\n  ros__parameters:\n    schedule: ["0.5:full_service"]\n'
                  '    service_rate: 30000.0\n')
-    m = BrakeValveModel.from_param_file(str(f))
+    m = load_valve_model(str(f))
     assert m.pressure_at(1.5) == pytest.approx(NOMINAL - 30000.0)
     f.write_text('brake_valve:\n  ros__parameters:\n    schedule: ["0.5:bogus"]\n')
     with pytest.raises(ValueError, match='bogus'):
-        BrakeValveModel.from_param_file(str(f))
+        load_valve_model(str(f))
 
 
 def test_target_pressure_function_matches_model():
@@ -403,7 +403,7 @@ def test_shipped_parameter_files_drive_a_valid_valve():
         doc = yaml.safe_load(f.read_text()) or {}
         if not any(section_node(key) == 'brake_valve' for key in doc):
             continue
-        m = BrakeValveModel.from_param_file(str(f))
+        m = load_valve_model(str(f))
         assert m.pressure_at(0.0) == pytest.approx(m.settings['pipe_nominal_pressure'])
         checked += 1
     assert checked >= 3, 'the shipped scenarios have brake_valve sections'

@@ -11,8 +11,8 @@ import sys
 
 import pytest
 
+from train_dynamics.param_files import load_param_file
 from train_dynamics.physics.blending import ed_forces
-from train_dynamics.physics.config import load_param_file
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import read_topics
 from train_dynamics.testing import run_scenario

@@ -4,9 +4,10 @@ import os
 import numpy as np
 import pytest
 
+from train_dynamics.param_files import load_param_file
 from train_dynamics.physics import pneumatic as pn
 from train_dynamics.physics.brake_valve import BrakeValveModel
-from train_dynamics.physics.config import consist, load_param_file, SimConfig
+from train_dynamics.physics.config import consist, SimConfig
 from train_dynamics.physics.train import TrainSimulator
 
 BAR = 1.0e5

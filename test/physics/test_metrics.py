@@ -11,7 +11,8 @@ import pytest
 
 from train_dynamics import topics
 from train_dynamics.cli.scenario import valve_from_param_file
-from train_dynamics.physics.config import load_param_file, SimConfig
+from train_dynamics.param_files import load_param_file
+from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.metrics import FLAT_KEYS, RunMetrics
 from train_dynamics.simulation.runner import InputSchedule, run_simulation
 

@@ -21,9 +21,9 @@ import os
 import numpy as np
 import pytest
 
+from train_dynamics.param_files import load_param_file
 from train_dynamics.physics import pneumatic
 from train_dynamics.physics.brake_valve import BrakeValveModel
-from train_dynamics.physics.config import load_param_file
 from train_dynamics.physics.train import TrainSimulator
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))

@@ -17,7 +17,7 @@ import os
 import numpy as np
 import pytest
 
-from train_dynamics.physics.config import load_param_file
+from train_dynamics.param_files import load_param_file
 from train_dynamics.physics.train import TrainSimulator
 
 CONFIG = os.path.join(

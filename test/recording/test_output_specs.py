@@ -15,7 +15,8 @@ import pytest
 
 from train_dynamics import topics
 from train_dynamics.cli import offline as cli
-from train_dynamics.physics.config import ConfigError, load_param_file, SimConfig
+from train_dynamics.param_files import load_param_file
+from train_dynamics.physics.config import ConfigError, SimConfig
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.recording.bags import bag_info, read_topics

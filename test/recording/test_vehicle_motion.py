@@ -12,7 +12,7 @@ from sensor_msgs.msg import JointState
 
 from train_dynamics import topics
 from train_dynamics.cli import offline as cli
-from train_dynamics.physics.config import load_param_file
+from train_dynamics.param_files import load_param_file
 from train_dynamics.recording.bags import read_topics
 from train_dynamics.recording.output_specs import active
 

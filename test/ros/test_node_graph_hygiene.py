@@ -19,8 +19,8 @@ import sys
 from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 
-from train_dynamics.physics.config import SIM_NODE_PARAMETERS
 from train_dynamics.physics.config.table import PARAMETERS
+from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
 from train_dynamics.ros.sim_node import SimNode
 from train_dynamics.testing.harness import package_env
 

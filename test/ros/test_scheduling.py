@@ -161,7 +161,7 @@ def test_startup_heap_frozen_out_of_full_collections():
 
 def test_machine_wide_wake_latency_request_is_opt_in(monkeypatch):
     """The default asks nothing of the kernel: /dev/cpu_dma_latency acts on every CPU."""
-    from train_dynamics.physics.config import SIM_NODE_PARAMETERS
+    from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
     from train_dynamics.ros import scheduling
 
     opened = []

@@ -52,3 +52,22 @@ def test_brake_demand_and_emergency_reach_the_brake_control_unit(harness):
     mass = np.array([34000.0, 26000.0, 26000.0, 34000.0])
     assert harness.wait(lambda: np.allclose(coaches[-1].effort, 0.16 * 9.81 * mass,
                                             rtol=1e-3), 20.0)
+
+
+def test_track_brake_command_reaches_the_track_brakes_without_the_emergency(harness):
+    """``track_brake/command``: applied at 1.0, released at 0.0; the emergency stays off."""
+    from std_msgs.msg import Float64
+
+    node = harness.start(consist_file=CONSIST, brake_input='cylinder_per_coach',
+                         blending='builtin', initial_speed=30.0, real_time_factor=2.0)
+    command = _publisher(harness, 'track_brake/command')
+    assert harness.wait_for_subscriber(command)
+    track = node.simulator.bcu.track
+    command.publish(Float64(data=1.0))
+    assert harness.wait(lambda: track.applied_at is not None, 20.0)
+    assert not node.simulator.bcu.emergency
+    command.publish(Float64(data=0.0))
+    assert harness.wait(lambda: track.applied_at is None, 20.0)
+    command.publish(Float64(data=float('nan')))           # refused by the row's rule
+    assert harness.wait(lambda: node._inputs.rejected['non_finite'] == 1, 20.0)
+    assert track.applied_at is None

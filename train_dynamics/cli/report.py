@@ -32,7 +32,7 @@ from train_dynamics.physics.config import ConfigError, SimConfig
 from train_dynamics.physics.fatigue import FatigueFeed
 from train_dynamics.physics.metrics import metrics_of_history, RunMetrics
 from train_dynamics.quoting import clip
-from train_dynamics.recording.bags import bag_info, BagError
+from train_dynamics.recording.bags import bag_info, BagError, shared_reader
 from train_dynamics.recording.blending_metrics import blending_metrics
 from train_dynamics.recording.history import History, natural_key, stream_history
 from train_dynamics.recording.metrics_report import (MetricsFeed, stop_error_from_bag,
@@ -115,14 +115,15 @@ def report_metrics(hist: History, cfg: SimConfig | None, **overrides: Any) -> Ru
     return metrics_of_history(hist, metrics)
 
 
-def read_run(args: argparse.Namespace, overrides: dict[str, Any]
+def read_run(args: argparse.Namespace, overrides: dict[str, Any], curves: bool = True
              ) -> tuple[History, RunMetrics | None, str, dict | None]:
     """
     Read the bag once, block-wise: bounded curves for the figures and the run metrics.
 
     Return the curves, the metrics (None: no common couplers / coaches sample), where the
     parameters came from, and with ``args.fatigue`` the couplers' rainflow counts
-    (:meth:`FatigueFeed.result`; else None).
+    (:meth:`FatigueFeed.result`; else None). ``curves`` False: only ``couplers`` and
+    ``coaches`` are read (what the metrics need; no figures will be drawn).
     """
     try:
         info = bag_info(args.bag)
@@ -144,7 +145,8 @@ def read_run(args: argparse.Namespace, overrides: dict[str, Any]
 
     try:
         hist = stream_history(args.bag, namespace=args.namespace, on_block=on_block,
-                              on_reset=on_reset)
+                              on_reset=on_reset, only=None if curves else (
+                                  topics.COUPLERS_TOPIC, topics.COACHES_TOPIC))
     except BagError as exc:
         raise CliError(str(exc)) from None
     fatigue = tap.feed.result() if tap is not None and tap.feed else None
@@ -194,16 +196,25 @@ def write_whole_report(result: dict[str, Any], hist: History, out: Path,
     return paths
 
 
-def run_result(args: argparse.Namespace, overrides: dict) -> tuple[dict, Any, dict]:
+def run_result(args: argparse.Namespace, overrides: dict, curves: bool = True
+               ) -> tuple[dict, Any, dict]:
     """
     Return the run metrics of ``args.bag``, its history and the report's ``source`` entry.
 
     The steps every report of a bag takes (``train-dynamics report`` and the harness): read
     it block by block, refuse a bag without ``couplers``/``coaches`` or with a non-finite or
     ragged sample (:class:`CliError`, one line), take the metrics, fill the stop error from
-    the bag's last ``distance_to_go``.
+    the bag's last ``distance_to_go``. The bag is opened once for all of it
+    (:func:`~train_dynamics.recording.bag_read.shared_reader`). ``curves`` False: the
+    history holds ``couplers`` and ``coaches`` only (a report without figures).
     """
-    hist, metrics, origin, fatigue = read_run(args, overrides)
+    with shared_reader(args.bag):
+        return _run_result(args, overrides, curves)
+
+
+def _run_result(args: argparse.Namespace, overrides: dict, curves: bool
+                ) -> tuple[dict, Any, dict]:
+    hist, metrics, origin, fatigue = read_run(args, overrides, curves)
     if hist.couplers is None or hist.coaches is None or not len(hist.coaches) \
             or metrics is None:
         raise CliError(f'{args.bag}: needs the couplers and coaches topics (JointState)')

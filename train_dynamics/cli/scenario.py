@@ -19,12 +19,11 @@ from typing import Any
 
 from train_dynamics import topics
 from train_dynamics.cli.errors import CliError, warn
-from train_dynamics.physics.brake_valve import BrakeValveModel, VALVE_PARAMETERS
-from train_dynamics.physics.config import (ConfigError, load_param_file, node_sections,
-                                           read_param_sections, SimConfig)
-from train_dynamics.recording.demand_inputs import read_blending_bag
-from train_dynamics.recording.inputs import InputBagError, read_input_bag, read_traction_bag
-from train_dynamics.simulation.runner import blending_events, command_schedule, InputSchedule
+from train_dynamics.param_files import load_param_file, valve_params
+from train_dynamics.physics.brake_valve import BrakeValveModel
+from train_dynamics.physics.config import ConfigError, SimConfig
+from train_dynamics.recording.inputs import InputBagError, read_command_bag, read_input_bag
+from train_dynamics.simulation.runner import command_events, InputSchedule
 
 #: the brake valve without a ``schedule`` or ``position`` in the parameter file
 DEFAULT_VALVE_SCHEDULE = ['0.0:release', '1.0:emergency']
@@ -51,23 +50,18 @@ def brake_inputs(args: argparse.Namespace, cfg: SimConfig) -> InputSchedule:
     """
     Return the inputs of the run: the ``--input`` bag or the brake-valve schedule.
 
-    Traction commands: the bag's ``coach_<i>/traction/command`` when it has any, else the
-    parameter file's ``traction_schedule_*``; the EP / ECP command: the bag's
-    ``brake_ep/command``, else ``ep_schedule_*``.
+    The commands (traction, EP / ECP, WSP valves, the brake control unit's inputs, ED
+    forces): the bag's of a kind when it has any, else the parameter file's schedule of
+    that kind (``traction_schedule_*``, ``ep_schedule_*``, ``demand_schedule_*`` ...).
     """
     inputs = _brake_only(args, cfg)
-    traction = []
-    blending = []
+    from_bag = []
     if args.input:
         try:
-            traction = read_traction_bag(args.input, cfg, namespace=args.namespace, warn=warn)
-            blending = read_blending_bag(args.input, cfg, namespace=args.namespace, warn=warn)
+            from_bag = read_command_bag(args.input, cfg, namespace=args.namespace, warn=warn)
         except InputBagError as exc:
             raise CliError(str(exc)) from None
-    inputs.traction = command_schedule(cfg, traction)
-    if cfg.blending == 'builtin':   # the brake control unit's demand, emergency, ED trip
-        inputs.traction = sorted(inputs.traction + blending_events(cfg, blending),
-                                 key=lambda e: e.t_ns)
+    inputs.commands = command_events(cfg, from_bag)
     return inputs
 
 
@@ -96,12 +90,9 @@ def valve_from_param_file(path: str, cfg: Any) -> BrakeValveModel:
     released valve leaves the distributors released.
     """
     try:
-        wildcard, own = node_sections(read_param_sections(path), topics.VALVE_NODE_NAME)
+        params = valve_params(path)
     except ConfigError as exc:
         raise CliError(str(exc)) from None
-    # as rclpy: '/**' keys the valve does not declare are not its concern
-    params = {k: v for k, v in wildcard.items() if k in VALVE_PARAMETERS}
-    params.update(own)
     if 'schedule' not in params and 'position' not in params:
         params['schedule'] = list(DEFAULT_VALVE_SCHEDULE)
     params.setdefault('pipe_nominal_pressure', float(cfg.pipe_nominal_pressure))

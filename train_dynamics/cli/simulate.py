@@ -32,6 +32,7 @@ from train_dynamics.cli.errors import (check_runnable, CliError, deferred_signal
 from train_dynamics.cli.output import remove_created
 from train_dynamics.cli.progress import progress_bar
 from train_dynamics.cli.scenario import brake_inputs, check_duration, load_config
+from train_dynamics.input_kinds import KINDS
 from train_dynamics.physics.config import fmt_bytes, SimConfig
 from train_dynamics.recording.bags import BagError, BagRecorder, DISK_FULL, recording_failed
 from train_dynamics.recording.output_specs import output_disk
@@ -92,8 +93,8 @@ def cmd_simulate(args: argparse.Namespace) -> int:
             rec.add_topic(topics.HEAD_PIPE_TOPIC, topics.FLUID_PRESSURE)
         for topic in dict.fromkeys(e.topic for e in inputs.events):
             rec.add_topic(topic, topics.FLUID_PRESSURE)
-        for topic, kind in dict.fromkeys((e.topic, e.kind) for e in inputs.traction):
-            rec.add_topic(topic, topics.INT8 if kind == 'wsp' else topics.FLOAT64)
+        for topic, kind in dict.fromkeys((e.topic, e.kind) for e in inputs.commands):
+            rec.add_topic(topic, KINDS[kind].msgtype)
         with deferred_signals() as signals:
             def on_sample(s):
                 sink.sample(s)
@@ -163,7 +164,7 @@ def _check_disk(cfg: SimConfig, duration: float, inputs: InputSchedule, parent: 
     Refuse a run whose bag would not fit, or exceed :data:`LARGE_BAG` unconfirmed.
     """
     need = output_disk(cfg, duration, head_input=inputs.valve is not None,
-                       traction_commands=len(inputs.traction)) + sum(
+                       traction_commands=len(inputs.commands)) + sum(
         len(e.msg.header.frame_id) + 80 for e in inputs.events)
     where = parent
     while not where.exists():

@@ -57,8 +57,9 @@ from scipy.stats import qmc
 
 from train_dynamics.cli.errors import CliError, INVALID_PARAMETERS
 from train_dynamics.cli.scenario import brake_inputs, load_config
+from train_dynamics.param_files import read_param_file
 from train_dynamics.physics.config import (ConfigError, DOUBLE, INTEGER, PARAMETERS,
-                                           read_param_file, resolve_path, validate_value)
+                                           resolve_path, validate_value)
 from train_dynamics.physics.config.consist import LIBRARY
 from train_dynamics.physics.config.files import config_dirs, RosParamLoader
 from train_dynamics.quoting import clip, quote

@@ -25,7 +25,8 @@ A schedule is a list of ``"TIME:POSITION"`` strings, times [s] strictly increasi
 moment the schedule was set (t = 0 for the schedule given at construction).
 
 Used by the ``brake_valve`` node and by the offline command (the ``brake_valve`` section of a
-parameter file builds the head-pipe pressure when there is no input bag). Never imports rclpy.
+parameter file, :func:`train_dynamics.param_files.valve_params`, builds the head-pipe pressure
+when there is no input bag). Never imports rclpy.
 """
 from __future__ import annotations
 
@@ -35,14 +36,13 @@ import math
 from typing import Any, Iterable, Mapping
 
 from train_dynamics.physics.config import (ATMOSPHERIC_PRESSURE, DOUBLE, FULL_SERVICE_PRESSURE,
-                                           INTEGER, ParamSpec, PIPE_NOMINAL_PRESSURE,
-                                           read_param_file, ROS_BUILTIN_PARAMETERS,
-                                           SIM_NODE_PARAMETERS, STRING, STRING_ARRAY,
-                                           validate_value)
+                                           INTEGER, ParamSpec, PIPE_NOMINAL_PRESSURE, STRING,
+                                           STRING_ARRAY, validate_value)
 from train_dynamics.quoting import quote
 
-#: [s] latest schedule time: the longest run (``sim_node``'s ``duration`` bound, ~32 years)
-MAX_SCHEDULE_TIME = SIM_NODE_PARAMETERS['duration'].high
+#: [s] latest schedule time, ~32 years: a bound against absurd values (a typo of an exponent),
+#: not a property of any valve; a guess, far beyond any run
+MAX_SCHEDULE_TIME = 1.0e9
 
 #: The valve model's parameters (gauge pressures [Pa], rates [Pa/s]); all change live.
 VALVE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
@@ -51,7 +51,8 @@ VALVE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'or emergency. Setting it moves the handle now and cancels the rest of the '
               'schedule.', dynamic=True),
     ParamSpec('schedule', [], STRING_ARRAY,
-              'Handle schedule, "TIME:POSITION" strings, TIME [s] strictly increasing, <= 1e9, '
+              'Handle schedule, "TIME:POSITION" strings, TIME [s] strictly increasing, '
+              f'<= {MAX_SCHEDULE_TIME:g}, '
               'counted from node start (or from the moment the schedule is set live).',
               dynamic=True),
     ParamSpec('pipe_nominal_pressure', PIPE_NOMINAL_PRESSURE, DOUBLE,
@@ -92,7 +93,7 @@ SETTING_NAMES = ('pipe_nominal_pressure', 'full_service_pressure', 'first_servic
                  'service_steps', 'service_rate', 'emergency_rate', 'release_rate')
 
 #: Parameters of the ``brake_valve`` node that are not model settings.
-NODE_ONLY_PARAMETERS = frozenset({*VALVE_NODE_PARAMETERS, 'frame_id', *ROS_BUILTIN_PARAMETERS})
+NODE_ONLY_PARAMETERS = frozenset({*VALVE_NODE_PARAMETERS, 'frame_id'})
 
 
 @dataclass(frozen=True)
@@ -224,11 +225,11 @@ class BrakeValveModel:
     @classmethod
     def from_params(cls, params: Mapping[str, Any], *, strict: bool = False) -> 'BrakeValveModel':
         """
-        Build from a ``ros__parameters`` mapping (e.g. the ``brake_valve`` section of a file).
+        Build from ``{name: value}`` (e.g. the node's parameters, or a file's brake-valve section).
 
         Keys of the node that do not concern the model (``publish_rate``,
-        ``atmospheric_pressure``, ``use_sim_time``, ...) are ignored; other unknown keys too
-        unless ``strict``. Raises ``ValueError`` with a one-line reason.
+        ``atmospheric_pressure``, ``frame_id``) are ignored; other unknown keys too unless
+        ``strict``. Raises ``ValueError`` with a one-line reason.
         """
         known = set(SETTING_NAMES) | {'position', 'schedule'}
         if strict:
@@ -240,14 +241,6 @@ class BrakeValveModel:
         if schedule is None:
             schedule = []
         return cls(schedule=schedule, **kwargs)
-
-    @classmethod
-    def from_param_file(cls, path: str, node_name: str = 'brake_valve') -> 'BrakeValveModel':
-        """Build from the ``node_name`` section of a ROS 2 parameter file ({} -> defaults)."""
-        try:
-            return cls.from_params(read_param_file(path, node_name))
-        except ValueError as exc:
-            raise ValueError(f'{path}: {node_name}: {exc}') from None
 
     def _as_entries(self, schedule: Iterable[Any]) -> list[ScheduleEntry]:
         if isinstance(schedule, (str, bytes)) or not isinstance(schedule, Iterable):

@@ -47,7 +47,8 @@ from rosbags.rosbag2 import StoragePlugin
 
 from train_dynamics.recording.bag_metadata import (BagMetadata, finished_segment, offered_qos,
                                                    ROS_DISTRO)
-from train_dynamics.recording.bag_read import bag_info, BagError, BagInfo, read_topics
+from train_dynamics.recording.bag_read import (bag_info, BagError, BagInfo, read_topics,
+                                               shared_reader)
 from train_dynamics.recording.mcap_rows import BlockWriter, RecordBlock
 from train_dynamics.recording.messages import time_to_ns, typestore
 
@@ -55,7 +56,7 @@ from train_dynamics.recording.messages import time_to_ns, typestore
 DISK_FULL = (errno.ENOSPC, errno.EDQUOT, errno.EFBIG)
 
 __all__ = ['bag_info', 'BagError', 'BagInfo', 'BagRecorder', 'offered_qos', 'read_topics',
-           'RecordBlock', 'recording_failed', 'ROS_DISTRO']
+           'RecordBlock', 'recording_failed', 'ROS_DISTRO', 'shared_reader']
 
 
 def _remove_stale_partials(parent: Path, name: str) -> None:

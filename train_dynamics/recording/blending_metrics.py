@@ -64,10 +64,12 @@ def blending_metrics(bag: str, namespace: str = '') -> dict[str, Any] | None:
         return f'{ns}/{topic}' if ns else topic
     try:
         tb, ed, fb, track = _arrays(bag, name(topics.BRAKE_BLENDING_TOPIC))
+        if not len(tb):                 # no blending: the coaches are not read again
+            return None
         tc, x, v, _ = _arrays(bag, name(topics.COACHES_TOPIC))
     except Exception:  # noqa: BLE001 - a bag without the topics: no blending metrics
         return None
-    if not len(tb) or len(tc) != len(tb):
+    if len(tc) != len(tb):
         return None
     try:
         ts, demand, _, _ = _arrays(bag, name(topics.BRAKE_DEMAND_STATE_TOPIC))

@@ -10,7 +10,7 @@ under a namespace); time comes from ``header.stamp`` (simulation time). The offl
 """
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 import math
 import os
@@ -361,12 +361,26 @@ class TopicStream:
         t = np.array([row[0] for row in block])
         q = np.full((len(block), self.fields, m), np.nan)
         given = np.zeros(q.shape, dtype=bool)        # NaN in q is also "no value given"
-        for k, (_, idx, vals) in enumerate(block):
-            for f, v in enumerate(vals):
-                v = np.asarray(v, dtype=float)
-                if v.shape == (len(idx),):
-                    q[k, f, idx] = v
-                    given[k, f, idx] = True
+        k = 0
+        while k < len(block):
+            # a run of rows with the same joint names (the same list: _names_cache) is
+            # copied field by field at once, where every row of it has one value per name
+            idx = block[k][1]
+            end = k + 1
+            while end < len(block) and block[end][1] is idx:
+                end += 1
+            for f in range(len(block[k][2])):
+                col = [row[2][f] for row in block[k:end]]
+                if all(len(v) == len(idx) for v in col):
+                    q[k:end, f, idx] = np.array(col, dtype=float).reshape(end - k, len(idx))
+                    given[k:end, f, idx] = True
+                    continue
+                for r, v in enumerate(col, k):
+                    v = np.asarray(v, dtype=float)
+                    if v.shape == (len(idx),):
+                        q[r, f, idx] = v
+                        given[r, f, idx] = True
+            k = end
         self._count_non_finite(t, q, given)
         self.envelope.add(t, q)
         if self.on_block is not None:
@@ -430,7 +444,8 @@ _JOINT_ATTRS = ((topics.COUPLERS_TOPIC, 'couplers'), (topics.COACHES_TOPIC, 'coa
 def stream_history(bag: str | os.PathLike, *, namespace: str = '',
                    atmospheric_pressure: float = ATMOSPHERIC_PRESSURE, keep_all: bool = False,
                    on_block: Callable | None = None,
-                   on_reset: Callable | None = None) -> History:
+                   on_reset: Callable | None = None,
+                   only: Iterable[str] | None = None) -> History:
     """
     Read the output topics of a bag block-wise into bounded curves (:class:`TopicStream`).
 
@@ -439,7 +454,8 @@ def stream_history(bag: str | os.PathLike, *, namespace: str = '',
     (``History.decimated`` says which topics). ``on_block`` /
     ``on_reset`` see every block of every topic (short names: ``couplers``, ...), e.g. to
     compute the run metrics as the bag is read. ``namespace``: the node's namespace if it
-    ran in one. Raises :class:`train_dynamics.recording.bags.BagError` for an unreadable bag.
+    ran in one. ``only``: the short names of the topics to read (None: all of them).
+    Raises :class:`train_dynamics.recording.bags.BagError` for an unreadable bag.
     """
     ns = namespace.strip('/')
     prefix = f'{ns}/' if ns else ''
@@ -449,7 +465,7 @@ def stream_history(bag: str | os.PathLike, *, namespace: str = '',
     streams: dict[str, TopicStream] = {}
     for short, kind in _HISTORY_TOPICS.items():
         topic = prefix + short
-        if topic not in info.topics:
+        if topic not in info.topics or (only is not None and short not in only):
             continue
         if not info.topics[topic][0].endswith('/' + kind):
             hist.notes.append(f'{topic}: type {info.topics[topic][0]} ignored')

@@ -1,18 +1,20 @@
 """
-Brake inputs read from a rosbag2: the events that drive an offline run.
+Controller inputs read from a rosbag2: the events that drive an offline run.
 
-:func:`read_input_bag` takes the contract's input topics of the run's ``brake_input`` mode
-(:data:`train_dynamics.topics.INPUT_TOPIC_PATTERNS`; ``sensor_msgs/FluidPressure``, ABSOLUTE
-[Pa]; a leading '/' and a namespace prefix are accepted) from an MCAP or sqlite3 bag. A
+Every kind of :data:`train_dynamics.input_kinds.INPUT_KINDS` is read by its row: topic,
+message type, the field carrying the value, the node's rule refusing a value, the vehicles
+that take it on the run's train. A leading '/' and a namespace prefix are accepted. A
 message takes effect at its bag time relative to the bag's first message, at the first
 integration step starting at or after that time
-(:func:`train_dynamics.simulation.runner.step_of`), and holds until the next one. Messages are
-rejected by the node's rule (:func:`train_dynamics.physics.config.input_rejection`:
-non-finite, negative or above 20 bar absolute), with a warning counting them per reason.
-A ``pipe_head`` run whose bag has no brake-pipe input but commands the run can use (the EP /
-ECP command of an EP train, traction, WSP valves: :func:`read_traction_bag`) keeps the pipe
-charged at ``pipe_nominal_pressure``, as ``sim_node`` holds it without a brake input (with a
-warning); a bag with neither is refused.
+(:func:`train_dynamics.simulation.runner.step_of`), and holds until the next one.
+
+:func:`read_input_bag`: the brake inputs of the run's ``brake_input`` mode
+(``sensor_msgs/FluidPressure``, ABSOLUTE [Pa], gauge = absolute - ``atmospheric_pressure``;
+refused: non-finite, negative or above 20 bar absolute, with a warning counting them per
+reason). A ``pipe_head`` run whose bag has no brake-pipe input but commands the run can use
+(:func:`read_command_bag`: the EP / ECP command, traction, WSP valves, the brake control
+unit's inputs, ED forces) keeps the pipe charged at ``pipe_nominal_pressure``, as
+``sim_node`` holds it without a brake input (with a warning); a bag with neither is refused.
 """
 from __future__ import annotations
 
@@ -22,11 +24,9 @@ from pathlib import Path
 from typing import Any
 
 from train_dynamics import topics
-from train_dynamics.physics.config import (ep_rejection, input_rejection, INPUT_VALUE_REASONS,
-                                           traction_rejection, wsp_rejection)
+from train_dynamics.input_kinds import BRAKE_KINDS, COMMAND_KINDS, InputKind, KINDS
 from train_dynamics.recording.bags import bag_info, BagError, BagInfo, read_topics
-from train_dynamics.simulation.runner import (EP_INDEX, InputEvent, InputSchedule, step_of,
-                                              TractionEvent)
+from train_dynamics.simulation.runner import CommandEvent, InputSchedule, step_of
 
 _log = logging.getLogger(__name__)
 
@@ -57,28 +57,28 @@ def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
     try:
         selected = _select_topics(info, mode, ns, int(cfg.n_coaches), warn, path)
     except InputBagError:
-        if mode != topics.PIPE_HEAD or not any(_select_commands(info, cfg, ns, _quiet)):
+        if mode != topics.PIPE_HEAD or not _select_commands(info, cfg, ns, _quiet):
             raise
         # commands only (e.g. brake_ep/command of an EP train): the pipe stays charged
         warn(f'input bag: no {topics.HEAD_PIPE_TOPIC} input: the brake pipe stays at '
              f'pipe_nominal_pressure ({float(cfg.pipe_nominal_pressure):g} Pa gauge), as '
              'sim_node holds it without one')
         return InputSchedule(mode, [], None, f'bag {Path(path).name} (commands only)')
-    atm = float(cfg.atmospheric_pressure)
+    kind = KINDS[mode]
     h = float(cfg.integration_step)
-    events: list[InputEvent] = []
-    rejected = dict.fromkeys(INPUT_VALUE_REASONS, 0)
+    events: list[CommandEvent] = []
+    rejected = dict.fromkeys(kind.reasons, 0)
     try:
         for topic, t_ns, msg in read_topics(path, list(selected)):
-            p = float(msg.fluid_pressure)
-            why = input_rejection(p)
+            p = kind.value(msg)
+            why = kind.rule(p, cfg)
             if why is not None:
                 rejected[why[0]] += 1
                 continue
             rel_ns = t_ns - info.start_ns
             rel_topic = topic[len(ns) + 1:] if ns else topic
-            events.append(InputEvent(step_of(rel_ns, h), rel_ns, selected[topic], p - atm,
-                                     rel_topic, msg))
+            events.append(CommandEvent(mode, selected[topic], kind.sim_value(p, cfg), rel_ns,
+                                       step_of(rel_ns, h), rel_topic, msg))
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
     bad = rejected['non_finite'] + rejected['negative']
@@ -95,106 +95,87 @@ def read_input_bag(path: str, cfg: Any, *, namespace: str = '',
     return InputSchedule(mode, events, None, f'bag {Path(path).name}')
 
 
-def read_traction_bag(path: str, cfg: Any, *, namespace: str = '',
-                      warn: Callable[[str], None] = _log.warning) -> list[TractionEvent]:
+def read_command_bag(path: str, cfg: Any, *, namespace: str = '',
+                     warn: Callable[[str], None] = _log.warning) -> list[CommandEvent]:
     """
-    Return the traction commands (``coach_<i>/traction/command``, Float64) in the bag.
+    Return the commands (every kind but the brake inputs) in the bag, sorted by time.
 
-    Only locomotives (vehicles with traction or dynamic brake) take a command; a value that is
-    not finite or outside [-1, 1] is rejected by the node's rule
-    (:func:`train_dynamics.physics.config.traction_rejection`; counted, reported through
-    ``warn``). With an EP or ECP brake system, ``brake_ep/command`` too (index
-    :data:`~train_dynamics.simulation.runner.EP_INDEX`, rule
-    :func:`~train_dynamics.physics.config.ep_rejection`); with ``wsp: external`` every
-    vehicle's ``coach_<i>/wsp/valve`` (Int8, kind ``wsp``, rule
-    :func:`~train_dynamics.physics.config.wsp_rejection`). Empty when the bag has none.
+    Only the vehicles that take a kind on this train (``InputKind.takes``: locomotives for
+    traction, every vehicle with ``wsp: external`` ...) take its messages; the others are
+    named through ``warn`` and ignored. A value the node's rule refuses is counted and
+    reported through ``warn``. Empty when the bag has none.
     """
     ns = namespace.strip('/')
     try:
         info = bag_info(path)
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
-    selected, wsp = _select_commands(info, cfg, ns, warn)
+    selected = _select_commands(info, cfg, ns, warn)
     h = float(cfg.integration_step)
-    events: list[TractionEvent] = []
-    rejected = 0
+    events: list[CommandEvent] = []
+    rejected: dict[str, int] = {}
     try:
-        for topic, t_ns, msg in read_topics(path, list(selected) + list(wsp)):
-            if topic in wsp:
-                if wsp_rejection(int(msg.data)) is not None:
-                    rejected += 1
-                    continue
-                rel_ns = t_ns - info.start_ns
-                i = wsp[topic]
-                events.append(TractionEvent(step_of(rel_ns, h), rel_ns, i, int(msg.data),
-                                            topics.wsp_valve_topic(i + 1), msg, kind='wsp'))
-                continue
-            c = float(msg.data)
-            i = selected[topic]
-            if (ep_rejection(c) if i == EP_INDEX else traction_rejection(c)) is not None:
-                rejected += 1
+        for topic, t_ns, msg in read_topics(path, list(selected)):
+            kind, index = selected[topic]
+            value = kind.value(msg)
+            if kind.rule(value, cfg) is not None:
+                rejected[kind.label] = rejected.get(kind.label, 0) + 1
                 continue
             rel_ns = t_ns - info.start_ns
-            name = topics.EP_COMMAND_TOPIC if i == EP_INDEX else topics.traction_topic(i + 1)
-            events.append(TractionEvent(step_of(rel_ns, h), rel_ns, i, c, name, msg))
+            events.append(CommandEvent.at(kind.name, index, kind.sim_value(value, cfg), rel_ns,
+                                          h, msg))
     except BagError as exc:
         raise InputBagError(f'input bag: {exc}') from None
     if rejected:
-        warn(f'input bag: {rejected} traction or EP command(s) not finite or out of range '
-             'rejected')
+        warn(f'input bag: {sum(rejected.values())} command(s) not finite or out of range '
+             f'rejected ({", ".join(f"{k}: {n}" for k, n in rejected.items())}), as sim_node '
+             'rejects them')
     events.sort(key=lambda e: e.t_ns)
     return events
 
 
-def _select_commands(info: BagInfo, cfg: Any, ns: str, warn: Callable[[str], None]
-                     ) -> tuple[dict[str, int], dict[str, int]]:
-    """
-    Return the bag's usable command topics: Float64 -> vehicle (EP_INDEX), Int8 WSP -> vehicle.
+def _relative(topic: str, ns: str) -> str | None:
+    """Return a bag topic relative to the namespace ``ns`` ('' none), None outside it."""
+    rel = topic.lstrip('/')
+    if not ns:
+        return rel
+    return rel[len(ns) + 1:] if rel.startswith(ns + '/') else None
 
-    Traction commands of locomotives, ``brake_ep/command`` with an EP / ECP brake system,
-    ``coach_<i>/wsp/valve`` with ``wsp: external``; the others are named through ``warn``.
+
+def _select_commands(info: BagInfo, cfg: Any, ns: str, warn: Callable[[str], None]
+                     ) -> dict[str, tuple[InputKind, int | None]]:
     """
-    locos = set(cfg.consist.commanded) if cfg.external_forces else set()
-    selected: dict[str, int] = {}
-    wsp: dict[str, int] = {}
+    Return the bag's usable command topics -> (kind, 0-based vehicle or None).
+
+    A topic of a kind whose message type differs, or of a vehicle that does not take the
+    kind on this train, is named through ``warn``.
+    """
+    takes = {k.name: set(k.takes(cfg)) for k in COMMAND_KINDS}
+    selected: dict[str, tuple[InputKind, int | None]] = {}
     for topic, (msgtype, _) in info.topics.items():
-        rel = topic[len(ns) + 1:] if ns and topic.startswith(ns + '/') else topic
-        if rel == topics.EP_COMMAND_TOPIC and (rel != topic or not ns):
-            if msgtype != topics.FLOAT64:
-                warn(f'input bag: {topic} has type {msgtype}, not {topics.FLOAT64}; ignored')
-            elif not cfg.ep_commanded:
-                warn(f'input bag: {topic}: needs brake_system ep or ecp; ignored')
+        rel = _relative(topic, ns)
+        if rel is None:
+            continue
+        for kind in COMMAND_KINDS:
+            m = kind.pattern.fullmatch(rel)
+            if m is None:
+                continue
+            index = int(m.group(1)) - 1 if kind.per_vehicle else None
+            if msgtype != kind.msgtype:
+                warn(f'input bag: {topic} has type {msgtype}, not {kind.msgtype}; ignored')
+            elif (0 if index is None else index) not in takes[kind.name]:
+                who = f'vehicle {index + 1} ' if index is not None else 'this train '
+                warn(f'input bag: {topic}: {who}takes no {kind.label} ({kind.when}); ignored')
             else:
-                selected[topic] = EP_INDEX
-            continue
-        w = topics.WSP_VALVE_TOPIC_PATTERN.fullmatch(rel)
-        if w is not None and not (ns and rel == topic):
-            i = int(w.group(1)) - 1
-            if msgtype != topics.INT8:
-                warn(f'input bag: {topic} has type {msgtype}, not {topics.INT8}; ignored')
-            elif cfg.wsp != 'external' or not 0 <= i < cfg.n_coaches:
-                warn(f'input bag: {topic}: needs wsp external and vehicle {i + 1} in the '
-                     'train; ignored')
-            else:
-                wsp[topic] = i
-            continue
-        m = topics.TRACTION_TOPIC_PATTERN.fullmatch(rel)
-        if m is None or (ns and rel == topic):
-            continue
-        i = int(m.group(1)) - 1
-        if msgtype != topics.FLOAT64:
-            warn(f'input bag: {topic} has type {msgtype}, not {topics.FLOAT64}; ignored')
-        elif i not in locos:
-            warn(f'input bag: {topic}: vehicle {i + 1} is not a locomotive; ignored')
-        else:
-            selected[topic] = i
-    return selected, wsp
+                selected[topic] = (kind, index)
+            break
+    return selected
 
 
 def _select_topics(info: BagInfo, mode: str, ns: str, n_coaches: int,
                    warn: Callable[[str], None], path: str) -> dict[str, int | None]:
     """Return the bag's usable input topics of ``mode`` -> 0-based coach (None: the head)."""
-    pattern = topics.INPUT_TOPIC_PATTERNS[mode]
+    pattern = KINDS[mode].pattern
     selected: dict[str, int | None] = {}
     other_modes = []
     for topic, (msgtype, count) in info.topics.items():
@@ -205,11 +186,11 @@ def _select_topics(info: BagInfo, mode: str, ns: str, n_coaches: int,
             rel = topic[len(ns) + 1:]
         m = pattern.fullmatch(rel)
         if m is None:
-            if any(p.fullmatch(rel) for p in topics.INPUT_TOPIC_PATTERNS.values()):
+            if any(k.pattern.fullmatch(rel) for k in BRAKE_KINDS):
                 other_modes.append(rel)
             continue
-        if msgtype != topics.FLUID_PRESSURE:
-            warn(f'input bag: {topic} has type {msgtype}, not {topics.FLUID_PRESSURE}; ignored')
+        if msgtype != KINDS[mode].msgtype:
+            warn(f'input bag: {topic} has type {msgtype}, not {KINDS[mode].msgtype}; ignored')
             continue
         if count == 0:
             continue
@@ -227,7 +208,7 @@ def _select_topics(info: BagInfo, mode: str, ns: str, n_coaches: int,
             if other_modes else ''
         raise InputBagError(
             f'input bag {path}: no usable input topic for brake_input {mode}: needs '
-            f'{topics.INPUT_TOPIC_DISPLAY[mode]} ({topics.FLUID_PRESSURE}){hint}')
+            f'{KINDS[mode].display} ({KINDS[mode].msgtype}){hint}')
     if mode != topics.PIPE_HEAD:
         have = set(selected.values())
         missing = [i + 1 for i in range(n_coaches) if i not in have]

@@ -23,7 +23,6 @@ import os
 from pathlib import Path
 from typing import Any
 
-from matplotlib.ticker import MaxNLocator
 import numpy as np
 
 from train_dynamics import topics
@@ -31,8 +30,9 @@ from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.recording.bags import read_topics
 from train_dynamics.recording.blending_metrics import blending_markdown
 from train_dynamics.recording.history import History, natural_key
-from train_dynamics.recording.plots import (_new_figure, _save, _set_xlim, _style,
-                                            plot_history, PlotError)
+
+# matplotlib (0.3-0.7 s to import) is imported by the functions that draw, not here: the
+# metrics and summary.md of a report without figures (the harness's) never import it
 
 #: how many rows of couplers / vehicles ``summary.md`` lists (the worst ones first)
 MD_ROWS = 20
@@ -62,6 +62,7 @@ def write_report(result: dict[str, Any], hist: History, outdir: str | os.PathLik
     if hist.couplers is not None and len(hist.couplers):
         paths.append(worst_force(result, hist, out / 'worst_force.png'))
     paths.append(vehicle_figure(result, out / 'vehicles.png'))
+    from train_dynamics.recording.plots import PlotError
     try:
         paths.extend(plot_history(hist, out))
     except PlotError:
@@ -185,8 +186,17 @@ def _worst(train: dict[str, Any]) -> tuple[str, int, float, float | None]:
             train['max_compression_time'])
 
 
+def plot_history(hist: History, outdir: Path) -> list[Path]:
+    """Draw the paper's figures of ``hist`` (:func:`.plots.plot_history`, imported here)."""
+    from train_dynamics.recording import plots
+    return plots.plot_history(hist, outdir)
+
+
 def force_envelope(result: dict[str, Any], path: Path) -> Path:
     """Draw the largest tension (up) and compression (down) of each coupling [kN]."""
+    from matplotlib.ticker import MaxNLocator
+
+    from train_dynamics.recording.plots import _new_figure, _save, _style
     rows = result['couplers']
     pos = np.arange(1, len(rows) + 1)
     ten = np.array([r['max_tension'] for r in rows]) * 1e-3
@@ -221,6 +231,7 @@ def force_envelope(result: dict[str, Any], path: Path) -> Path:
 
 def worst_force(result: dict[str, Any], hist: History, path: Path) -> Path:
     """Draw F(t) of the worst coupler over the band of all couplers, its peak marked."""
+    from train_dynamics.recording.plots import _new_figure, _save, _set_xlim, _style
     c = hist.couplers
     kind, j, f, t = _worst(result['train'])
     fig = _new_figure('single')
@@ -249,6 +260,7 @@ def worst_force(result: dict[str, Any], hist: History, path: Path) -> Path:
 
 def vehicle_figure(result: dict[str, Any], path: Path) -> Path:
     """Draw per vehicle the largest deceleration (1 s mean, sample) and jerk (1 s)."""
+    from train_dynamics.recording.plots import _new_figure, _save, _style
     rows = result['vehicles']
     pos = np.arange(1, len(rows) + 1)
     fig = _new_figure('single')
@@ -366,6 +378,7 @@ def sweep_figures(columns: dict[str, np.ndarray], params: Sequence[str],
     ``columns`` maps names to equal-length arrays (numbers or strings for a parameter);
     ``failed`` marks the cases with an error (not drawn).
     """
+    from train_dynamics.recording.plots import _new_figure, _save, _style
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
     ok = ~failed if failed is not None else None

@@ -13,13 +13,14 @@ from typing import Any
 import numpy as np
 
 from train_dynamics import topics
+from train_dynamics.input_kinds import KINDS
 from train_dynamics.physics.kernel import couplers
 from train_dynamics.recording.bags import BagRecorder
 from train_dynamics.recording.cdr import encode_float64
 from train_dynamics.recording.history import History, JointSeries
 from train_dynamics.recording.messages import stamp
 from train_dynamics.recording.outputs import OutputEncoder, OutputRows, time_ns
-from train_dynamics.simulation.runner import InputEvent, Sample, TractionEvent
+from train_dynamics.simulation.runner import CommandEvent, Sample
 
 
 class BagSink:
@@ -48,18 +49,18 @@ class BagSink:
             rows = self._rows = OutputRows(self.encoder, head is not None)
         rows.write(self.rec, time_ns(s.t), s.sim, head)
 
-    def input(self, e: InputEvent | TractionEvent) -> None:  # noqa: A003 - runner's hook
+    def input(self, e: CommandEvent) -> None:  # noqa: A003 - runner's hook
         """Write an input message as applied, stamped with its time from the run's start."""
-        if isinstance(e, TractionEvent) and e.kind == 'wsp':     # std_msgs/Int8 as read
-            self.rec.write_msg(e.topic, e.t_ns, e.msg)
-            return
-        if isinstance(e, TractionEvent):      # std_msgs/Float64: no header
+        kind = KINDS[e.kind]
+        if kind.stamped:                        # its header stamp: the time it acted
+            msg = e.msg
+            msg.header.stamp = stamp(e.t_ns, ns=True)
+            self.rec.write_msg(e.topic, e.t_ns, msg)
+        elif kind.msgtype == topics.FLOAT64:    # std_msgs/Float64 (a schedule's: no message)
             self.rec.add_topic(e.topic, topics.FLOAT64)
-            self.rec.write(e.topic, e.t_ns, encode_float64(e.command))
-            return
-        msg = e.msg
-        msg.header.stamp = stamp(e.t_ns, ns=True)
-        self.rec.write_msg(e.topic, e.t_ns, msg)
+            self.rec.write(e.topic, e.t_ns, encode_float64(e.value))
+        else:                                   # as read (std_msgs/Int8 ...)
+            self.rec.write_msg(e.topic, e.t_ns, e.msg)
 
 
 class ArraySink:

@@ -30,9 +30,10 @@ from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedE
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 
-from train_dynamics.physics.config import (ConfigError, node_sections, read_param_sections,
-                                           ROS_BUILTIN_PARAMETERS, unknown_sections,
-                                           unknown_sections_message)
+from train_dynamics.param_files import (node_sections, read_param_sections,
+                                        ROS_BUILTIN_PARAMETERS, unknown_sections,
+                                        unknown_sections_message)
+from train_dynamics.physics.config import ConfigError
 from train_dynamics.physics.config.files import resolve_file_inputs
 from train_dynamics.ros.usage import usage_text, wants_help
 

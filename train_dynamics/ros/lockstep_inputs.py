@@ -1,18 +1,20 @@
 """
 The lock-step side of ``sim_node``'s inputs: which inputs answered an output, and what is refused.
 
-:class:`LockstepInputs` is a part of :class:`train_dynamics.ros.brake_inputs.BrakeInputs`
-(a mixin over its run state) that :class:`train_dynamics.ros.run_control.RunControl` asks
+:class:`LockstepInputs` is a part of :class:`train_dynamics.ros.controller_inputs.ControllerInputs`
+(a mixin over its channels) that :class:`train_dynamics.ros.run_control.RunControl` asks
 before it releases a lock-step period. ``lockstep_inputs`` declares the families a period
-waits for (:data:`LOCKSTEP_INPUTS`); ``lockstep_answer`` says what answers:
+waits for (:data:`LOCKSTEP_INPUTS`; each kind of the input table names its family,
+:data:`train_dynamics.input_kinds.INPUT_KINDS`); ``lockstep_answer`` says what answers:
 
 - ``echo``: a brake input whose ``header.stamp`` equals the output's stamp;
 - ``clock``: a brake input stamped at or after the period's time (the node publishes
   ``/clock``; a controller on ``use_sim_time`` answers from its own timer).
 
 A ``std_msgs/Float64`` or ``Int8`` command (traction, EP, WSP valve, the brake control
-unit's ``brake_demand``, ``brake_emergency``, ``ed_brake/trip``) has no stamp: it answers
-the latest output published before it arrived, in both.
+unit's ``brake_demand``, ``brake_emergency``, ``ed_brake/trip``, the ED forces) has no stamp:
+it answers the latest output published before it arrived, in both; a stamped command kind
+(its row's ``stamped``) the output of its header stamp.
 
 What the lock-step refuses, so that a run is the same on every run or ends saying why:
 
@@ -38,13 +40,12 @@ from typing import Any
 import numpy as np
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 
-from train_dynamics import topics
-from train_dynamics.physics.config import SIM_NODE_PARAMETERS
-from train_dynamics.ros.ed_force_inputs import motor_cars
+from train_dynamics.input_kinds import family_active, FAMILY_NEEDS, INPUT_KINDS
+from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
 
 #: ``lockstep_inputs``: the controller inputs a lock-step period can wait for
 LOCKSTEP_INPUTS = SIM_NODE_PARAMETERS['lockstep_inputs'].choices
-BRAKE, TRACTION, EP, WSP, BLENDING = LOCKSTEP_INPUTS
+BRAKE = LOCKSTEP_INPUTS[0]     # the brake pressures' family
 #: declared lock-step inputs: reliable (a lost command would stall the loop until its timeout)
 LOCKSTEP_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                           reliability=ReliabilityPolicy.RELIABLE,
@@ -61,24 +62,17 @@ def lockstep_input_error(cfg: Any, families: tuple[str, ...]) -> str | None:
 
     None when every declared family has an input topic on this train (``brake`` always has).
     """
-    why = {TRACTION: 'no locomotive takes traction commands',
-           EP: 'brake_system is neither ep nor ecp',
-           WSP: 'wsp is not external',
-           BLENDING: 'blending is neither builtin nor external with motor cars'}
-    has = {TRACTION: bool(cfg.external_forces and cfg.consist.commanded),
-           EP: bool(cfg.ep_commanded), WSP: cfg.wsp == 'external',
-           BLENDING: cfg.blending == 'builtin' or bool(motor_cars(cfg))}
-    missing = [f for f in families if f != BRAKE and not has[f]]
+    missing = [f for f in families if not family_active(f, cfg)]
     if not missing:
         return None
     return (f'lockstep_inputs {", ".join(missing)}: the train has no such input '
-            f'({"; ".join(why[f] for f in missing)}); a lock-step period would not wait '
-            'for it')
+            f'({"; ".join(FAMILY_NEEDS[f] for f in missing)}); a lock-step period would not '
+            'wait for it')
 
 
 class LockstepInputs:
     """
-    Lock-step queries and refusals over :class:`BrakeInputs`' run state (see the module).
+    Lock-step queries and refusals over :class:`ControllerInputs`' channels (see the module).
 
     The declared families and the answer rule are set by :meth:`configure_lockstep`
     (executor thread, simulation lock held); the duplicate check runs in the subscription
@@ -88,7 +82,6 @@ class LockstepInputs:
     _ls_families: tuple[str, ...] = ()    # declared families (empty: not in lock-step)
     _ls_clock = False                     # lockstep_answer clock
     _ls_period_ns = -1                    # stamp of the latest output published
-    duplicates_brake = 0                  # brake answers not used (a second answer)
 
     # -- configuration (executor thread, simulation lock held) -----------------------------
     def configure_lockstep(self, families: tuple[str, ...], clock: bool) -> None:
@@ -98,19 +91,19 @@ class LockstepInputs:
         for family, part in self._command_families():
             part.dedupe = family in families
             part.on_duplicate = self.duplicate
-            part.set_qos(LOCKSTEP_QOS if family in families else self.free_qos)
-        self._set_brake_qos(LOCKSTEP_QOS if BRAKE in families else self.free_qos)
+            part.set_qos(LOCKSTEP_QOS if family in families else self.brake.free_qos)
+        self.brake.set_qos(LOCKSTEP_QOS if BRAKE in families else self.brake.free_qos)
 
     @property
     def duplicates(self) -> int:
         """Return the answers not used because their input had answered the output already."""
-        return self.duplicates_brake + sum(part.duplicates
+        return self.brake.duplicates + sum(part.duplicates
                                            for _, part in self._command_families())
 
     def _command_families(self) -> tuple[tuple[str, Any], ...]:
-        """Return (family, input part) of the unstamped command families."""
-        return ((TRACTION, self.traction), (EP, self.ep), (WSP, self.wsp),
-                (BLENDING, self.blending))
+        """Return (family, channel) of every command channel, in the table's order."""
+        return tuple((kind.family, self.channels[kind.name]) for kind in INPUT_KINDS
+                     if kind.name in self.channels)
 
     # -- subscription callbacks (executor thread, input lock held) -------------------------
     def _duplicate_answer(self, last_ns: int, stamp_ns: int) -> bool:
@@ -152,18 +145,18 @@ class LockstepInputs:
         """
         out: list[str] = []
         if BRAKE in families:
-            stamps = self._applied_stamp
+            stamps = self.brake.applied_stamp
             missing = np.nonzero(stamps < t_ns if self._ls_clock else stamps != t_ns)[0]
-            out += [self._buffer.topics[k] for k in missing[:10]]
+            out += [self.brake.buffer.topics[k] for k in missing[:10]]
         for family, part in self._command_families():
             if family in families:
-                out += part.unanswered(t_ns)
+                out += part.unanswered(t_ns, self._ls_clock)
         return out
 
     def answered(self, t_ns: int, families: tuple[str, ...] = (BRAKE,)) -> bool:
         """Lock-step: return True if every input of ``families`` answers the output ``t_ns``."""
         if families == (BRAKE,):        # the common case, without building lists
-            stamps = self._applied_stamp
+            stamps = self.brake.applied_stamp
             return bool(np.all(stamps >= t_ns if self._ls_clock else stamps == t_ns))
         return not self.unanswered(t_ns, families)
 
@@ -218,13 +211,15 @@ class LockstepInputs:
 
     def missing_inputs(self, families: tuple[str, ...]) -> list[str]:
         """Return the families of ``families`` this run has no input topic of."""
-        return [f for f, part in self._command_families()
-                if f in families and not part.active]
+        active: dict[str, bool] = {}
+        for f, part in self._command_families():
+            active[f] = active.get(f, False) or part.active
+        return [f for f in families if f in active and not active[f]]
 
     def _lockstep_subscriptions(self, families: tuple[str, ...]) -> list[Any]:
         subs: list[Any] = []
         if BRAKE in families:
-            subs += list(self._active)
+            subs += list(self.brake.active)
         for family, part in self._command_families():
             if family in families:
                 subs += part.subscriptions()
@@ -243,7 +238,8 @@ class LockstepInputs:
             self._wait_since = now
             self._wait_ready = None
             self._log.info(f'waiting up to {limit:g} s for publishers on the '
-                           f'{len(self._active)} brake-input topic(s) of {self._buffer.mode} '
+                           f'{len(self.brake.active)} brake-input topic(s) of '
+                           f'{self.brake.buffer.mode} '
                            'before starting the clock')
         if self.connected():
             if self._wait_ready is None:
@@ -259,17 +255,3 @@ class LockstepInputs:
                               'starting anyway')
             return False
         return True
-
-    def _set_brake_qos(self, qos: QoSProfile) -> None:
-        """Subscribe the head topic and the active mode's topics with ``qos`` from now on."""
-        if qos == self._qos:
-            return
-        self._qos = qos
-        buffer = self._buffer
-        if buffer is None:                  # before the first run: it subscribes with it
-            return
-        for name, info in list(self._sub_info.items()):
-            if info[1] in (topics.PIPE_HEAD, buffer.mode):
-                self._node.destroy_subscription(self._subs.pop(name))
-                del self._sub_info[name]
-        self._update_subscriptions(buffer.mode, buffer.n)

@@ -45,7 +45,7 @@ import time
 from typing import Any, Iterator
 
 from train_dynamics.physics.train import TrainSimulator
-from train_dynamics.ros.brake_inputs import BrakeInputs
+from train_dynamics.ros.controller_inputs import ControllerInputs
 from train_dynamics.ros.publishers import Outputs
 from train_dynamics.ros.run_control import EXIT_LOCKSTEP_TIMEOUT, WAIT_POLL
 from train_dynamics.ros.scheduling import normal_priority, set_priority
@@ -115,7 +115,7 @@ class Pacer:
     reads; a stale value is at most one iteration old).
     """
 
-    def __init__(self, lock: SimulationLock, logger: Any, context: Any, inputs: BrakeInputs,
+    def __init__(self, lock: SimulationLock, logger: Any, context: Any, inputs: ControllerInputs,
                  outputs: Outputs) -> None:
         self.lock = lock
         self._log = logger

@@ -11,9 +11,9 @@ Services (``std_srvs/srv/Trigger``, beside ``~/reset``):
 
 ``sync_mode`` ``lockstep``: the node holds t = 0 until the controller is connected both ways
 (a publisher on every input topic ``lockstep_inputs`` declares, and a subscriber on one of the
-JointState outputs, on ``/clock`` with ``lockstep_answer`` clock; then :data:`CONNECT_SETTLE`
-s for the other direction's discovery), publishes the outputs of t = 0, and advances to the
-next output only once every declared input has answered the last output
+JointState outputs, on ``/clock`` with ``lockstep_answer`` clock; with clock then
+:data:`CONNECT_SETTLE` s for the other direction's discovery), publishes the outputs of t = 0,
+and advances to the next output only once every declared input has answered the last output
 (:meth:`LockstepInputs.unanswered
 <train_dynamics.ros.lockstep_inputs.LockstepInputs.unanswered>`):
 
@@ -52,7 +52,7 @@ from typing import Any, Callable
 from std_srvs.srv import Trigger
 
 from train_dynamics.physics.train import TrainSimulator
-from train_dynamics.ros.brake_inputs import BrakeInputs
+from train_dynamics.ros.controller_inputs import ControllerInputs
 from train_dynamics.ros.lockstep_inputs import CHEAP_TOPICS
 from train_dynamics.ros.publishers import Outputs
 
@@ -66,7 +66,7 @@ PROBE_PERIOD = 0.5         # [s wall] lock-step start: the input publishers' QoS
 class RunControl:
     """Pause/resume/step and the lock-step gate of one node (see the module documentation)."""
 
-    def __init__(self, node: Any, lock: Any, inputs: BrakeInputs, outputs: Outputs,
+    def __init__(self, node: Any, lock: Any, inputs: ControllerInputs, outputs: Outputs,
                  wake: Callable[[], None]) -> None:
         self._lock = lock
         self._inputs = inputs
@@ -169,7 +169,10 @@ class RunControl:
             return True
         if self._connected_since is None:
             self._connected_since = now
-        if now - self._connected_since < CONNECT_SETTLE:
+        # echo answers: no settle. The answer to t = 0 is the event that the controller has
+        # the outputs; the reliable writer keeps them for a reader it matched until that
+        # reader acknowledges, also one that discovers the writer later
+        if self.clock and now - self._connected_since < CONNECT_SETTLE:
             return True
         problems = self._inputs.publisher_problems(self.waits_for, qos=True)
         if problems:

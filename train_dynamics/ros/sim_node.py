@@ -5,8 +5,9 @@ The model is :class:`train_dynamics.physics.train.TrainSimulator`, the same clas
 command runs. This module declares the node and wires its parts, each of which documents its
 behaviour and owns its state:
 
-- :mod:`train_dynamics.ros.brake_inputs`: the brake-input topics (absolute Pa), validation and
-  rejection counts, staleness and the fail-safe, the graph scan, ``wait_for_input``;
+- :mod:`train_dynamics.ros.controller_inputs`: the controller inputs, one channel per kind of
+  the input table (:mod:`train_dynamics.input_kinds`): validation and rejection counts,
+  staleness and the fail-safes, the graph scan, ``wait_for_input``;
 - :mod:`train_dynamics.ros.pacing`: the simulation thread (pacing at ``real_time_factor``,
   the lag policy, chunking), ``duration``, numerical faults;
 - :mod:`train_dynamics.ros.publishers`: the output topics of the run (the table
@@ -25,12 +26,17 @@ Threads and locks: the executor thread runs the subscription callbacks, the time
 parameter callbacks and the ``reset`` service; the simulation thread (:class:`Pacer`) runs the
 simulator; the bag writer thread writes the bag. The :class:`SimulationLock` guards the run
 (the simulator and every part's run state); the brake inputs' own lock guards the latest input
-values between their callbacks and the simulation thread. This node owns the running
-configuration ``_cfg`` (replaced and changed by the executor thread only, under the simulation
-lock; the simulation thread never reads it: each part holds the values it uses).
+values between their callbacks and the simulation thread. The node holds one configuration,
+``_cfg``: that of its current parameter values, live and pending alike (an immutable
+:class:`SimConfig`; every accepted set replaces it by ``_cfg.replace(...)``, checked as a whole,
+on the executor thread under the simulation lock; the simulation thread never reads it: each
+part holds the values it uses). What the running simulation was built from is the
+simulator's own configuration (``simulator.cfg``, never changed: live values reach the run
+through the parts' setters); the structural values where the two differ are the pending
+changes.
 
 Parameters: every parameter of :data:`train_dynamics.physics.config.PARAMETERS` plus the node's
-own (:data:`~train_dynamics.physics.config.SIM_NODE_PARAMETERS`): ``duration`` (simulation
+own (:data:`~train_dynamics.ros.node_parameters.SIM_NODE_PARAMETERS`): ``duration`` (simulation
 seconds after which the node stops by itself, 0 = forever), ``wait_for_input`` (hold t = 0
 until the brake-input topics have publishers, at most that many wall seconds),
 ``realtime_priority`` (the simulation thread's SCHED_FIFO priority,
@@ -68,7 +74,7 @@ from rclpy.serialization import serialize_message
 from std_srvs.srv import Trigger
 
 from train_dynamics import topics
-from train_dynamics.physics.config import ConfigError, PARAMETERS, SIM_NODE_PARAMETERS, SimConfig
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig
 from train_dynamics.physics.metrics import RunMetrics
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.quoting import quote
@@ -76,12 +82,14 @@ from train_dynamics.recording.bags import BagError, offered_qos
 from train_dynamics.recording.output_specs import OUTPUTS, target_of
 from train_dynamics.recording.outputs import OutputEncoder, time_ns
 from train_dynamics.ros import parameters as ros_parameters
-from train_dynamics.ros.brake_inputs import (BrakeInputs, GRAPH_SCAN_PERIOD, INPUT_QOS,
-                                             MAX_ABSOLUTE_PRESSURE, REJECT_REASONS)
+from train_dynamics.ros.controller_inputs import (ControllerInputs, GRAPH_SCAN_PERIOD,
+                                                  INPUT_QOS, MAX_ABSOLUTE_PRESSURE,
+                                                  REJECT_REASONS)
 from train_dynamics.ros.diagnostics import (BrakeSystemReport, diagnostic_array, InputReport,
                                             SimulationReport)
 from train_dynamics.ros.executor import ExitOn, make_executor, run_node, shutdown_safe
 from train_dynamics.ros.lockstep_inputs import lockstep_input_error
+from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
 from train_dynamics.ros.pacing import BEHIND_WARN, Pacer, SimulationLock
 from train_dynamics.ros.publishers import OUTPUT_QOS, Outputs
 from train_dynamics.ros.recorder import (BagWriter, check_bag_path, MAX_RECORD_BACKLOG,
@@ -94,7 +102,6 @@ __all__ = ['SimNode', 'main', 'make_executor', 'INPUT_QOS', 'OUTPUT_QOS',
            'MAX_ABSOLUTE_PRESSURE', 'MAX_RECORD_BACKLOG', 'REJECT_REASONS']
 
 NODE_NAME = topics.NODE_NAME
-DIAGNOSTICS_PERIOD = 1.0  # [s wall]
 #: exit status after a recording that failed (a full disk): the bag holds less than the run
 EXIT_RECORD_FAILED = 1
 #: every parameter the node declares: the simulator's and its own
@@ -134,17 +141,17 @@ class SimNode(Node):
         ros_parameters.declare_parameters(self, SPECS)
         cfg = SimConfig.from_dict(self._parameter_values())   # raises ConfigError (main: 2)
         self._check_lockstep(cfg)
-        #: the configuration of the node's current parameter values (the running one plus
-        #: the pending changes); sets derive it from the last one (a consist is read only
-        #: when a value it is built from changes), the reset service builds it anew
-        self._params_cfg = cfg
+        #: the configuration of the node's current parameter values (``_start`` sets it):
+        #: sets derive it from the last one (a consist is read only when a value it is built
+        #: from changes), the reset service builds it anew
+        self._cfg: SimConfig | None = None
         self._checked: tuple[SimConfig, dict[str, Any], SimConfig] | None = None
         self._flush_period = float(self.get_parameter('record_flush_period').value)
         if cfg.record_bag:
             check_bag_path(cfg.record_bag)
 
         self._lock = SimulationLock()
-        self._inputs = BrakeInputs(self)
+        self._inputs = ControllerInputs(self)
         self._outputs = Outputs(self)
         self._outputs.on_output = self._inputs.output_published    # lock-step: Float64 answers
         self._stop_target = StopTargetInput(self, INPUT_QOS, self._lock, self._target_run,
@@ -171,8 +178,8 @@ class SimNode(Node):
                                             self._apply_parameters)
             # on a steady clock: with use_sim_time and no /clock they would never fire
             steady = Clock(clock_type=ClockType.STEADY_TIME)
-            self._diag_timer = self.create_timer(
-                DIAGNOSTICS_PERIOD, shutdown_safe(self, self._publish_diagnostics), clock=steady)
+            self._diag_timer = self._diagnostics_timer(
+                self.get_parameter('diagnostics_period').value)
             self._scan_timer = self.create_timer(
                 GRAPH_SCAN_PERIOD, shutdown_safe(self, self._inputs.scan_graph), clock=steady)
             self._clock_timer = self.create_timer(   # a second /clock publisher: a warning
@@ -206,7 +213,7 @@ class SimNode(Node):
 
     def _publish_clock(self) -> bool:
         """Return True if /clock goes out: publish_clock, or lock-step on the clock."""
-        cfg = getattr(self, '_cfg', None)
+        cfg = self._cfg
         return bool(cfg is not None and cfg.publish_clock) or (
             self.get_parameter('sync_mode').value == 'lockstep'
             and self.get_parameter('lockstep_answer').value == 'clock')
@@ -238,38 +245,31 @@ class SimNode(Node):
     def _check_parameters(self, changes: dict[str, Any]) -> None:
         """Set callback: raise if the batch is not acceptable as a whole (changes nothing)."""
         sim_changes = {k: v for k, v in changes.items() if k in PARAMETERS}
-        cfg = self._params_cfg.replace(**sim_changes)
+        cfg = self._cfg.replace(**sim_changes)
         bag = changes.get('record_bag')
-        if bag and bag != self._cfg.record_bag:
+        if bag and bag != self._running.record_bag:
             check_bag_path(bag)
         if {'sync_mode', 'lockstep_inputs'} & set(changes):
-            self._check_lockstep(self._cfg, changes)
-        self._checked = (self._params_cfg, sim_changes, cfg)   # what post-set adopts
+            self._check_lockstep(self._running, changes)
+        self._checked = (self._cfg, sim_changes, cfg)   # what post-set adopts
 
     def _apply_parameters(self, changes: dict[str, Any]) -> None:
         """Post-set callback: apply live changes at once; report structural ones pending."""
         sim_changes = {k: v for k, v in changes.items() if k in PARAMETERS}
         checked, self._checked = self._checked, None
-        if checked is not None and checked[0] is self._params_cfg and checked[1] == sim_changes:
-            self._params_cfg = checked[2]
+        if checked is not None and checked[0] is self._cfg and checked[1] == sim_changes:
+            cfg = checked[2]
         else:
-            self._params_cfg = self._params_cfg.replace(**sim_changes)
-        cfg = self._cfg
+            cfg = self._cfg.replace(**sim_changes)
         with self._lock.held():
+            self._cfg = cfg
             if 'model_type' in changes or 'scale_factor' in changes:
-                cfg.set_live(**{k: changes[k] for k in ('model_type', 'scale_factor')
-                                if k in changes})
                 self._pacer.sim.set_model(cfg.model_type, cfg.scale_factor)
                 self.get_logger().info(
                     f't = {self._pacer.sim.t:.3f} s: coupler model {cfg.model_type}, '
                     f'scale_factor {cfg.scale_factor:g} s/m')
-            cfg.set_live(**{name: changes[name] for name in (
-                'real_time_factor', 'publish_clock', 'input_timeout', 'on_input_timeout',
-                'coupler_force_limit', 'jerk_limit') if name in changes})
             self._outputs.metrics.set_limits(cfg.coupler_force_limit, cfg.jerk_limit)
-            rail = ('track_adhesion_positions', 'track_adhesion')
-            if any(name in changes for name in rail):
-                cfg.set_live(**{name: getattr(self._params_cfg, name) for name in rail})
+            if {'track_adhesion_positions', 'track_adhesion'} & set(changes):
                 self._pacer.sim.set_track_adhesion(cfg.track_adhesion_positions,
                                                    cfg.track_adhesion)
             if 'real_time_factor' in changes:
@@ -288,6 +288,9 @@ class SimNode(Node):
             self._request_wake_latency(changes['cpu_wake_latency'])
         if 'record_flush_period' in changes:
             self._flush_period = changes['record_flush_period']
+        if 'diagnostics_period' in changes:
+            self.destroy_timer(self._diag_timer)
+            self._diag_timer = self._diagnostics_timer(changes['diagnostics_period'])
         structural = [n for n in changes if not SPECS[n].dynamic]
         if structural:
             self.get_logger().info(
@@ -295,15 +298,25 @@ class SimNode(Node):
                 + ', '.join(f'{n} = {_fmt(changes[n])}' for n in structural)
                 + f' (all pending: {self.pending_changes() or "none"})')
 
+    @property
+    def _running(self) -> SimConfig:
+        """Return the configuration the running simulation was built from (never changed)."""
+        return self._pacer.sim.cfg
+
     def pending_changes(self) -> str:
         """Return 'name: old -> new, ...' of the values the running simulation does not use."""
-        return self._pending_changes(self._params_cfg)
+        return self._pending_changes(self._cfg)
 
     def _pending_changes(self, cfg: SimConfig) -> str:
-        running = self._cfg.values
+        running = self._running.values
         diffs = [f'{n}: {_fmt(running[n])} -> {_fmt(v)}' for n, v in cfg.values.items()
                  if not PARAMETERS[n].dynamic and running.get(n) != v]
         return ', '.join(diffs)
+
+    @property
+    def config(self) -> SimConfig:
+        """Return the configuration of the node's current parameter values (immutable)."""
+        return self._cfg
 
     # -- start / reset ---------------------------------------------------------------------
     def _start(self, cfg: SimConfig, writer: BagWriter | None, first: bool = False) -> None:
@@ -377,7 +390,6 @@ class SimNode(Node):
             pending = self._pending_changes(cfg)
             old = self._outputs.take_writer()
             self._start(cfg, writer)
-        self._params_cfg = cfg
         if old is not None:
             self._closed_bag(old, log)
         rec = f'; recording to {writer.path}' if writer else ''
@@ -388,6 +400,11 @@ class SimNode(Node):
         return response
 
     # -- diagnostics -----------------------------------------------------------------------
+    def _diagnostics_timer(self, period: float):
+        """Return a timer publishing /diagnostics every ``period`` wall seconds (steady clock)."""
+        return self.create_timer(period, shutdown_safe(self, self._publish_diagnostics),
+                                 clock=Clock(clock_type=ClockType.STEADY_TIME))
+
     def _publish_diagnostics(self) -> None:
         pending = self.pending_changes()
         with self._lock.held():
@@ -449,7 +466,7 @@ class SimNode(Node):
         """Return the brake inputs' state (simulation lock held)."""
         inputs = self._inputs
         return InputReport(
-            mode=self._cfg.brake_input, timeout=inputs.timeout, on_timeout=inputs.on_timeout,
+            mode=self._running.brake_input, timeout=inputs.timeout, on_timeout=inputs.on_timeout,
             max_age=inputs.max_age(now), stale=inputs.stale, emergency=inputs.emergency,
             stale_names=', '.join(inputs.stale_names), accepted=inputs.accepted,
             rejected=dict(inputs.rejected), last_rejected=inputs.last_rejected,

@@ -7,7 +7,7 @@ of vehicle 1's front], checked as the parameter is (finite, within its range): t
 output's ``distance_to_go`` is measured to it, and the recording holds the message at the
 simulation time it took effect. A rejected value is logged (at most once per
 :data:`WARN_PERIOD` wall seconds) and counted, and changes nothing. QoS: best-effort, keep-last
-10 (the brake inputs' :data:`~train_dynamics.ros.brake_inputs.INPUT_QOS`: reliable and
+10 (the brake inputs' :data:`~train_dynamics.ros.brake_channel.INPUT_QOS`: reliable and
 best-effort publishers both connect).
 """
 from __future__ import annotations

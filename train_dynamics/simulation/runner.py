@@ -19,145 +19,109 @@ import math
 import time
 from typing import Any
 
-from train_dynamics import topics
+from train_dynamics.input_kinds import KINDS
 from train_dynamics.physics.train import TrainSimulator
-from train_dynamics.simulation.demand import (apply_blending_input, BLENDING_INDEX,
-                                              blending_schedule, BLENDING_TOPICS)
+from train_dynamics.simulation.demand import blending_schedule
 
-
-#: TractionEvent.index of the EP / ECP train-line command
-EP_INDEX = -1
 
 #: [s wall] period of the ``progress`` callback of :func:`run_simulation`
 PROGRESS_PERIOD = 0.1
 
 
 @dataclass(frozen=True)
-class InputEvent:
-    """One brake-input message: from integration step ``step`` on, hold ``gauge`` [Pa]."""
+class CommandEvent:
+    """
+    One controller input: from integration step ``step`` on, ``kind`` holds ``value``.
 
+    ``kind``: a row of :data:`train_dynamics.input_kinds.KINDS` (its setter is how the value
+    reaches the simulator); ``index``: the 0-based vehicle of a per-vehicle kind (None for
+    a train-wide one); ``value`` in the simulator's units (gauge [Pa] for the brake
+    pressures, the command as sent otherwise); ``t_ns`` [ns] from the run's start.
+    """
+
+    kind: str
+    index: int | None
+    value: float
+    t_ns: int
     step: int
-    t_ns: int                 # bag time relative to the bag's start [ns]
-    index: int | None         # 0-based coach, None for the head of the pipe
-    gauge: float              # [Pa]
     topic: str                # relative topic name as written to the output
-    msg: Any                  # the FluidPressure message (rosbags)
+    msg: Any = None           # the message of an input bag (rosbags; None: a schedule)
+
+    @classmethod
+    def at(cls, kind: str, index: int | None, value: float, t_ns: int, h: float,
+           msg: Any = None) -> CommandEvent:
+        """Return the event of ``kind`` at ``t_ns`` [ns] for a run of step ``h`` [s]."""
+        topic = KINDS[kind].topic_of(0 if index is None else index)
+        return cls(kind, index, value, t_ns, step_of(t_ns, h), topic, msg)
 
 
-@dataclass(frozen=True)
-class TractionEvent:
-    """
-    One Float64 command: from step ``step`` on, locomotive ``index`` holds ``command``.
-
-    With ``index`` :data:`EP_INDEX`: the EP / ECP train-line command (``brake_ep/command``).
-    """
-
-    step: int
-    t_ns: int                 # time relative to the run's start [ns]
-    index: int                # 0-based vehicle; EP_INDEX: the EP / ECP command
-    command: float            # fraction in [-1, 1]: > 0 traction, < 0 dynamic brake
-    topic: str                # relative topic name
-    msg: Any = None           # the Float64 message of an input bag (None: a schedule)
-    kind: str = 'traction'    # 'wsp': a slide-protection valve state (Int8) of ``index``
-
-
-def _command(sim: TrainSimulator, e: TractionEvent) -> None:
-    """Hand a command event (traction, EP, slide-protection valve) to ``sim``."""
-    if e.kind == 'wsp':
-        sim.set_wsp_valve(int(e.command), e.index)
-    elif e.kind in BLENDING_TOPICS:      # the brake control unit's (simulation/demand.py)
-        apply_blending_input(sim, e.kind, e.command)
-    elif e.index == EP_INDEX:
-        sim.set_ep_command(e.command)
-    else:
-        sim.set_traction_command(e.command, e.index)
+def apply_event(sim: TrainSimulator, e: CommandEvent) -> None:
+    """Hand one input event to ``sim`` through its kind's setter (the node's dispatch)."""
+    KINDS[e.kind].apply(sim, e.value, e.index)
 
 
 @dataclass
 class InputSchedule:
-    """The inputs of a run: brake events (sorted) or a brake-valve model; traction events."""
+    """
+    The inputs of a run: brake events (sorted) or a brake-valve model; the commands.
+
+    ``events``: the brake-input events of ``mode`` (applied first at an instant);
+    ``commands``: every other kind's events (traction, EP, WSP valves, the brake control
+    unit's), sorted by time.
+    """
 
     mode: str
-    events: list[InputEvent] = field(default_factory=list)
+    events: list[CommandEvent] = field(default_factory=list)
     valve: Any = None                                  # BrakeValveModel (pipe_head, no bag)
     source: str = ''
-    traction: list[TractionEvent] = field(default_factory=list)
+    commands: list[CommandEvent] = field(default_factory=list)
 
     def for_step(self, h: float) -> InputSchedule:
         """Return the same inputs for a run with integration step ``h`` [s] (:func:`step_of`)."""
-        if not self.events and not self.traction:
+        if not self.events and not self.commands:
             return self
         return InputSchedule(self.mode,
                              [replace(e, step=step_of(e.t_ns, h)) for e in self.events],
                              self.valve if not self.events else None, self.source,
-                             [replace(e, step=step_of(e.t_ns, h)) for e in self.traction])
+                             [replace(e, step=step_of(e.t_ns, h)) for e in self.commands])
 
 
-def traction_schedule(cfg: Any) -> list[TractionEvent]:
+def _ns(t: float) -> int:
+    return int(round(t * 1e9))
+
+
+def schedule_events(cfg: Any) -> list[CommandEvent]:
     """
-    Return the events of ``traction_schedule_times`` / ``_commands`` for every locomotive.
+    Return the commands of the parameter file's schedules, in time order.
 
-    Empty for a train without locomotives or without a schedule.
+    ``traction_schedule_times`` / ``_commands`` for every locomotive, ``ep_schedule_*`` (the
+    EP / ECP train line), and with ``blending: builtin`` the brake control unit's
+    ``demand_schedule_*``, ``emergency_schedule_time``, ``ed_trip_schedule_time``
+    (simulation/demand.py).
     """
+    h = float(cfg.integration_step)
     locos = cfg.consist.commanded if cfg.traction_schedule_times else []
-    h = float(cfg.integration_step)
-    events = []
-    for t, c in zip(cfg.traction_schedule_times, cfg.traction_schedule_commands):
-        t_ns = int(round(t * 1e9))
-        events.extend(TractionEvent(step_of(t_ns, h), t_ns, i, float(c),
-                                    topics.traction_topic(i + 1)) for i in locos)
-    return events
-
-
-def ep_schedule(cfg: Any) -> list[TractionEvent]:
-    """
-    Return the EP / ECP train-line commands of ``ep_schedule_times`` / ``_commands``.
-
-    Events of index :data:`EP_INDEX` on ``brake_ep/command``; empty without a schedule.
-    """
-    h = float(cfg.integration_step)
-    events = []
-    for t, c in zip(cfg.ep_schedule_times, cfg.ep_schedule_commands):
-        t_ns = int(round(t * 1e9))
-        events.append(TractionEvent(step_of(t_ns, h), t_ns, EP_INDEX, float(c),
-                                    topics.EP_COMMAND_TOPIC))
-    return events
-
-
-def command_schedule(cfg: Any, from_bag: list[TractionEvent]) -> list[TractionEvent]:
-    """
-    Return the Float64 commands of a run: an input bag's, completed by the schedules.
-
-    The traction commands of the bag, else ``traction_schedule_*``; the EP / ECP command of
-    the bag, else ``ep_schedule_*``; in time order.
-    """
-    has_ep = any(e.index == EP_INDEX for e in from_bag)
-    has_traction = any(e.index != EP_INDEX for e in from_bag)
-    events = list(from_bag) if from_bag else []
-    if not has_traction:
-        events += traction_schedule(cfg)
-    ep = [] if has_ep else ep_schedule(cfg)
-    if ep:
-        events = sorted(events + ep, key=lambda e: e.t_ns)
-    return events
-
-
-def blending_events(cfg: Any, from_bag: list[TractionEvent]) -> list[TractionEvent]:
-    """
-    Return the brake control unit's inputs: an input bag's, else the parameter file's.
-
-    The bag's events of a kind replace the schedule of that kind (``demand``,
-    ``emergency``, ``ed_trip``; simulation/demand.py). Empty unless blending builtin.
-    """
-    if cfg.blending != 'builtin':
-        return []
-    have = {e.kind for e in from_bag}
-    h = float(cfg.integration_step)
-    events = list(from_bag) + [
-        TractionEvent(step_of(t_ns, h), t_ns, BLENDING_INDEX, value, BLENDING_TOPICS[kind],
-                      kind=kind)
-        for t_ns, kind, value in blending_schedule(cfg) if kind not in have]
+    events = [CommandEvent.at('traction', i, float(c), _ns(t), h)
+              for t, c in zip(cfg.traction_schedule_times, cfg.traction_schedule_commands)
+              for i in locos]
+    events += [CommandEvent.at('ep', None, float(c), _ns(t), h)
+               for t, c in zip(cfg.ep_schedule_times, cfg.ep_schedule_commands)]
+    if cfg.blending == 'builtin':
+        events += [CommandEvent.at(kind, None, value, t_ns, h)
+                   for t_ns, kind, value in blending_schedule(cfg)]
     return sorted(events, key=lambda e: e.t_ns)
+
+
+def command_events(cfg: Any, from_bag: list[CommandEvent]) -> list[CommandEvent]:
+    """
+    Return the commands of a run: an input bag's, completed by the parameter file's.
+
+    The bag's events of a kind replace the schedule of that kind; in time order (the bag's
+    first among equal times).
+    """
+    have = {e.kind for e in from_bag}
+    return sorted(list(from_bag) + [e for e in schedule_events(cfg) if e.kind not in have],
+                  key=lambda e: e.t_ns)
 
 
 def step_of(t_ns: int, h: float) -> int:
@@ -267,7 +231,7 @@ class _DueEvents:
 
 def run_simulation(cfg, duration: float, inputs: InputSchedule, *,
                    on_sample: Callable[[Sample], None],
-                   on_input: Callable[[InputEvent], None] | None = None,
+                   on_input: Callable[[CommandEvent], None] | None = None,
                    sample_steps: Sequence[int] | None = None,
                    progress: Callable[[float], None] | None = None):
     """
@@ -288,12 +252,8 @@ def run_simulation(cfg, duration: float, inputs: InputSchedule, *,
     valve = inputs.valve
     if valve is not None:
         valve.reset()
-    setter = {topics.PIPE_HEAD: lambda e: sim.set_head_pipe_pressure(e.gauge),
-              topics.PIPE_PER_COACH: lambda e: sim.set_pipe_pressure(e.gauge, e.index),
-              topics.CYLINDER_PER_COACH: lambda e: sim.set_cylinder_pressure(e.gauge, e.index)
-              }[inputs.mode]
-    brake_events = _DueEvents(events, setter, on_input)
-    traction = _DueEvents(inputs.traction, lambda e: _command(sim, e), on_input)
+    brake_events = _DueEvents(events, lambda e: apply_event(sim, e), on_input)
+    traction = _DueEvents(inputs.commands, lambda e: apply_event(sim, e), on_input)
     k = 0
     head: float | None = None
     last_progress = time.monotonic()

@@ -36,9 +36,9 @@ import time
 from typing import Any, Iterator, Mapping, Sequence
 
 from train_dynamics import topics
-from train_dynamics.physics.config import (ConfigError, PARAMETERS, SIM_NODE_PARAMETERS,
-                                           validate_value)
+from train_dynamics.physics.config import ConfigError, PARAMETERS, validate_value
 from train_dynamics.quoting import clip, quote
+from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
 from train_dynamics.testing.criteria import CriterionResult
 from train_dynamics.testing.processes import POLL, ProcessGroup, STOP_GRACE, wait_any
 from train_dynamics.testing.scenario import controller_params_document, Scenario
@@ -162,7 +162,7 @@ def run_scenario(scenario: Scenario | str | os.PathLike, controller: Sequence[st
         sim = _start('sim_node', sim_node_command(scenario, params_file.absolute(), namespace,
                                                   real_time_factor, lockstep_timeout),
                      run_dir / 'sim_node.log', environ, run_dir)
-        threading.Thread(target=_preload, args=(scenario.config,), daemon=True,
+        threading.Thread(target=_preload, args=(scenario.config, figures), daemon=True,
                          name='harness-preload').start()
         error = _supervise(sim, ctl, timeout, lockstep_timeout)
         timings['loop'] = time.monotonic() - t1
@@ -366,9 +366,9 @@ def _signals_deferred() -> Iterator[None]:
             held[caught[0]](caught[0], None)
 
 
-def _preload(cfg: Any) -> None:
+def _preload(cfg: Any, figures: bool) -> None:
     """Import and warm the report's code while the loop runs (errors surface in the report)."""
     try:
-        preload(cfg)
+        preload(cfg, figures)
     except Exception:  # noqa: B902 - run_metrics imports them again and reports the error
         pass

@@ -21,7 +21,7 @@ What is checked when it is read (:meth:`Scenario.load`), each refusal one
 - the keys above, and no other (a misspelled key is refused, not ignored);
 - ``parameters``: every name and value against the simulator's parameter table, the one the
   offline command and ``sim_node`` use (:data:`~train_dynamics.physics.config.PARAMETERS`,
-  :data:`~train_dynamics.physics.config.SIM_NODE_PARAMETERS`), then the whole configuration
+  :data:`~train_dynamics.ros.node_parameters.SIM_NODE_PARAMETERS`), then the whole configuration
   (``parameters_file`` with ``parameters`` on top) as the offline command checks it
   (:meth:`SimConfig.from_dict <train_dynamics.physics.config.SimConfig.from_dict>`: consist
   file read, cross-checks). The parameters the harness sets itself
@@ -43,11 +43,11 @@ from pathlib import Path
 import re
 from typing import Any, Mapping
 
-from train_dynamics.physics.config import (ConfigError, PARAMETERS, ROS_BUILTIN_PARAMETERS,
-                                           SIM_NODE_PARAMETERS, SimConfig, simulator_params,
-                                           validate_value)
+from train_dynamics.param_files import ROS_BUILTIN_PARAMETERS, simulator_params
+from train_dynamics.physics.config import ConfigError, PARAMETERS, SimConfig, validate_value
 from train_dynamics.physics.config.files import resolve_file_inputs, RosParamLoader
 from train_dynamics.quoting import quote
+from train_dynamics.ros.node_parameters import SIM_NODE_PARAMETERS
 from train_dynamics.testing.criteria import Criterion, parse_criteria
 import yaml
 

@@ -8,9 +8,10 @@ written into the report folder. The figures (``figures=True``) are the whole rep
 command, written by its own function; they are off by default: they cost more than the run
 metrics and a CI job rarely looks at them.
 
-:func:`preload` imports the report's modules (plotting library included) and warms the run
-metrics ahead of time: the harness calls it in a thread while the simulation runs, so that
-the report after the loop costs little more than the reading of the bag.
+:func:`preload` imports the report's modules (the plotting library only for figures) and
+warms the run metrics ahead of time: the harness calls it in a thread while the simulation
+runs, so that the report after the loop costs little more than the reading of the bag.
+Without figures only ``couplers`` and ``coaches`` are read, and the bag is opened once.
 """
 from __future__ import annotations
 
@@ -23,9 +24,11 @@ from typing import Any
 from train_dynamics.testing.criteria import criteria_metrics
 
 
-def preload(cfg: Any = None) -> None:
+def preload(cfg: Any = None, figures: bool = False) -> None:
     """
     Import what :func:`run_metrics` needs; with the run's configuration, warm its metrics.
+
+    ``figures``: import the plotting modules (matplotlib) too.
 
     The warm-up feeds two zero samples to the run's
     :class:`~train_dynamics.physics.metrics.RunMetrics` and takes their result: the compiled
@@ -37,6 +40,9 @@ def preload(cfg: Any = None) -> None:
     import train_dynamics.cli.report  # noqa: F401
     from train_dynamics.physics.metrics import RunMetrics
     import train_dynamics.recording.metrics_report  # noqa: F401
+
+    if figures:
+        import train_dynamics.recording.plots  # noqa: F401
 
     if cfg is not None:
         metrics = RunMetrics.for_run(cfg)
@@ -66,7 +72,7 @@ def run_metrics(bag: Path, out: Path, namespace: str = '', figures: bool = False
     if figures:
         report.cmd_report(args)
         return criteria_metrics(json.loads((out / 'summary.json').read_text(encoding='utf-8')))
-    result, _, source = report.run_result(args, {})
+    result, _, source = report.run_result(args, {}, curves=False)
     doc = {'source': {**source,
                       'figures': 'off (figures: true in the scenario to draw them)'},
            **result}

@@ -1,13 +1,15 @@
 """
 The parameter tables of the documentation, generated from the table (:data:`PARAMETERS`).
 
-The parameters, then the per-vehicle fields of a consist (:data:`VEHICLE_PARAMETERS`).
+The parameters, then the per-vehicle fields of a consist (:data:`VEHICLE_PARAMETERS`);
+:func:`parameter_table` formats any table of :class:`ParamSpec` (``sim_node``'s own:
+:mod:`train_dynamics.ros.node_parameters`).
 ``python -m train_dynamics.physics.config.docs`` prints them; a test checks that
 docs/parameters.md holds them as printed.
 """
 from __future__ import annotations
 
-from typing import Any
+from typing import Any, Mapping
 
 from train_dynamics.physics.config.spec import ADDED, EQUAL_FORCE, ParamSpec, SERIES
 from train_dynamics.physics.config.table import PARAMETERS, VEHICLE_PARAMETERS
@@ -60,16 +62,22 @@ def vehicle_table() -> str:
     return '\n'.join(lines)
 
 
-def markdown_table() -> str:
-    """Return the docs' parameter tables: :data:`PARAMETERS`, then :func:`vehicle_table`."""
+def parameter_table(specs: Mapping[str, ParamSpec]) -> str:
+    """Return the markdown table of ``specs``: name, type, default, range, when, meaning."""
     lines = ['| name | type | default | range | when | meaning |',
              '| --- | --- | --- | --- | --- | --- |']
-    for s in PARAMETERS.values():
+    for s in specs.values():
         when = 'live' if s.dynamic else 'reset'
         meaning = s.description.replace('|', '/')
         lines.append(f'| `{s.name}` | {s.kind} | {fmt_default(s.default)} | {fmt_range(s)} '
                      f'| {when} | {meaning} |')
-    return '\n'.join(lines) + '\n\n' + VEHICLE_HEADING + '\n\n' + vehicle_table()
+    return '\n'.join(lines)
+
+
+def markdown_table() -> str:
+    """Return the docs' parameter tables: :data:`PARAMETERS`, then :func:`vehicle_table`."""
+    return (parameter_table(PARAMETERS) + '\n\n' + VEHICLE_HEADING + '\n\n'
+            + vehicle_table())
 
 
 if __name__ == '__main__':   # python -m train_dynamics.physics.config.docs: the docs' tables

@@ -2,9 +2,10 @@
 The simulator's configuration: :class:`SimConfig`, each parameter a typed attribute.
 
 Build one with :meth:`SimConfig.from_dict` (values checked one by one with the table's
-validator, then as a whole by :meth:`SimConfig.check`), :func:`load_param_file` (a ROS 2
-parameter file) or :meth:`SimConfig.replace`. A configuration does not change afterwards, except
-the live (``dynamic``) values ``sim_node`` sets with :meth:`SimConfig.set_live`.
+validator, then as a whole by :meth:`SimConfig.check`) or :meth:`SimConfig.replace` (a ROS 2
+parameter file: :func:`train_dynamics.param_files.load_param_file`). A configuration never
+changes afterwards: a change, live (``ros2 param set``) or not, makes a new one with
+:meth:`SimConfig.replace`, checked as a whole.
 
 The consist (:class:`~train_dynamics.physics.config.consist.Consist`) is built when the
 configuration is: a consist file is read once and kept. :meth:`SimConfig.replace` keeps the
@@ -16,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 import math
-from typing import Any, Callable, Mapping
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -27,7 +28,6 @@ from train_dynamics.physics.config.budgets import (config_memory, fmt_bytes, MAX
 from train_dynamics.physics.config.consist import (check_friction_below_stiffness,
                                                    check_traction_power, Consist, consist_of,
                                                    CONSIST_PARAMETERS)
-from train_dynamics.physics.config.files import simulator_params
 from train_dynamics.physics.config.integrator import DEFAULT_INTEGRATOR, Integration, resolve
 from train_dynamics.physics.config.spec import ConfigError
 from train_dynamics.physics.config.table import (ATMOSPHERIC_PRESSURE, FULL_SERVICE_PRESSURE,
@@ -245,13 +245,6 @@ class SimConfig:
         same = all(new[n] == old[n] for n in CONSIST_PARAMETERS)
         return SimConfig._checked(new, self.consist if same else None)
 
-    def set_live(self, **changes: Any) -> None:
-        """Change live (``dynamic``) values in place (``sim_node``); the others never change."""
-        for name, value in changes.items():
-            if not PARAMETERS[name].dynamic:
-                raise ConfigError(f'{name} is not a live parameter')
-            object.__setattr__(self, name, validate_value(name, value))
-
     @property
     def values(self) -> dict[str, Any]:
         """Return ``{name: value}`` of every parameter, in table order (a new dict)."""
@@ -458,18 +451,3 @@ def check_output_grid(rate: float, h: float) -> None:
         f'{ratio:.6g} steps; outputs must land on whole steps, so 1 / publish_rate must be a '
         f'whole number of integration steps: use publish_rate {hint or "<= 1 / step"} Hz, or '
         f'integration_step {1.0 / (rate * up):.9g} s')
-
-
-def load_param_file(path: str, warn: Callable[[str], None] | None = None) -> SimConfig:
-    """
-    Read the simulator configuration from a ROS 2 parameter file (``train_dynamics``).
-
-    The file is read by :func:`~train_dynamics.physics.config.files.simulator_params` (its
-    rules for sections, unknown keys and relative paths); an unknown key of the node's own
-    section is an error. ConfigError messages name the file.
-    """
-    params = simulator_params(path, warn)
-    try:
-        return SimConfig.from_dict(params)
-    except ConfigError as exc:
-        raise ConfigError(f'{path}: {exc}') from None

@@ -2,12 +2,20 @@
 ``sim_node``'s own parameters: how the node runs, not what it simulates.
 
 Scheduling, pacing, lock-step with a controller, recording and the clock: every one is live
-(``ros2 param set``), none is part of :class:`~train_dynamics.physics.config.SimConfig`. The
-simulator's parameters are the table of :mod:`train_dynamics.physics.config.table`; both are
-declared by the node with the same descriptors and checked by the same validator.
+(``ros2 param set``), none is part of :class:`~train_dynamics.physics.config.SimConfig` nor
+known to the offline command. The simulator's parameters are the table of
+:mod:`train_dynamics.physics.config.table`; the node declares both with the same descriptors
+(:mod:`train_dynamics.ros.parameters`) and checks both with the same validator.
+
+Adding one: its :class:`ParamSpec` here, its effect in ``sim_node`` (at start and in
+``_apply_parameters``), the table of docs/ros_interface.md regenerated (``python -m
+train_dynamics.ros.node_parameters`` prints it; ``test/ros/test_node_parameters.py`` fails
+while the page falls behind). Never imports rclpy: the controller-test harness reads this
+table without ROS.
 """
 from __future__ import annotations
 
+from train_dynamics.physics.config.docs import parameter_table
 from train_dynamics.physics.config.spec import (BOOL, DOUBLE, INTEGER, ParamSpec, STRING,
                                                 STRING_ARRAY)
 
@@ -91,8 +99,23 @@ SIM_NODE_PARAMETERS: dict[str, ParamSpec] = {p.name: p for p in [
               'Needs write access to /dev/cpu_dma_latency (root by default); without it '
               'nothing is asked (logged).',
               low=-1, high=100000, dynamic=True),
+    # 1 s: the usual rate of ROS diagnostics (diagnostic_updater's default period)
+    ParamSpec('diagnostics_period', 1.0, DOUBLE,
+              'Wall-clock period [s] of the /diagnostics statuses (and of their copy in '
+              'record_bag outside lock-step): shorter to watch a run closely, longer to '
+              'spare a loaded machine. Each status takes the simulation lock briefly.',
+              low=0.1, high=3600.0, dynamic=True),
     ParamSpec('record_flush_period', 10.0, DOUBLE,
               'Wall-clock period [s] at which the record_bag MCAP file is finished and a new '
               'one started: a SIGKILL loses at most this much of the recording.',
               low=0.1, high=3600.0, dynamic=True),
 ]}
+
+
+def markdown_table() -> str:
+    """Return the table of :data:`SIM_NODE_PARAMETERS` as docs/ros_interface.md shows it."""
+    return parameter_table(SIM_NODE_PARAMETERS)
+
+
+if __name__ == '__main__':   # python -m train_dynamics.ros.node_parameters: the docs' table
+    print(markdown_table())
