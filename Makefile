@@ -13,6 +13,13 @@ VENV ?= .venv
 VPY := $(VENV)/bin/python
 STAMP := $(VENV)/.train_dynamics-installed
 PYTEST_ARGS ?=
+# parallel test workers (pytest-xdist) for test and test-fast: one per CPU, at most 4 (DDS and
+# the node tests gain nothing beyond; each worker takes its own ROS domain, test/conftest.py);
+# PYTEST_WORKERS=0 runs the suite in this one process
+PYTEST_WORKERS ?= $(shell n=$$(nproc 2>/dev/null || echo 1); echo $$(( n < 4 ? n : 4 )))
+# --dist loadgroup: the tests of one xdist group (test/conftest.py: the machine-hungry ones, a
+# module's shared fixture) run on one worker; the others go to whichever worker is free
+PYTEST_PARALLEL := $(if $(filter-out 0,$(PYTEST_WORKERS)),-n $(PYTEST_WORKERS) --dist loadgroup)
 # options of the demo, e.g. make run RUN_ARGS='--rtf 4' (python -m train_dynamics.cli.demo -h)
 RUN_ARGS ?=
 
@@ -31,7 +38,7 @@ export MPLBACKEND ?= Agg
 
 help:
 	@echo "make run    - the paper's emergency braking through sim_node + brake_valve (DDS on loopback), recorded"
-	@echo "make test   - the test suite (pytest), the ament linters included"
+	@echo "make test   - the test suite (pytest, on parallel workers: PYTEST_WORKERS), the ament linters included"
 	@echo "make test-fast - the tests not marked slow (pytest -m 'not slow'; the table in test/conftest.py)"
 	@echo "make lint   - only the ament linter tests (test/lint/: test_flake8.py, test_pep257.py)"
 	@echo "make bench  - benchmarks (bench/run_all.py)"
@@ -67,17 +74,18 @@ $(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml 
 	@touch "$@"
 
 # every kernel variant compiled (or loaded) before the tests, in this process: no test
-# compiles while another is timed, and no background compile competes with the suite
+# compiles while another is timed, and no background compile competes with the suite; then
+# the suite on PYTEST_WORKERS parallel workers
 test: venv bytecode
 	$(VPY) -m train_dynamics.cli.prebuild
-	$(VPY) -m pytest test/ $(PYTEST_ARGS)
+	$(VPY) -m pytest test/ $(PYTEST_PARALLEL) $(PYTEST_ARGS)
 
 # the quick loop while editing: every test but those marked `slow` (test/conftest.py's table
 # of the slowest, measured); the tests needing DDS stay in (add -m 'not slow and not ros' by
 # hand to leave them out too)
 test-fast: venv bytecode
 	$(VPY) -m train_dynamics.cli.prebuild
-	$(VPY) -m pytest test/ -m 'not slow' $(PYTEST_ARGS)
+	$(VPY) -m pytest test/ -m 'not slow' $(PYTEST_PARALLEL) $(PYTEST_ARGS)
 
 # The linter tests carry the pytest mark `linter` and the list of paths they check.
 lint: venv

@@ -18,7 +18,8 @@ coupler law's breakpoints, restarted at every input instant) fed the same inputs
 Figures: every coupler-force sample (every 2 ms) and displacement sample: max |ours - ref| /
 max |ref| [%]; the peak force's error [%]; chain steps; wall time of the run [s]
 (in-process, 2 ms read-out; shared machine: compare within a table only).
-``python bench/accuracy.py [--case NAME]``; the table is kept in ``bench/accuracy_results.md``.
+``python bench/accuracy.py [--case NAME]``; the table is kept in
+``bench/results/accuracy_results.md``.
 
 ``--robust`` adds the long-train metrics of the accuracy contract (docs/integrators.md,
 :mod:`train_dynamics.physics.comparison`, on the 10 ms samples): the +-10 ms tube, 1 s window
@@ -35,7 +36,7 @@ import time
 
 import numpy as np
 
-from train_dynamics.physics import comparison
+from train_dynamics.physics import comparison, replay_cases
 from train_dynamics.physics.chain_reference import ChainLaw, solve_chain
 from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.config.budgets import max_period_steps
@@ -88,29 +89,17 @@ def _paper(n=3, t_end=20.0):
 
 
 def _khz_unequal(t_end=3.0, seed=1):
-    masses = [45000.0, 30000.0, 60000.0, 25000.0]
-    base = {'masses': masses, 'brake_input': 'cylinder_per_coach', 'scale_factor': 700.0}
-    cfg = SimConfig.from_dict(base)
-    pmax = cfg.max_cylinder_pressure
-    rng = np.random.default_rng(seed)
-    times = np.arange(int(t_end * 1000)) * 1e-3
-    levels = np.empty((times.size, 4))
-    cur = np.zeros(4)
-    for k in range(times.size):
-        if rng.random() < 0.02:
-            cur = rng.choice([0.0, 0.3, 0.6, 1.0], size=4) * pmax
-        levels[k] = cur
-    keep = np.r_[True, np.any(np.diff(levels, axis=0) != 0.0, axis=1)]
-    times, levels = times[keep], levels[keep]
+    cfg = replay_cases.khz_config()
+    times, levels = replay_cases.khz_pressures(cfg, t_end, seed, 0.02)
 
     def make(**o):
-        sim = TrainSimulator(SimConfig.from_dict({**base, **o}))
+        sim = TrainSimulator(replay_cases.khz_config(**o))
         for t, p in zip(times, levels):
             sim.schedule(t, lambda p=p, sim=sim: sim.set_cylinder_pressure(p))
         return sim
 
-    full = cfg.adhesion_coefficient * np.array(masses) * cfg.gravity
-    return make, (times, levels / pmax * full), None, t_end, cfg.initial_speed
+    forces = replay_cases.khz_braking_forces(cfg, levels)
+    return make, (times, forces), None, t_end, cfg.initial_speed
 
 
 def _mixed_freeplay(t_end=4.0):

@@ -55,7 +55,7 @@ coaches (state y, ydot; tanh law u = 1000 with the paper's (1 -+ sgn y)/2 branch
 a plain vectorised numpy right-hand side, no Jacobian), same brake forces, 60 s.
 
 Reference solutions (over 0-60 s, the envelope up to the first stop) are cached in
-``bench/reference_cache.json``, keyed by everything they depend on, including a numerical
+``bench/results/reference_cache.json``, keyed by everything they depend on, including a numerical
 fingerprint of the force law and the reference solver's defaults, so they are recomputed
 only when the physics changes (delete the file to force it). Their per-coupler samples
 (F and y every 10 ms, float32: ~25 MB for 1000 coaches) are kept outside the repository, in
@@ -86,7 +86,7 @@ REPO = os.path.dirname(HERE)
 if REPO not in sys.path:
     sys.path.insert(0, REPO)
 
-CACHE_PATH = os.path.join(HERE, 'reference_cache.json')
+CACHE_PATH = os.path.join(HERE, 'results', 'reference_cache.json')
 T_END = 60.0            # simulated seconds per case
 T_EMERGENCY = 0.0       # head pipe vented to 0 gauge at this time [s]
 OUTPUT_DT = 0.01        # the node's 100 Hz output period [s]

@@ -9,7 +9,7 @@ controller connected (lock-step) or the start (free) to the end, the periods ans
 round trip per period (output published -> its answer seen by the simulation thread). Target:
 at least 10x real time, i.e. 1000 closed-loop periods per second.
 
-Writes ``bench/lockstep_results.md`` (its section of RESULTS.md, between its markers).
+Writes ``bench/results/lockstep_results.md`` (its section of RESULTS.md, between its markers).
 """
 from __future__ import annotations
 
@@ -26,7 +26,7 @@ sys.path.insert(0, str(REPO))
 
 from results_md import saved_section, splice_section  # noqa: E402
 
-LOCKSTEP_MD = HERE / 'lockstep_results.md'
+LOCKSTEP_MD = HERE / 'results' / 'lockstep_results.md'
 LOCKSTEP_BEGIN = '<!-- lockstep:begin (written by bench/lockstep.py) -->'
 LOCKSTEP_END = '<!-- lockstep:end -->'
 RESULTS = HERE / 'RESULTS.md'

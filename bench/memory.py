@@ -5,8 +5,8 @@ Peak memory of the offline commands, 60 s and 600 s.
 
 Each command runs in a child process of a small wrapper that reports the child's peak RSS
 (``resource.getrusage(RUSAGE_CHILDREN).ru_maxrss``). Writes its section to
-``bench/memory_results.md`` (between markers; ``bench/run_all.py`` puts it into RESULTS.md) and
-prints it. ``python bench/memory.py [--durations 60,600]``.
+``bench/results/memory_results.md`` (between markers; ``bench/run_all.py`` puts it into
+RESULTS.md) and prints it. ``python bench/memory.py [--durations 60,600]``.
 """
 from __future__ import annotations
 
@@ -22,7 +22,7 @@ import time
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent
 CFG = REPO / 'config' / 'paper_3coach.yaml'
-MEMORY_MD = HERE / 'memory_results.md'
+MEMORY_MD = HERE / 'results' / 'memory_results.md'
 MEMORY_BEGIN = '<!-- memory:begin -->'
 MEMORY_END = '<!-- memory:end -->'
 

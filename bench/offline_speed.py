@@ -57,7 +57,7 @@ if IMPORTED not in sys.path:
 T_SHORT = 2.0           # [s] simulated: the short run of the start-up difference
 T_LONG = 40.0           # [s] simulated: the long run (the train still moves at its end)
 U = 1000.0              # [s/m] tanh scale factor of the paper's bench (bench/core.py)
-RESULTS_MD = os.path.join(HERE, 'offline_speed_results.md')
+RESULTS_MD = os.path.join(HERE, 'results', 'offline_speed_results.md')
 
 PARAMS = """\
 /**/train_dynamics:

@@ -9,7 +9,7 @@ accelerators and a distributed-power remote (``consist_150_dp.yaml``, pneumatic 
 Node: ``bench/node.py`` case ``pneumatic150``: 150 vehicles, ``brake_model: pneumatic``,
 100 Hz, real time, 60 s (emergency from the first output on).
 
-Run alone: ``python bench/pneumatic.py [--no-node]`` (writes bench/pneumatic_results.md,
+Run alone: ``python bench/pneumatic.py [--no-node]`` (writes bench/results/pneumatic_results.md,
 which ``bench/run_all.py`` includes in RESULTS.md).
 """
 from __future__ import annotations
@@ -26,7 +26,7 @@ sys.path.insert(1, os.path.dirname(HERE))
 from train_dynamics.physics.config import SimConfig  # noqa: E402
 from train_dynamics.physics.train import TrainSimulator  # noqa: E402
 
-RESULTS_MD = os.path.join(HERE, 'pneumatic_results.md')
+RESULTS_MD = os.path.join(HERE, 'results', 'pneumatic_results.md')
 #: CQU air-brake model: 150 wagons, sequential: 6.7 times slower than real time
 CQU_RTF = 1.0 / 6.7
 TRAINS = (
@@ -117,7 +117,7 @@ def render(rows: list[dict], node_res: dict | None) -> str:
 
 
 def main(argv=None) -> int:
-    """Run the benchmark and write bench/pneumatic_results.md."""
+    """Run the benchmark and write bench/results/pneumatic_results.md."""
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[1])
     ap.add_argument('--no-node', action='store_true')
     args = ap.parse_args(argv)

@@ -2,8 +2,9 @@
 `make bench`: the physics-core benchmark, the solve_ivp baseline and the node benchmark.
 
 Prints the tables (markdown) and writes ``bench/RESULTS.md`` (machine, load, tables, targets,
-and the soak figures of the last ``make soak`` from ``bench/soak_results.md``), plus the raw
-figures to ``bench/last_run.json``. See bench/core.py and bench/node.py for what is measured.
+and the soak figures of the last ``make soak`` from ``bench/results/soak_results.md``), plus
+the raw figures to ``bench/results/last_run.json``. See bench/core.py and bench/node.py for
+what is measured. Every script's own tables and raw figures are in ``bench/results/``.
 
 Options: ``--no-node``, ``--no-core``, ``--no-sweep`` (bench/sweep.py: cases/min on 1 and 2 Dask
 workers), ``--no-lockstep`` (bench/lockstep.py: closed-loop periods/s over DDS),
@@ -42,7 +43,7 @@ from soak import SOAK_BEGIN, SOAK_END, SOAK_MD as SOAK  # noqa: E402  (soak.py o
 import sweep as sweepbench  # noqa: E402  (sweep.py owns its section)
 
 RESULTS = os.path.join(HERE, 'RESULTS.md')
-RAW = os.path.join(HERE, 'last_run.json')
+RAW = os.path.join(HERE, 'results', 'last_run.json')
 
 
 def log(msg: str) -> None:
@@ -284,7 +285,7 @@ def memory_section() -> str:
 
 #: the error-controlled stepping's accuracy/speed tables: ``python bench/adaptive.py``
 #: measures them (references at tolerance 1e-6 take ~15 min of CPU, so not on every run)
-ADAPTIVE_MD = os.path.join(os.path.dirname(os.path.abspath(__file__)), 'adaptive_results.md')
+ADAPTIVE_MD = os.path.join(HERE, 'results', 'adaptive_results.md')
 
 
 def adaptive_section() -> str:
@@ -315,7 +316,8 @@ def render(mach: dict, load: dict, core_res: dict | None, node_res: dict | None,
              'by up to 2x within seconds), of a train that moves over the whole timed span '
              '(it ends 0.5 s before the first vehicle stops: a stopped train costs almost '
              'nothing), real-time factor = timed span / wall time; settings compared in one '
-             'row set (default against fixed step) are timed interleaved.', '',
+             "row set (default against fixed step) are timed interleaved. Each script's "
+             'own tables and raw figures are in [results/](results/).', '',
              '## Machine', '',
              f"- CPU: {mach['cpu']}, {mach['cores']} cores, {mach['memory']} RAM",
              f"- {mach['platform']}; Python {mach['python']}, numpy {mach['numpy']}, "
@@ -455,7 +457,7 @@ def main(argv=None) -> int:
     ap.add_argument('--no-wheelsets', action='store_true',
                     help="skip the wheelsets' cost (bench/vehicle_cost.py)")
     ap.add_argument('--from-json', metavar='RAW',
-                    help='only re-render RESULTS.md from a raw file (bench/last_run.json)')
+                    help='only re-render RESULTS.md from a raw file (bench/results/last_run.json)')
     args = ap.parse_args(argv)
     if args.from_json:
         with open(args.from_json) as fh:

@@ -10,7 +10,7 @@ t_j = j / publish_rate up to and including t = duration, so duration * rate + 1 
 output topic) and closes the bag; this process follows the simulated time through the
 ``couplers`` stamps it receives and samples the node's RSS every 0.5 s.
 
-Reported (bench/soak_results.md, also spliced into bench/RESULTS.md):
+Reported (bench/results/soak_results.md, also spliced into bench/RESULTS.md):
 - node RSS at the first output, at every 10 min of simulated time and at the end (flat?);
 - wall time and the achieved free-running speed; exit status;
 - stamps seen by the subscriber: monotonic;
@@ -38,8 +38,8 @@ sys.path.insert(1, os.path.dirname(HERE))
 import nodeutil as U  # noqa: E402
 from results_md import splice_section  # noqa: E402
 
-SOAK_MD = os.path.join(HERE, 'soak_results.md')
-SOAK_JSON = os.path.join(HERE, 'soak_last.json')
+SOAK_MD = os.path.join(HERE, 'results', 'soak_results.md')
+SOAK_JSON = os.path.join(HERE, 'results', 'soak_last.json')
 RESULTS = os.path.join(HERE, 'RESULTS.md')
 SOAK_BEGIN = '<!-- soak:begin (written by bench/soak.py) -->'
 SOAK_END = '<!-- soak:end -->'

@@ -11,7 +11,7 @@ The sweep benchmark: cases per minute on 1 and 2 Dask workers, and the per-case 
   bag, the sweep case computes the metrics instead), target <= 5 %; and, for what the
   metrics themselves cost, against ``run_simulation`` with no sink at all.
 
-``python bench/sweep.py`` writes ``bench/sweep_results.md`` and its section of
+``python bench/sweep.py`` writes ``bench/results/sweep_results.md`` and its section of
 ``bench/RESULTS.md``; ``bench/run_all.py`` (``make bench``) runs it too.
 """
 from __future__ import annotations
@@ -43,8 +43,8 @@ from train_dynamics.simulation.runner import run_simulation  # noqa: E402
 import yaml  # noqa: E402
 
 RESULTS = os.path.join(HERE, 'RESULTS.md')
-SWEEP_MD = os.path.join(HERE, 'sweep_results.md')
-SWEEP_JSON = os.path.join(HERE, 'sweep_last.json')
+SWEEP_MD = os.path.join(HERE, 'results', 'sweep_results.md')
+SWEEP_JSON = os.path.join(HERE, 'results', 'sweep_last.json')
 SWEEP_BEGIN = '<!-- sweep:begin (written by bench/sweep.py) -->'
 SWEEP_END = '<!-- sweep:end -->'
 PAPER = os.path.join(os.path.dirname(HERE), 'config', 'paper_3coach.yaml')

@@ -156,7 +156,7 @@ def interleave(versions, cases, repeats: int = 5, log=print) -> dict:
 WHEELSET_PAIRS = (('paper47', 'paper47+w'), ('freight', 'freight+w'))
 #: the target of the wheel-slide model's cost: at most this times the same train without
 WHEELSET_TARGET = 1.5
-WHEELSET_MD = os.path.join(HERE, 'wheelset_cost_results.md')
+WHEELSET_MD = os.path.join(HERE, 'results', 'wheelset_cost_results.md')
 
 
 def wheelset_section(repeats: int = 3, log=print, write: bool = True) -> str:
@@ -164,7 +164,7 @@ def wheelset_section(repeats: int = 3, log=print, write: bool = True) -> str:
     Measure the cost of rotating wheelsets (``+w``) against the same train without them.
 
     Interleaved fresh processes, best moving vehicle-step of ``repeats``; returns (and
-    writes to ``bench/wheelset_cost_results.md``) a markdown table with the ratio.
+    writes to ``bench/results/wheelset_cost_results.md``) a markdown table with the ratio.
     """
     cases = [c for pair in WHEELSET_PAIRS for c in pair]
     load = os.getloadavg()[0]

@@ -6,11 +6,15 @@ Before anything imports rclpy this sets, for this process and every subprocess i
 - ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``: DDS discovery never leaves the machine.
 - SIGINT handled (children start with its default disposition) even where the session was
   started with it ignored, since tests signal the processes they start.
-- ``ROS_DOMAIN_ID``: one domain per pytest session, from 1..60, held with an exclusive lock
+- ``ROS_DOMAIN_ID``: one domain per test process, from 1..60, held with an exclusive lock
   file (``$TMPDIR/train_dynamics_ros_domain_<id>.lock``) for the whole session, so that two
-  test sessions running at once on the machine never share a domain. (61..69 are kept for
-  people running nodes by hand, 70..100 for ``make run``/``bench``/``soak``.) Set
-  ``TRAIN_DYNAMICS_TEST_DOMAIN_ID`` to force one.
+  test sessions running at once on the machine, and the parallel workers of one
+  (pytest-xdist, ``make test``), never share a domain. An xdist controller runs no test and
+  gives its domain back. (61..69 are kept for people running nodes by hand, 70..100 for
+  ``make run``/``bench``/``soak``.) Set ``TRAIN_DYNAMICS_TEST_DOMAIN_ID`` to force one: a
+  serial session takes it, worker k (``gw<k>``) of a parallel one takes it + k.
+- Temporary files: pytest's ``tmp_path`` folders are per worker (xdist gives each worker its
+  own base folder), and every test writes below its own.
 
 Fixtures for tests with real rclpy (DDS on loopback, in-process):
 
@@ -35,6 +39,14 @@ Marks, set here on collection (``pytest_collection_modifyitems``; registered in 
   controller scenario (``run_scenario``).
 - ``slow``: the test is in :data:`SLOW_TABLE`, the table of the slowest tests measured.
   ``pytest -m "not slow"`` (``make test-fast``) leaves them out.
+- ``xdist_group('machine')``: the test is in :data:`MACHINE_TABLE`: it needs the machine to
+  itself more than the others do (a colcon build, a Dask cluster, a node kept at real time,
+  a process's peak memory measured). ``make test`` runs the suite on parallel workers with
+  ``--dist loadgroup``: these tests all go to one worker, one at a time, while the other
+  workers run the rest; so two of them never compete with each other.
+
+Parallel runs: each worker takes the slowest tests first (:func:`_slow_first`, from
+:data:`SLOW_TABLE`), so that no long test starts last and leaves the other workers idle.
 """
 from __future__ import annotations
 
@@ -50,12 +62,26 @@ _TEST_DOMAINS = list(range(1, 61))
 _domain_lock = None   # open lock file, kept for the session
 
 
+def _worker_index() -> int:
+    """Return this pytest-xdist worker's number (``gw<k>``: k), 0 outside a worker."""
+    worker = os.environ.get('PYTEST_XDIST_WORKER', '')
+    return int(worker[2:]) if worker.startswith('gw') and worker[2:].isdigit() else 0
+
+
+def _release_domain() -> None:
+    """Give the domain lock back (a process that runs no test)."""
+    global _domain_lock
+    if _domain_lock is not None:
+        _domain_lock.close()
+        _domain_lock = None
+
+
 def _choose_domain() -> int:
     """Lock and return a ROS domain id no other running test session on this machine uses."""
     global _domain_lock
     forced = os.environ.get('TRAIN_DYNAMICS_TEST_DOMAIN_ID')
     if forced:
-        return int(forced)
+        return int(forced) + _worker_index()
     import fcntl
 
     start = os.getpid() % len(_TEST_DOMAINS)
@@ -391,6 +417,35 @@ SLOW_TABLE = {
 SLOW_TESTS = frozenset(f'{module}::{test}' for module, tests in SLOW_TABLE.items()
                        for test in tests)
 
+#: the xdist group of the tests in MACHINE_TABLE
+MACHINE_GROUP = 'machine'
+#: a whole module in MACHINE_TABLE
+ALL = '*'
+#: tests that need the machine more than the others: {module basename: ALL or {test name}}.
+#: ``--dist loadgroup`` (``make test``) runs them on one worker, one after the other, while
+#: the other workers run the rest: their verdicts never depend on how busy the machine is
+#: (they wait on events with generous bounds), but two of them at once would take both cores
+#: for minutes.
+MACHINE_TABLE = {
+    'test_colcon_install.py': ALL,          # a colcon build, then the installed nodes
+    'test_colcon_test.py': ALL,             # a colcon build and colcon test
+    'test_sweep.py': {                      # Dask clusters of several worker processes
+        'test_sweep_on_a_local_cluster_and_on_dask_workers_equals_sequential_runs',
+        'test_resume_after_an_interrupted_sweep_runs_only_the_missing_cases',
+        'test_a_killed_worker_s_case_is_rescheduled',
+    },
+    'test_sim_node_wsp.py': {               # a controller in the loop at real time
+        'test_external_wsp_node_keeps_the_wheels_turning',
+    },
+    'test_sim_node_hardening.py': {         # the node's pace and its wall-clock timeouts
+        'test_bad_inputs_are_rejected_counted_and_a_flood_does_not_slow_the_node',
+        'test_stale_input_emergency_then_fresh_then_hold',
+    },
+    'test_sim_node_traction_stale.py': {    # wall-clock staleness of the traction command
+        'test_stale_traction_command_in_diagnostics_emergency_then_fresh_then_hold',
+    },
+}
+
 #: fixtures (here and in sim_node_helpers) that initialise rclpy
 _ROS_FIXTURES = frozenset({'rclpy_context', 'spin_until', 'harness'})
 #: callables that start sim_node (and a controller) as processes
@@ -514,10 +569,44 @@ def _slow_key(item) -> str:
     return f'{item.path.name}::{getattr(item, "originalname", item.name)}'
 
 
+def _machine_key(item) -> bool:
+    """Whether the test is in :data:`MACHINE_TABLE` (its module whole, or by name)."""
+    tests = MACHINE_TABLE.get(item.path.name)
+    return tests is not None and (tests == ALL or getattr(item, 'originalname', item.name)
+                                  in tests)
+
+
+def _module_fixture(item) -> bool:
+    """Whether the test uses a module-scoped fixture (built once per worker that runs it)."""
+    info = getattr(item, '_fixtureinfo', None)
+    defs = info.name2fixturedefs.values() if info is not None else ()
+    return any(d and d[-1].scope == 'module' for d in defs)
+
+
+def _slow_first(items) -> None:
+    """Order ``items`` the slowest first (:data:`SLOW_TABLE`), the rest as collected."""
+    seconds = {f'{module}::{test}': t for module, tests in SLOW_TABLE.items()
+               for test, t in tests.items()}
+    items.sort(key=lambda item: -seconds.get(_slow_key(item), 0.0))
+
+
+@pytest.hookimpl(tryfirst=True)     # before xdist reads the xdist_group marks
 def pytest_collection_modifyitems(config, items):
-    """Mark ``ros`` and ``slow`` tests (see the module docstring)."""
+    """Mark ``ros``, ``slow`` and the xdist groups (see the module docstring)."""
     for item in items:
         if _needs_ros(item):
             item.add_marker(pytest.mark.ros)
         if _slow_key(item) in SLOW_TESTS:
             item.add_marker(pytest.mark.slow)
+        if _machine_key(item):
+            item.add_marker(pytest.mark.xdist_group(MACHINE_GROUP))
+        elif _module_fixture(item):      # the module's fixture built once, on one worker
+            item.add_marker(pytest.mark.xdist_group(item.path.name))
+    if os.environ.get('PYTEST_XDIST_WORKER'):
+        _slow_first(items)
+
+
+def pytest_configure(config):
+    """Give the domain back in a pytest-xdist controller: its workers run the tests."""
+    if getattr(config.option, 'numprocesses', None) and not hasattr(config, 'workerinput'):
+        _release_domain()

@@ -1,7 +1,9 @@
 """
 Input cases shared by the tests of inputs at their own instants and of the multirate step.
 
-``khz_case``: four unequal coaches with cylinders replayed at 1 kHz and the chain reference;
+``khz_case``: four unequal coaches with cylinders replayed at 1 kHz
+(``train_dynamics/physics/replay_cases.py``, the case ``bench/accuracy.py`` runs too) and the
+chain reference;
 ``replay``: the same inputs through the simulator; ``mixed_consist``: a locomotive and five
 wagons with free play and blocking. Forces in N, pressures in Pa, times in s.
 """
@@ -10,38 +12,26 @@ import numpy as np
 from train_dynamics.physics.chain_reference import ChainLaw, solve_chain
 from train_dynamics.physics.config import SimConfig
 from train_dynamics.physics.kernel.layout import COUPLER
+from train_dynamics.physics.replay_cases import (khz_braking_forces, khz_config, KHZ_MASSES,
+                                                 khz_pressures)
 from train_dynamics.physics.train import TrainSimulator
 
-MASSES = [45000.0, 30000.0, 60000.0, 25000.0]
+MASSES = list(KHZ_MASSES)
 
 
 def khz_case(t_end=1.5, seed=1):
-    """Four unequal coaches, tanh u = 700, cylinders replayed at 1 kHz; the reference."""
-    cfg = SimConfig.from_dict({'masses': MASSES, 'brake_input': 'cylinder_per_coach',
-                               'scale_factor': 700.0})
+    """Return the kHz replay case (``physics/replay_cases.py``) over ``t_end``; the reference."""
+    cfg = khz_config()
     sim = TrainSimulator(cfg)
-    pmax = cfg.max_cylinder_pressure
-    rng = np.random.default_rng(seed)
-    times = np.arange(int(t_end * 1000)) * 1e-3
-    levels = np.empty((times.size, 4))
-    cur = np.zeros(4)
-    for k in range(times.size):
-        if rng.random() < 0.03:
-            cur = rng.choice([0.0, 0.3, 0.6, 1.0], size=4) * pmax
-        levels[k] = cur
-    keep = np.r_[True, np.any(np.diff(levels, axis=0) != 0.0, axis=1)]
-    times, levels = times[keep], levels[keep]
-    full = cfg.adhesion_coefficient * np.array(MASSES) * cfg.gravity
+    times, levels = khz_pressures(cfg, t_end, seed, 0.03)
     t_eval = np.round(np.arange(1, int(round(t_end / 0.01)) + 1) * 0.01, 10)
     ref = solve_chain(sim.inertia, ChainLaw.of_simulator(sim), cfg.initial_speed,
-                      (times, levels / pmax * full), t_eval)
+                      (times, khz_braking_forces(cfg, levels)), t_eval)
     return times, levels, t_eval, ref
 
 
 def replay(times, levels, t_eval, **overrides):
-    cfg = SimConfig.from_dict({'masses': MASSES, 'brake_input': 'cylinder_per_coach',
-                               'scale_factor': 700.0, **overrides})
-    sim = TrainSimulator(cfg)
+    sim = TrainSimulator(khz_config(**overrides))
     for t, p in zip(times, levels):
         sim.schedule(t, lambda p=p: sim.set_cylinder_pressure(p))
     F = []

@@ -107,12 +107,12 @@ SWEEP = st.one_of(VALID, HOSTILE)
 def test_sweep_files_plan_and_run_or_give_one_line_exit_2(doc, tmp_path, capsys):
     path = tmp_path / 'sweep.yaml'
     path.write_text(yaml.safe_dump(doc))
-    t0 = time.monotonic()
+    t0 = time.process_time()         # CPU s: the work, not the machine's load
     try:
         plan = make_plan(PAPER, str(path))
     except CliError as exc:
         event('rejected')
-        assert time.monotonic() - t0 < 5.0
+        assert time.process_time() - t0 < 5.0
         assert '\n' not in str(exc) and len(str(exc)) < 500, str(exc)
         out = tmp_path / 'never'
         code = cli.main(['sweep', '--params', PAPER, '--sweep', str(path), '--output',
@@ -122,7 +122,7 @@ def test_sweep_files_plan_and_run_or_give_one_line_exit_2(doc, tmp_path, capsys)
         assert not out.exists()
         return
     event('accepted')
-    assert time.monotonic() - t0 < 5.0
+    assert time.process_time() - t0 < 5.0
     assert 1 <= len(plan.cases) <= MAX_CASES
     for case in plan.cases[:2]:
         if case.error:

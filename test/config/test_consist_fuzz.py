@@ -108,7 +108,7 @@ def test_consist_files_run_one_second_or_are_refused_in_one_line(
     path = tmp_path / 'consist.yaml'
     path.write_text(_text(doc, bomb_at))
     tracemalloc.start()
-    t0 = time.perf_counter()
+    t0 = time.process_time()         # CPU s: the work, not the machine's load
     try:
         cfg = SimConfig.from_dict({'consist_file': str(path), 'integration_step': 0.005,
                                    'publish_rate': 20.0})
@@ -116,7 +116,7 @@ def test_consist_files_run_one_second_or_are_refused_in_one_line(
     except ConfigError as exc:
         error = str(exc)
     finally:
-        took, peak = time.perf_counter() - t0, tracemalloc.get_traced_memory()[1]
+        took, peak = time.process_time() - t0, tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
     assert took < 3.0 and peak < 200e6, (took, peak)
     if error is not None:
@@ -125,12 +125,12 @@ def test_consist_files_run_one_second_or_are_refused_in_one_line(
         params = tmp_path / 'p.yaml'
         params.write_text('train_dynamics:\n  ros__parameters:\n'
                           f'    consist_file: {path}\n')
-        t0 = time.perf_counter()
+        t0 = time.process_time()
         code = cli.main(['simulate', '--params', str(params), '--duration', '1', '--output',
                          str(tmp_path / 'never'), '-q'])
         err = capsys.readouterr().err.strip().splitlines()
         assert code == 2 and len(err) == 1 and err[0].startswith('train-dynamics: error: '), err
-        assert time.perf_counter() - t0 < 10.0 and not (tmp_path / 'never').exists()
+        assert time.process_time() - t0 < 10.0 and not (tmp_path / 'never').exists()
         return
     event('accepted')
     assert cfg.n_coaches <= 12
@@ -141,7 +141,7 @@ def test_consist_files_run_one_second_or_are_refused_in_one_line(
 def test_huge_counts_are_refused_quickly(tmp_path, count):
     path = tmp_path / 'c.yaml'
     path.write_text(f'vehicles: [{{type: paper_coach, count: {count}}}]\n')
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     with pytest.raises(ConfigError, match='count'):
         SimConfig.from_dict({'consist_file': str(path)})
-    assert time.perf_counter() - t0 < 1.0
+    assert time.process_time() - t0 < 1.0

@@ -42,13 +42,18 @@ def consist_file(path: Path, text: str) -> str:
 
 
 def small_and_fast(fn, seconds: float = 2.0, megabytes: float = 50.0):
-    """Run ``fn``; assert it took < ``seconds`` and < ``megabytes`` of Python allocations."""
+    """
+    Run ``fn``; assert it took < ``seconds`` of CPU and < ``megabytes`` of Python allocations.
+
+    CPU time of this process (``time.process_time``): the cost of the work itself, the same
+    on a machine busy with other processes (parallel test workers) as on an idle one.
+    """
     tracemalloc.start()
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     try:
         return fn()
     finally:
-        elapsed = time.perf_counter() - t0
+        elapsed = time.process_time() - t0
         peak = tracemalloc.get_traced_memory()[1]
         tracemalloc.stop()
         assert elapsed < seconds, elapsed
@@ -76,10 +81,10 @@ def test_item2_vehicles_of_a_consist_are_counted_before_any_array_is_built(tmp_p
 def test_item2_huge_count_offline_is_one_line_and_exit_2(tmp_path, capsys):
     c = consist_file(tmp_path / 'c.yaml', 'vehicles: [{type: paper_coach, count: 100000000}]')
     p = params_file(tmp_path / 'p.yaml', f'    consist_file: {c}\n')
-    t0 = time.perf_counter()
+    t0 = time.process_time()
     code, err = run_cli(capsys, 'simulate', '--params', p, '--duration', 1, '--output',
                         tmp_path / 'out', '-q')
-    assert time.perf_counter() - t0 < 10.0
+    assert time.process_time() - t0 < 10.0      # CPU s: not the load
     assert_one_line_error(code, err)
     assert 'count' in err[0] and '100000' in err[0] and not (tmp_path / 'out').exists()
 

@@ -1,21 +1,16 @@
 """
-The traced copy of the error-controlled driver (bench/adaptive_trace.py) is the driver.
+The traced copy of the error-controlled driver (``kernel/adaptive_trace.py``) is the driver.
 
 ``trace_adaptive`` writes the driver's chain loop out to log every attempted step; with the
 kernel's controller constants and error norm (``default_ctl(0)``) it must leave the very state
 ``advance_adaptive`` leaves, bit for bit, and log one row per chain step the kernel counts.
 """
-from pathlib import Path
-import sys
-
 import numpy as np
 import pytest
 
 from train_dynamics.physics.config import SimConfig
+from train_dynamics.physics.kernel import adaptive_trace
 from train_dynamics.physics.train import TrainSimulator
-
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / 'bench'))
-import adaptive_trace  # noqa: E402, I100
 
 
 def _drive(sim, seconds: float) -> None:
@@ -26,10 +21,26 @@ def _drive(sim, seconds: float) -> None:
         sim.advance_to((k + 1) * 0.01)
 
 
+@pytest.fixture(scope='module')
+def compiled():
+    """
+    Compile the traced driver and the error-controlled kernel (or load them from the cache).
+
+    Once per code version they compile (tens of seconds of CPU, minutes on a loaded machine):
+    a fixture, outside the test's timeout (``func_only``), which guards the run, not numba.
+    """
+    cfg = SimConfig.from_dict({'integration_tolerance': 1e-3})
+    kernel, copy = TrainSimulator(cfg), TrainSimulator(cfg)
+    adaptive_trace.traced(copy, adaptive_trace.default_ctl(0), max_log=10)
+    for sim in (kernel, copy):
+        sim.advance_to(0.01)
+
+
+@pytest.mark.timeout(600, func_only=True)
 @pytest.mark.parametrize('extra', [{}, {'num_coaches': 6, 'davis_a': 500.0,
                                         'track_gradient_positions': [0.0],
                                         'track_gradients': [2.0]}])
-def test_traced_driver_matches_the_kernel_bit_for_bit(extra):
+def test_traced_driver_matches_the_kernel_bit_for_bit(compiled, extra):
     cfg = SimConfig.from_dict({'integration_tolerance': 1e-3, **extra})
     kernel, copy = TrainSimulator(cfg), TrainSimulator(cfg)
     log = adaptive_trace.traced(copy, adaptive_trace.default_ctl(0), max_log=200_000)

@@ -180,20 +180,22 @@ def test_every_compiled_function_lives_in_the_kernel_folder():
     Check that the digest's folder holds all compiled code, and that it depends on nothing else.
 
     The cache key covers the .py files of ``physics/kernel/`` only: a jitted function
-    elsewhere, or a kernel module that takes a function or constant from outside the folder
-    (numba inlines and freezes them), could run stale machine code after an edit. The one
-    import allowed is the layout's from the parameter table: the per-vehicle rows declared
+    elsewhere (in the package, or in a benchmark or test that compiles through
+    ``compiler.jit``), or a kernel module that takes a function or constant from outside the
+    folder (numba inlines and freezes them), could run stale machine code after an edit. The
+    one import allowed is the layout's from the parameter table: the per-vehicle rows declared
     there are part of the key (``compiler.table_kernel_rows``, checked in test_consist).
     """
     package = REPO / 'train_dynamics'
     outside, foreign = [], []
-    for path in sorted(package.rglob('*.py')):
+    scripts = [*(REPO / 'bench').rglob('*.py'), *(REPO / 'test').rglob('*.py')]
+    for path in sorted([*package.rglob('*.py'), *scripts]):
         tree = ast.parse(path.read_text(encoding='utf-8'))
         in_kernel = path.parent == KERNEL
         for node in ast.walk(tree):
             if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
                 if any(_is_jit(d) for d in node.decorator_list) and not in_kernel:
-                    outside.append(f'{path.relative_to(package)}:{node.name}')
+                    outside.append(f'{path.relative_to(REPO)}:{node.name}')
             elif in_kernel and isinstance(node, ast.ImportFrom) and node.module:
                 mod = node.module
                 if (path.name, mod) == ('layout.py', 'train_dynamics.physics.config.table'):

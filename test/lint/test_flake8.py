@@ -23,14 +23,20 @@ import pytest
 # tree or the .venv in the repository root is never linted.
 _ROOT = Path(__file__).resolve().parents[2]
 _PATHS = [_ROOT / p for p in ('train_dynamics', 'test', 'launch', 'bench', 'setup.py')]
+#: _PATHS in two parts of about equal size (lines), linted as two tests that parallel test
+#: workers (make test) run at once: the package, and every other path
+_PARTS = {'package': [_ROOT / 'train_dynamics'],
+          'tests_and_scripts': [p for p in _PATHS if p.name != 'train_dynamics']}
 
 
 @pytest.mark.flake8
 @pytest.mark.linter
-def test_flake8():
-    missing = [str(p) for p in _PATHS if not p.exists()]
+@pytest.mark.parametrize('part', sorted(_PARTS))
+def test_flake8(part):
+    paths = _PARTS[part]
+    missing = [str(p) for p in paths if not p.exists()]
     assert not missing, 'Paths to lint are missing: %s' % missing
-    rc, errors = main_with_errors(argv=[str(p) for p in _PATHS])
+    rc, errors = main_with_errors(argv=[str(p) for p in paths])
     assert rc == 0, \
         'Found %d code style errors / warnings:\n' % len(errors) + \
         '\n'.join(errors)

@@ -1,21 +1,17 @@
 """The validation suite's cheap subset: published stopping distances within their tolerance."""
-from pathlib import Path
-import sys
-
 import pytest
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / 'bench'))
-
-import validation  # noqa: E402
+from train_dynamics.physics import validation
+from train_dynamics.physics.pfaff_reference import pfaff_model, pfaff_wagon
 
 
 def test_published_model_is_reproduced_from_its_equations():
     """The reference model written from Pfaff et al.'s equations prints their figures."""
-    w = validation._pfaff_wagon
-    assert validation.pfaff_model(100 / 3.6, [w()]) == pytest.approx(597.2, abs=0.05)
-    assert validation.pfaff_model(100 / 3.6, [w(mass=25500.0, i=2.4, rot=1.15)]) \
+    w = pfaff_wagon
+    assert pfaff_model(100 / 3.6, [w()]) == pytest.approx(597.2, abs=0.05)
+    assert pfaff_model(100 / 3.6, [w(mass=25500.0, i=2.4, rot=1.15)]) \
         == pytest.approx(422.8, abs=0.05)
-    assert validation.pfaff_model(25 / 3.6, [
+    assert pfaff_model(25 / 3.6, [
         w(i=6.5, length=13.0), w(i=5.5, length=13.0),
         w(mass=45000.0, i=6.0, d=0.3, n=8, length=17.0)]) == pytest.approx(40.9, abs=0.05)
 

@@ -49,7 +49,7 @@ INTEGRATION_TOLERANCE = 0.0
 #: default multirate_tolerance and multirate_reversal_weight: every coupler-force and
 #: displacement sample within 2 % of the independent reference's peak on the four accuracy
 #: cases and on 1000 of the paper's coaches, within 0.1 % on the paper's scenario
-#: (bench/accuracy_results.md: force 0.090 / 0.303 / 0.253 / 0.88 %, displacement 0.053 /
+#: (bench/results/accuracy_results.md: force 0.090 / 0.303 / 0.253 / 0.88 %, displacement 0.053 /
 #: 0.031 / 0.039 / 0.11 % on paper / khz_unequal / mixed_freeplay / paper30; 1000 coaches
 #: 0.086 %; the fixed 2 ms step alone 0.256 / 50.1 / 14.8 / 6.57 %), but not on 100 coaches
 #: (11.6 %, a few late friction reversals). 3e-4 meets that too (1.49 %) at about twice the

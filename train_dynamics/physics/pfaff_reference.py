@@ -3,7 +3,8 @@
 
 R. Pfaff et al., "Braking curves in low-speed on-sight operation", code and results in
 github.com/RailProfAC/ShuntingBrakingCurves (Code.ipynb): the published reference model of
-``bench/validation.py``, with the inputs of its cases (constants below).
+the validation cases (:mod:`train_dynamics.physics.validation`), with the inputs of its
+cases (constants below). Units SI: m, s, kg, N.
 """
 from __future__ import annotations
 
@@ -75,7 +76,13 @@ def pfaff_model(v0: float, wagons: list[dict], loco: dict | None = None,
     return s
 
 
-def _pfaff_wagon(mass=90000.0, i=5.65, rot=1.04, g=False, tf=4.0, d=CYL_DIAMETER, n=BLOCKS,
-                 length=14.0):
+def pfaff_wagon(mass=90000.0, i=5.65, rot=1.04, g=False, tf=4.0, d=CYL_DIAMETER, n=BLOCKS,
+                length=14.0):
+    """
+    Return one of [Pfaff]'s wagons for :func:`pfaff_model` (its default: the loaded one).
+
+    ``mass`` [kg], rigging ratio ``i``, rotating-mass augment ``rot``, G filling ``g``, filling
+    time ``tf`` [s], cylinder diameter ``d`` [m], ``n`` blocks, ``length`` [m] (Code.ipynb).
+    """
     return {'mass': mass, 'i': i, 'rot': rot, 'g': g, 'tf': tf, 'd': d, 'n': n,
             'length': length}
