@@ -74,6 +74,7 @@ EOF
 build() {
   local tmp names mpl tag
   [ -x "$VPY" ] || { echo "floor_env: creating $VENV with $("$PY" -V)"; "$PY" -m venv "$VENV"; }
+  touch "$VENV/COLCON_IGNORE"     # a colcon build in the repository root never crawls it
   tmp=$TMP
   # the lock's pins, minus those the floor replaces; requirements.txt minus the same
   names=$(sed -n 's/^\([A-Za-z0-9_.-]*\)==.*/\1/p' requirements-floor.txt | paste -sd '|')
