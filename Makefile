@@ -34,12 +34,13 @@ export ROS_DOMAIN_ID
 # Keep matplotlib off any display.
 export MPLBACKEND ?= Agg
 
-.PHONY: help venv bytecode test test-fast lint run bench soak clean distclean
+.PHONY: help venv bytecode test test-fast test-floor lint run bench soak clean distclean
 
 help:
 	@echo "make run    - the paper's emergency braking through sim_node + brake_valve (DDS on loopback), recorded"
 	@echo "make test   - the test suite (pytest, on parallel workers: PYTEST_WORKERS), the ament linters included"
 	@echo "make test-fast - the tests not marked slow (pytest -m 'not slow'; the table in test/conftest.py)"
+	@echo "make test-floor - the tests at the dependency floor (requirements-floor.txt) in .venv-floor, Python 3.12 if present"
 	@echo "make lint   - only the ament linter tests (test/lint/: test_flake8.py, test_pep257.py)"
 	@echo "make bench  - benchmarks (bench/run_all.py)"
 	@echo "make soak   - long run (bench/soak.py)"
@@ -86,6 +87,12 @@ test: venv bytecode
 test-fast: venv bytecode
 	$(VPY) -m train_dynamics.cli.prebuild
 	$(VPY) -m pytest test/ -m 'not slow' $(PYTEST_PARALLEL) $(PYTEST_ARGS)
+
+# the dependency floor (requirements-floor.txt: what rosdep installs on Ubuntu 24.04) in its own
+# environment .venv-floor, on python3.12 when there is one (FLOOR_PYTHON=... to choose), the
+# package from this checkout through PYTHONPATH; FLOOR_TESTS picks the tests (docs/install.md)
+test-floor:
+	tools/floor_env.sh all $(PYTEST_ARGS)
 
 # The linter tests carry the pytest mark `linter` and the list of paths they check.
 lint: venv

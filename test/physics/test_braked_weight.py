@@ -1,6 +1,7 @@
 """Braked weight (UIC 544-1): G and P from one label, a G label of its own, load fields."""
 import numpy as np
 import pytest
+from scipy.integrate import trapezoid
 
 from train_dynamics.physics import friction as fr
 from train_dynamics.physics.config import ConfigError, SimConfig, table
@@ -41,8 +42,8 @@ def _spread(times, fractions):
     """Return M1 - t_e^2 / 2 [s^2] of a filling: M1 = int t (1 - f) dt, t_e = int (1 - f) dt."""
     t = np.linspace(0.0, times[-1], 200001)
     rest = 1.0 - np.interp(t, times, fractions)
-    t_e = np.trapezoid(rest, t)
-    return np.trapezoid(t * rest, t) - 0.5 * t_e * t_e
+    t_e = trapezoid(rest, t)                # scipy's: np.trapezoid is numpy >= 2.0 only
+    return trapezoid(t * rest, t) - 0.5 * t_e * t_e
 
 
 def test_g_and_p_from_one_braked_weight_g_stops_longer_by_its_response_time(tmp_path):

@@ -225,6 +225,20 @@ def lhs_samples(path: str, lhs: Any) -> int:
     return n
 
 
+def _hypercube(d: int, seed: int) -> qmc.LatinHypercube:
+    """
+    Return scipy's Latin hypercube sampler of ``d`` dimensions on ``default_rng(seed)``.
+
+    scipy >= 1.15 takes the generator as ``rng``, older versions (1.11, Ubuntu 24.04's) as
+    ``seed``: the same generator either way.
+    """
+    gen = np.random.default_rng(seed)
+    try:
+        return qmc.LatinHypercube(d=d, rng=gen)
+    except TypeError:                                   # scipy < 1.15: no ``rng``
+        return qmc.LatinHypercube(d=d, seed=gen)
+
+
 def lhs_points(path: str, lhs: Any) -> tuple[list[str], list[tuple]]:
     """Return the hypercube's parameter names and its samples (seeded)."""
     if lhs is None:
@@ -239,7 +253,7 @@ def lhs_points(path: str, lhs: Any) -> tuple[list[str], list[tuple]]:
         raise _fail(path, 'lhs: ranges: expected a mapping parameter -> [min, max]')
     names = [_check_name(path, k) for k in ranges]
     bounds = [_range(path, k, v) for k, v in ranges.items()]
-    u = qmc.LatinHypercube(d=len(names), rng=np.random.default_rng(seed)).random(n)
+    u = _hypercube(len(names), seed).random(n)
     points = []
     for row in u:
         values = []
