@@ -8,23 +8,8 @@ the inputs as given, how they map onto this package's fields, and published agai
 with the difference. ``--quick`` runs the cheap subset
 the tests assert (``QUICK``); ``--output -`` prints the document instead of writing it.
 
-Sources:
-
-- [Minden] the Minden formula of the DB test centre, s = 3.85 v0^2 / (6.1 (1 + lambda / 10)),
-  v0 [km/h], lambda the braked-weight percentage: the relation UIC 544-1 braked weights of
-  P-braked trains were set on (Wende, Fahrdynamik des Schienenverkehrs, Teubner 2003, ch. 8;
-  physics/friction.py ``minden_distance``).
-- [C&O] L. Cantone, A. Ottati, "Modelling of friction coefficient for shunting operation"
-  and the slip and emergency-brake figures of their paper as quoted, with the inputs of
-  each case, by [Pfaff]; Cantone & Ottati, The Open Transportation Journal 12 (2018),
-  doi:10.2174/1874447801812010114, tables 5 (slip tests of an Eanos wagon) and 7
-  (emergency stops from 30 km/h of 800-2500 t trains, cast-iron P10 and LL blocks).
-- [Pfaff] R. Pfaff et al., "Braking curves in low-speed on-sight operation - a simulation
-  study for the development of assistance and automation systems"; its code and results
-  are public (github.com/RailProfAC/ShuntingBrakingCurves, ``Code.ipynb``: the inputs and
-  printed results of every case quoted here; read, not copied: the reference model
-  (``train_dynamics/physics/pfaff_reference.py``) is written from the equations the notebook
-  states).
+The sources of every case (paper, table or figure, page) are cited in
+:mod:`train_dynamics.physics.validation`'s docstring and printed in the document.
 """
 from __future__ import annotations
 

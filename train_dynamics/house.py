@@ -97,8 +97,14 @@ def modules(root: Path = PACKAGE) -> dict[str, Module]:
     return out
 
 
-def _targets(name: str, path: Path, known) -> tuple[set[str], set[str]]:
-    """Return (the package's modules, the other top-level packages) that ``path`` imports."""
+def imports_of(name: str, path: Path, known) -> tuple[set[str], set[str]]:
+    """
+    Return (the package's modules, the other top-level packages) that module ``name`` imports.
+
+    ``known``: the package's module names (anything supporting ``in``). ``import a.b`` -> a.b;
+    ``from a import b`` -> a.b when that is a module, else a; relative imports resolved
+    against the module's package; imports anywhere in the module count.
+    """
     package = name if path.name == '__init__.py' else name.rpartition('.')[0]
     own, other = set(), set()
     for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
@@ -153,7 +159,7 @@ def house(root: Path = PACKAGE) -> House:
     arrows: Counter = Counter()
     third: dict[str, set[str]] = {}
     for name, mod in mods.items():
-        own, other = _targets(name, mod.path, mods)
+        own, other = imports_of(name, mod.path, mods)
         for target in own:
             if mods[target].room != mod.room:
                 arrows[mod.room, mods[target].room] += 1

@@ -1,6 +1,7 @@
 """The package's structure: no import cycle between its modules."""
-import ast
 from pathlib import Path
+
+from train_dynamics.house import imports_of
 
 PACKAGE = Path(__file__).resolve().parents[2] / 'train_dynamics'
 
@@ -16,35 +17,10 @@ def module_names(root: Path = PACKAGE) -> dict[str, Path]:
     return out
 
 
-def imports_of(name: str, path: Path, modules: dict[str, Path]) -> set[str]:
-    """
-    Return the package's modules that module ``name`` imports (anywhere in it).
-
-    ``import a.b`` -> a.b; ``from a import b`` -> a.b when that is a module, else a;
-    relative imports resolved against the module's package.
-    """
-    package = name if path.name == '__init__.py' else name.rpartition('.')[0]
-    found = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
-        if isinstance(node, ast.Import):
-            targets = [a.name for a in node.names]
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ''
-            if node.level:
-                anchor = package.split('.')[:len(package.split('.')) - node.level + 1]
-                base = '.'.join(anchor + ([base] if base else []))
-            targets = [f'{base}.{a.name}' if f'{base}.{a.name}' in modules else base
-                       for a in node.names]
-        else:
-            continue
-        found.update(t for t in targets if t in modules and t != name)
-    return found
-
-
 def import_graph(root: Path = PACKAGE) -> dict[str, set[str]]:
     """Return ``{module: the package's modules it imports}``."""
     modules = module_names(root)
-    return {name: imports_of(name, path, modules) for name, path in modules.items()}
+    return {name: imports_of(name, path, modules)[0] for name, path in modules.items()}
 
 
 def find_cycle(graph: dict[str, set[str]]) -> list[str] | None:
