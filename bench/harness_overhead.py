@@ -38,6 +38,10 @@ import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+
+import nodeutil as U  # noqa: E402
+
 REPO = os.path.dirname(HERE)
 SCENARIO = os.path.join(HERE, 'harness_overhead.yaml')
 CONTROLLER = os.path.join(REPO, 'examples', 'pi_brake_controller.py')
@@ -69,21 +73,6 @@ PHASES = (
 )
 
 
-def _log_stamp(path: str, needle: str) -> float | None:
-    """Return the wall stamp [s epoch] of the first rclpy log line of ``path`` with ``needle``."""
-    try:
-        with open(path, encoding='utf-8', errors='replace') as fh:
-            for line in fh:
-                if needle in line and line.startswith('['):
-                    try:
-                        return float(line.split('] [', 1)[1].split(']', 1)[0])
-                    except (IndexError, ValueError):
-                        return None
-    except OSError:
-        return None
-    return None
-
-
 def one_run(repo: str, env: dict) -> dict:
     """Run the harness of ``repo`` once in a fresh process; return its figures [s]."""
     out = tempfile.mkdtemp(prefix='harness_overhead_')
@@ -100,7 +89,7 @@ def one_run(repo: str, env: dict) -> dict:
                                f'{proc.stderr.strip()[-2000:]}')
         child = json.loads(proc.stdout.strip().splitlines()[-1])
         log = os.path.join(run_dir, 'sim_node.log')
-        stamps = {key: _log_stamp(log, needle) for key, needle in (
+        stamps = {key: U.first_log_time(log, needle) for key, needle in (
             ('started', ']: started: '), ('connected', 'controller connected'),
             ('reached', 'duration reached'))}
         if None in stamps.values():

@@ -35,7 +35,6 @@ the fail-safe whatever the policy; ``line``: the EP / ECP train line is lost
 from __future__ import annotations
 
 import functools
-import importlib
 import threading
 import time
 from typing import Any, Callable
@@ -45,17 +44,10 @@ from rclpy.serialization import deserialize_message, serialize_message
 
 from train_dynamics.input_kinds import failsafe_value, InputKind
 from train_dynamics.recording.outputs import time_ns
-from train_dynamics.ros.publishers import stamp
+from train_dynamics.ros.publishers import message_class, stamp
 
 Record = Callable[[str, str, int, bytes], None]
 Reject = Callable[[str, str, str], None]
-
-
-@functools.lru_cache(maxsize=None)
-def message_class(msgtype: str) -> Any:
-    """Return the rclpy message class of a type string (``std_msgs/msg/Float64``)."""
-    package, sub, name = msgtype.split('/')
-    return getattr(importlib.import_module(f'{package}.{sub}'), name)
 
 
 def decode(kind: InputKind, data: bytes, cfg: Any) -> tuple[Any, int | None]:

@@ -38,8 +38,9 @@ from train_dynamics.input_kinds import BRAKE_KINDS, COMMAND_KINDS, InputKind, TW
 from train_dynamics.physics.train import TrainSimulator
 from train_dynamics.ros.brake_channel import (BrakeChannel, INPUT_QOS, MAX_EXTRA_SUBSCRIPTIONS,
                                               Record)
-from train_dynamics.ros.command_channel import CommandChannel, message_class
+from train_dynamics.ros.command_channel import CommandChannel
 from train_dynamics.ros.lockstep_inputs import LockstepInputs
+from train_dynamics.ros.publishers import message_class
 from train_dynamics.ros.throttle import Throttle
 
 __all__ = ['ControllerInputs', 'GRAPH_SCAN_PERIOD', 'INPUT_QOS', 'MAX_ABSOLUTE_PRESSURE',

@@ -18,6 +18,7 @@ thread holds the GIL meanwhile: output jitter).
 """
 from __future__ import annotations
 
+import functools
 import importlib
 import time
 from typing import Any, Callable
@@ -42,10 +43,11 @@ OUTPUT_QOS = QoSProfile(history=HistoryPolicy.KEEP_LAST, depth=10,
                         durability=DurabilityPolicy.VOLATILE)
 
 
+@functools.lru_cache(maxsize=None)
 def message_class(msgtype: str) -> Any:
-    """Return the rclpy message class of ``msgtype`` (``'pkg/msg/Name'``)."""
-    package, _, name = msgtype.split('/')
-    return getattr(importlib.import_module(f'{package}.msg'), name)
+    """Return the rclpy message class of a type string (``std_msgs/msg/Float64``)."""
+    package, sub, name = msgtype.split('/')
+    return getattr(importlib.import_module(f'{package}.{sub}'), name)
 
 
 def stamp(t_ns: int) -> Time:
