@@ -223,7 +223,7 @@ def timed_run(cfg, t_span: float) -> tuple[float, float]:
     return time.perf_counter() - t0, time.process_time() - c0
 
 
-def sampled_run(cfg, ref: dict | None, brakes: bool = True) -> dict:
+def sampled_run(cfg, ref: dict | None, brakes: bool = True, keep: bool = False) -> dict:
     """
     Run [0, T_END] untimed and sample it every 10 ms.
 
@@ -234,10 +234,13 @@ def sampled_run(cfg, ref: dict | None, brakes: bool = True) -> dict:
     sample), so that the caller takes the maximum over its comparison window. The sample
     arrays are allocated before the simulator (outside a caller's ``tracemalloc`` figure
     when the caller passes them in ``ref['_buffers']``) and returned as numpy arrays.
+    ``keep``: every coupler's force on every sample as well ('F', float32, samples x
+    couplers), for :func:`robust_metrics`.
     """
     import numpy as np
     chunks = int(round(T_END / OUTPUT_DT))
     bufs = (ref or {}).get('_buffers') or sample_buffers()
+    forces = np.zeros((chunks + 1, cfg.n_coaches - 1), np.float32) if keep else None
     env, err_f, err_y = bufs['envelope'], bufs['sample_err_F'], bufs['sample_err_y']
     fb_of_t = brake_formula(cfg)
     fmax = np.max(cfg.adhesion_coefficient * np.asarray(cfg.mass_array) * cfg.gravity)
@@ -252,6 +255,8 @@ def sampled_run(cfg, ref: dict | None, brakes: bool = True) -> dict:
         sim.advance_to(k * OUTPUT_DT)
         f = sim.coupler_force
         env[k] = np.abs(f).max()
+        if keep:
+            forces[k] = f
         if k < k_ref:
             err_f[k] = np.abs(f - ref_f[k]).max()
             err_y[k] = np.abs(sim.y - ref_y[k]).max()
@@ -267,6 +272,8 @@ def sampled_run(cfg, ref: dict | None, brakes: bool = True) -> dict:
            'peak_N': float(env.max()), 'integration': dict(sim.integration_stats)}
     if ref_f is not None:
         out.update(sample_err_F=err_f[:k_ref], sample_err_y=err_y[:k_ref])
+    if keep:
+        out['F'] = forces
     return out
 
 
@@ -381,7 +388,76 @@ def default_config(n: int, **overrides):
     return cfg
 
 
-def target_case(n: int, settings: list, repeats: int) -> list[dict]:
+#: the scipy row of the target table: what a user with a stiff solver would write, on the
+#: reference's equations with its analytical sparse Jacobian (solve_ivp's default atol)
+BDF_RTOL = 1e-6
+BDF_ATOL = 1e-6
+BDF_LABEL = (f'scipy BDF, analytical sparse Jacobian, rtol {BDF_RTOL:g} '
+             f'(atol {BDF_ATOL:g})')
+
+
+def bdf_run(cfg, t_span: float) -> dict:
+    """
+    Return one timed scipy BDF run of ``cfg`` over [0, t_span], sampled every 10 ms.
+
+    ``scipy.integrate.solve_ivp`` (method 'BDF', rtol BDF_RTOL, atol BDF_ATOL) on the
+    reference's equations (:func:`train_dynamics.physics.reference.reference_solution`:
+    eqs. 5-7 with the tanh law, state [x, v], its analytical sparse Jacobian) with the same
+    brake forces (:func:`brake_formula`). Every coupler's force and displacement on the 10 ms
+    samples (:func:`coupler_samples`) are part of the timed run, as the simulator's read-out
+    is. Returns wall and CPU time [s], the solver's counters and 'F', 'y' (samples x
+    couplers, float32).
+    """
+    from train_dynamics.physics.reference import reference_solution
+    grid = _grid(t_span)
+    n = cfg.n_coaches
+    c0 = time.process_time()
+    t0 = time.perf_counter()
+    res = reference_solution(cfg.mass_array, cfg.buffer_stiffness, cfg.buffer_friction,
+                             cfg.draw_gear_stiffness, cfg.draw_gear_friction,
+                             float(cfg.values['scale_factor']), cfg.initial_speed,
+                             brake_formula(cfg), float(grid[-1]), t_eval=grid,
+                             rtol=BDF_RTOL, atol=BDF_ATOL, method='BDF')
+    if res.status != 0:
+        raise RuntimeError(f'scipy BDF failed: {res.message}')
+    F, Y = coupler_samples(cfg, res.y[:n], res.y[n:], grid.size)
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return {'wall_s': wall, 'cpu_s': cpu, 'nfev': int(res.nfev), 'njev': int(res.njev),
+            'nlu': int(res.nlu), 'F': F, 'y': Y}
+
+
+def samples_run(F, Y, ref: dict) -> dict:
+    """
+    Return what :func:`sample_errors` reads of a run given as per-coupler samples.
+
+    ``F`` [N], ``Y`` [m]: samples x couplers on the 10 ms grid from t = 0 (a scipy run's, or
+    the floor's reference); ``ref``: the reference with its per-coupler samples.
+    """
+    import numpy as np
+    k = min(len(F), len(ref['F']))
+    return {'envelope': np.abs(F).max(axis=1),
+            'sample_err_F': np.abs(F[:k] - ref['F'][:k]).max(axis=1),
+            'sample_err_y': np.abs(Y[:k] - ref['y'][:k]).max(axis=1)}
+
+
+def robust_metrics(F, ref: dict, window: float) -> dict:
+    """
+    Return the accuracy contract's metrics of the forces ``F`` over [0, window].
+
+    :func:`train_dynamics.physics.comparison.all_metrics` (fractions of the reference's
+    peak; the cycle count's a fraction of the reference's count, signed) on the 10 ms
+    samples 0.01 s .. ``window`` of every coupler; ``F`` [N] samples x couplers from t = 0,
+    against the reference's per-coupler samples.
+    """
+    import numpy as np
+    from train_dynamics.physics.comparison import all_metrics
+    k = int(round(window / OUTPUT_DT))
+    t = np.arange(1, k + 1) * OUTPUT_DT
+    return all_metrics(t, np.asarray(F[1:k + 1], float), np.asarray(ref['F'][1:k + 1], float))
+
+
+def target_case(n: int, settings: list, repeats: int, bdf: bool = False,
+                floor: bool = False) -> list[dict]:
     """
     Run in a fresh process: speed and sample accuracy of N coaches for each setting.
 
@@ -390,16 +466,20 @@ def target_case(n: int, settings: list, repeats: int) -> list[dict]:
     :func:`sample_errors`); the timed span is the comparison window of the settings (the
     earliest, so every setting is timed over the same moving span); then ``repeats`` whole
     runs of each setting, interleaved (A B A B ...: the host's drift meets every setting
-    alike); the figure is the fastest whole run.
+    alike); the figure is the fastest whole run. Where the reference's per-coupler samples
+    are cached, the accuracy contract's metrics too (:func:`robust_metrics`). ``bdf``: a
+    scipy BDF row (:func:`bdf_run`), timed in the same rounds; ``floor``: the sensitivity
+    floor's row (its cached reference, :func:`floor_inertia`, against the reference).
     """
     from train_dynamics.physics.train import TrainSimulator
     cfgs = [default_config(n, **over) for _, over in settings]
     u = float(cfgs[0].values['scale_factor'])
     ref = cached_reference(n, u)
+    keep = ref is not None and 'F' in ref
     rows = []
     for (label, over), cfg in zip(settings, cfgs):
         TrainSimulator(cfg).advance(1)          # numba warm-up, not timed
-        run = sampled_run(cfg, ref)
+        run = sampled_run(cfg, ref, keep=keep)
         rows.append({'n': n, 'u': u, 'label': label, 'overrides': over,
                      'h': float(cfg.integration_step),
                      'multirate': float(cfg.values['multirate_tolerance']),
@@ -410,10 +490,13 @@ def target_case(n: int, settings: list, repeats: int) -> list[dict]:
                      'brake_mismatch': run['brake_mismatch'], '_run': run})
     span = min(moving_span(r['t_first_stop'], ref) for r in rows)
     times = [[] for _ in rows]
+    bdf_runs = []
     cal = calibration_s()
     for _ in range(repeats):
         for k, cfg in enumerate(cfgs):
             times[k].append(timed_run(cfg, span))
+        if bdf:
+            bdf_runs.append(bdf_run(default_config(n), span))
     cal = min(cal, calibration_s())
     for r, t in zip(rows, times):
         run = r.pop('_run')
@@ -421,9 +504,34 @@ def target_case(n: int, settings: list, repeats: int) -> list[dict]:
         cpu = min(c for _, c in t)
         r.update(sample_errors(run, ref, span), span_s=span, walls_s=w, wall_s=min(w),
                  rtf=span / min(w), cpu_s=cpu, rtf_cpu=span / cpu, calibration_s=cal,
-                 repeats=repeats,
-                 ref_samples=ref is not None and 'F' in ref,
+                 repeats=repeats, cpus_s=[c for _, c in t],
+                 ref_samples=keep,
                  ref_note='' if ref is not None else 'no cached reference')
+        if keep:
+            r['robust'] = robust_metrics(run['F'], ref, span)
+    if bdf_runs:
+        last = bdf_runs[-1]
+        w = [b['wall_s'] for b in bdf_runs]
+        c = [b['cpu_s'] for b in bdf_runs]
+        row = {'n': n, 'u': u, 'label': BDF_LABEL, 'bdf': True, 'nfev': last['nfev'],
+               'njev': last['njev'], 'nlu': last['nlu'], 'span_s': span, 'walls_s': w,
+               'wall_s': min(w), 'rtf': span / min(w), 'cpus_s': c, 'cpu_s': min(c),
+               'rtf_cpu': span / min(c), 'calibration_s': cal, 'repeats': len(bdf_runs),
+               'ref_samples': keep}
+        if keep:
+            row.update(sample_errors(samples_run(last['F'], last['y'], ref), ref, span),
+                       robust=robust_metrics(last['F'], ref, span))
+        rows.append(row)
+    if floor and keep:
+        fref = get_reference(n, u, allow_compute=False, samples=True, floor=True)
+        if fref is None:
+            rows.append({'n': n, 'label': floor_label(n), 'floor': True,
+                         'ref_note': 'floor reference not cached (core.py --refs --floor)'})
+        else:
+            rows.append({'n': n, 'u': u, 'label': floor_label(n), 'floor': True,
+                         'span_s': span, 'ref_wall_s': fref['wall_s'],
+                         **sample_errors(samples_run(fref['F'], fref['y'], ref), ref, span),
+                         'robust': robust_metrics(fref['F'], ref, span)})
     return rows
 
 
@@ -450,7 +558,34 @@ def _physics_fingerprint(u: float) -> str:
     return hashlib.sha256(text.encode()).hexdigest()[:16]
 
 
-def reference_key(cfg) -> str:
+def floor_inertia(cfg):
+    """
+    Return the masses [kg] of the sensitivity floor's train: coach N // 2 + 1 heavier.
+
+    The middle coach's mass x (1 + ``FLOOR_PERTURBATION`` of bench/accuracy.py), its brake
+    force unchanged: the floor of bench/accuracy.py (``--robust``) on the target case.
+    """
+    import numpy as np
+    from accuracy import FLOOR_PERTURBATION
+    m = np.array(cfg.mass_array, float)
+    m[cfg.n_coaches // 2] *= 1.0 + FLOOR_PERTURBATION
+    return m
+
+
+def floor_label(n: int) -> str:
+    """Return the floor row's label for N coaches."""
+    from accuracy import FLOOR_PERTURBATION
+    return f'floor: reference, coach {n // 2 + 1} mass x (1 + {FLOOR_PERTURBATION:g})'
+
+
+def reference_key(cfg, inertia=None) -> str:
+    """
+    Return the cache key of the reference of ``cfg``.
+
+    ``inertia``: the masses [kg] the reference integrates when they are not the
+    configuration's (the sensitivity floor, :func:`floor_inertia`; the brake forces stay
+    the configuration's).
+    """
     v = cfg.values
     parts = {k: v[k] for k in ('buffer_stiffness', 'buffer_friction', 'draw_gear_stiffness',
                                'draw_gear_friction', 'adhesion_coefficient', 'gravity',
@@ -459,6 +594,8 @@ def reference_key(cfg) -> str:
     parts.update(n=cfg.n_coaches, masses=cfg.mass_array, fill=cfg.fill_table(),
                  t_e=T_EMERGENCY, t_end=T_END, dt=OUTPUT_DT,
                  physics=_physics_fingerprint(v['scale_factor']))
+    if inertia is not None:
+        parts['inertia'] = [float(m) for m in inertia]
     return hashlib.sha256(json.dumps(parts, sort_keys=True).encode()).hexdigest()[:24]
 
 
@@ -504,23 +641,48 @@ def samples_path(key: str) -> str:
     return os.path.join(SAMPLES_DIR, key + '.npz')
 
 
-def compute_reference(n: int, u: float) -> tuple[dict, dict]:
+def coupler_samples(cfg, x, v, k_valid: int) -> tuple:
+    """
+    Return every coupler's force F [N] and displacement y [m] on the first ``k_valid`` samples.
+
+    ``x``, ``v``: coach positions [m] and speeds [m/s], (N, samples), as ``solve_ivp``
+    returns them; float32 arrays, samples x couplers (the force law of the kernel, as the
+    reference's right-hand side evaluates it).
+    """
+    import numpy as np
+    from train_dynamics.physics.kernel import couplers
+    n = cfg.n_coaches
+    ones = np.ones(n - 1)
+    law = (cfg.buffer_stiffness * ones, cfg.buffer_friction * ones,
+           cfg.draw_gear_stiffness * ones, cfg.draw_gear_friction * ones, couplers.TANH,
+           float(cfg.values['scale_factor']))
+    F = np.empty((k_valid, n - 1), np.float32)
+    Y = np.empty((k_valid, n - 1), np.float32)
+    for k in range(k_valid):
+        y = x[:-1, k] - x[1:, k]
+        Y[k] = y
+        F[k] = couplers.coupler_force(y, v[:-1, k] - v[1:, k], *law)
+    return F, Y
+
+
+def compute_reference(n: int, u: float, floor: bool = False) -> tuple[dict, dict]:
     """
     Compute the reference over [0, T_END] on the 10 ms grid.
 
     Returns (cache entry, samples). The entry keeps the envelope max_j |F_j| (float32) up to
     the first sample at which a coach has stopped (v <= 0), where it stops being valid; the
     samples are every coupler's force F [N] and displacement y [m] on the same samples
-    (float32 arrays, samples x couplers).
+    (float32 arrays, samples x couplers). ``floor``: the sensitivity floor's train
+    (:func:`floor_inertia`: one coach heavier, the same brake forces).
     """
     import numpy as np
-    from train_dynamics.physics.kernel import couplers
     from train_dynamics.physics.reference import reference_solution
     cfg = make_config(n, 'tanh', u)
     fb_of_t = brake_formula(cfg)
+    masses = floor_inertia(cfg) if floor else cfg.mass_array
     grid = _grid(T_END)
     t0 = time.perf_counter()
-    res = reference_solution(cfg.mass_array, cfg.buffer_stiffness, cfg.buffer_friction,
+    res = reference_solution(masses, cfg.buffer_stiffness, cfg.buffer_friction,
                              cfg.draw_gear_stiffness, cfg.draw_gear_friction, u,
                              cfg.initial_speed, fb_of_t, float(grid[-1]), t_eval=grid)
     wall = time.perf_counter() - t0
@@ -529,21 +691,14 @@ def compute_reference(n: int, u: float) -> tuple[dict, dict]:
     x, v = res.y[:n], res.y[n:]
     stopped = np.nonzero(v.min(axis=0) <= 0.0)[0]
     k_valid = int(stopped[0]) if stopped.size else grid.size     # samples [0, k_valid)
-    ones = np.ones(n - 1)
-    F = np.empty((k_valid, n - 1), np.float32)
-    Y = np.empty((k_valid, n - 1), np.float32)
-    for k in range(k_valid):
-        y = x[:-1, k] - x[1:, k]
-        Y[k] = y
-        F[k] = couplers.coupler_force(y, v[:-1, k] - v[1:, k],
-                                      cfg.buffer_stiffness * ones, cfg.buffer_friction * ones,
-                                      cfg.draw_gear_stiffness * ones,
-                                      cfg.draw_gear_friction * ones, couplers.TANH, float(u))
+    F, Y = coupler_samples(cfg, x, v, k_valid)
     env = np.abs(F.astype(float)).max(axis=1)
     entry = {'n': n, 'u': u, 't_end': T_END, 'wall_s': wall, 'nfev': int(res.nfev),
              'first_stop_s': float(grid[k_valid]) if k_valid < grid.size else None,
              'valid_samples': k_valid, 'peak_N': float(env.max()),
              't_peak_s': float(grid[int(env.argmax())]), 'envelope_f32_zlib_b64': _encode(env)}
+    if floor:
+        entry['floor'] = floor_label(n)
     return entry, {'F': F, 'y': Y}
 
 
@@ -557,16 +712,17 @@ def save_samples(key: str, samples: dict) -> None:
 
 
 def get_reference(n: int, u: float, allow_compute: bool,
-                  samples: bool = False) -> dict | None:
+                  samples: bool = False, floor: bool = False) -> dict | None:
     """
     Return the cached reference (envelope decoded into 'envelope'), computed if allowed.
 
     ``samples``: also the per-coupler samples 'F' and 'y' (:func:`compute_reference`); None
-    when they are not cached and computing is not allowed.
+    when they are not cached and computing is not allowed. ``floor``: the reference of the
+    sensitivity floor's train (:func:`floor_inertia`), cached the same way.
     """
     import numpy as np
     cfg = make_config(n, 'tanh', u)
-    key = reference_key(cfg)
+    key = reference_key(cfg, floor_inertia(cfg) if floor else None)
     entry = load_cache().get(key)
     arrays = None
     if samples and os.path.exists(samples_path(key)):
@@ -575,7 +731,7 @@ def get_reference(n: int, u: float, allow_compute: bool,
     if entry is None or (samples and arrays is None):
         if not allow_compute:
             return None
-        new, arrays = compute_reference(n, u)
+        new, arrays = compute_reference(n, u, floor)
         save_samples(key, arrays)
         if entry is None:       # the committed cache keeps its first computation
             entry = new
@@ -726,12 +882,14 @@ def target_settings(default_overrides: dict | None = None) -> list:
 
 
 def run_targets(ref_max_n: int, default_overrides: dict | None = None, sizes=None,
-                log=print) -> list[dict]:
+                log=print, bdf: bool = False, floor: bool = False) -> list[dict]:
     """
     Measure the target rows (:func:`target_case`, fresh process per train).
 
     References with per-coupler samples are computed first for trains up to ``ref_max_n``
     coaches (cached outside the repository, SAMPLES_DIR); larger trains use what is cached.
+    ``bdf``: with the scipy BDF row; ``floor``: with the sensitivity floor's row (its
+    reference computed first on the same terms).
     """
     settings = target_settings(default_overrides)
     rows = []
@@ -739,14 +897,20 @@ def run_targets(ref_max_n: int, default_overrides: dict | None = None, sizes=Non
         if n <= ref_max_n:
             log(f'core targets: reference with per-coupler samples, N={n}')
             get_reference(n, 1000.0, allow_compute=True, samples=True)
+            if floor:
+                log(f'core targets: the floor reference, N={n}')
+                get_reference(n, 1000.0, allow_compute=True, samples=True, floor=True)
         repeats = TIMED_REPEATS if n <= 300 else 3
-        res = _run_sub(['--target', json.dumps([n, settings, repeats])])
+        res = _run_sub(['--target', json.dumps([n, settings, repeats, bdf, floor])])
         for r in res:
             acc = (f", force samples {100 * r['force_err']:.3f} %, displacements "
                    f"{100 * r['disp_err']:.3f} %" if 'force_err' in r else
                    ' (no per-coupler reference samples)')
-            log(f"  N={n} {r['label']}: {r['rtf']:.1f}x real time over 0-{r['span_s']:g} s"
-                + acc)
+            if 'robust' in r:
+                acc += ', ' + ', '.join(f'{k} {100 * v:.3f} %' for k, v in r['robust'].items())
+            speed = (f"{r['rtf_cpu']:.1f}x real time (CPU) over 0-{r['span_s']:g} s"
+                     if 'rtf_cpu' in r else '')
+            log(f"  N={n} {r['label']}: {speed}" + acc)
         rows += res
     return rows
 
@@ -914,8 +1078,13 @@ def adaptive_table(rows) -> str:
     return '\n'.join(lines)
 
 
-def compute_references(sizes, us, max_n: int, samples: bool = False) -> None:
-    """Fill the reference cache (``samples``: the per-coupler samples as well)."""
+def compute_references(sizes, us, max_n: int, samples: bool = False,
+                       floor: bool = False) -> None:
+    """
+    Fill the reference cache (``samples``: the per-coupler samples as well).
+
+    ``floor``: the references of the sensitivity floor's trains (:func:`floor_inertia`).
+    """
     for n in sizes:
         for u in us:
             ok, note = want_reference(n, 'tanh', u, max_n)
@@ -923,7 +1092,7 @@ def compute_references(sizes, us, max_n: int, samples: bool = False) -> None:
                 print(f'N={n} u={u:g}: {note}', flush=True)
                 continue
             t0 = time.perf_counter()
-            ref = get_reference(n, u, allow_compute=True, samples=samples)
+            ref = get_reference(n, u, allow_compute=True, samples=samples, floor=floor)
             print(f'N={n} u={u:g}: reference peak {ref["peak_N"]:.6g} N at {ref["t_peak_s"]:g} s, '
                   f'valid until {ref["first_stop_s"]} s ({ref["wall_s"]:.0f} s to compute; '
                   f'{time.perf_counter() - t0:.0f} s now)', flush=True)
@@ -947,6 +1116,11 @@ def main(argv=None) -> int:
                     help='compute missing reference solutions into the cache')
     ap.add_argument('--samples', action='store_true',
                     help='with --refs: the per-coupler samples too (SAMPLES_DIR)')
+    ap.add_argument('--bdf', action='store_true',
+                    help='with --targets: the scipy BDF row (timed in the same rounds)')
+    ap.add_argument('--floor', action='store_true',
+                    help='with --refs: the sensitivity floor (one coach heavier); with '
+                         '--targets: its row')
     ap.add_argument('--ref-sizes', default='3,30,100,300')
     ap.add_argument('--ref-us', default='100,1000,10000')
     ap.add_argument('--ref-max-n', type=int, default=300)
@@ -962,13 +1136,14 @@ def main(argv=None) -> int:
         print(json.dumps(startup_probe()))
         return 0
     if args.target:
-        n, settings, repeats = json.loads(args.target)
-        print(json.dumps(target_case(int(n), settings, int(repeats))))
+        n, settings, repeats, *extra = json.loads(args.target)
+        print(json.dumps(target_case(int(n), settings, int(repeats), *extra)))
         return 0
     if args.targets:
         sizes = [int(m) for m in args.sizes.split(',')] if args.sizes else None
         rows = run_targets(args.ref_max_n, args.default_overrides, sizes,
-                           log=lambda m: print(m, file=sys.stderr, flush=True))
+                           log=lambda m: print(m, file=sys.stderr, flush=True),
+                           bdf=args.bdf, floor=args.floor)
         print(json.dumps(rows, indent=1))
         return 0
     if args.adaptive:
@@ -981,7 +1156,7 @@ def main(argv=None) -> int:
     if args.refs:
         compute_references([int(s) for s in args.ref_sizes.split(',')],
                            [float(s) for s in args.ref_us.split(',')], args.ref_max_n,
-                           args.samples)
+                           args.samples, args.floor)
         return 0
     res = run(default_overrides=args.default_overrides)
     print(json.dumps(dict(res), indent=1, default=str)[:5000])
