@@ -915,6 +915,42 @@ def run_targets(ref_max_n: int, default_overrides: dict | None = None, sizes=Non
     return rows
 
 
+#: the accuracy contract's metrics in the target table: (all_metrics key, heading)
+CONTRACT_COLUMNS = (('worst_sample', 'worst sample'), ('tube_10ms', 'tube +-10 ms (2 %)'),
+                    ('window_envelope_1s', '1 s windows (2 %)'),
+                    ('coupler_envelope', 'per-coupler envelope (1 %)'),
+                    ('del_m4', 'DEL m = 4 (1 %)'), ('cycles_above_10pct', 'cycles > 10 % (2 %)'))
+
+
+def contract_table(rows: list[dict]) -> str:
+    """
+    Return the target rows of one train as a markdown table: speed beside the contract.
+
+    Real-time factor from the least CPU time of the whole runs (span / CPU), CPU time per
+    vehicle and 2 ms of simulated time [ns] (the plain step's vehicle-step), the contract's
+    metrics [% of the reference's peak; the cycle count in % of the reference's count] and
+    the peak's error.
+    """
+    n, span = rows[0]['n'], rows[0].get('span_s')
+    head = ' | '.join(label for _, label in CONTRACT_COLUMNS)
+    out = [f'| {n} paper coaches, 0-{span:g} s | real-time factor (CPU) | CPU [s] | '
+           f'ns per vehicle-step | {head} | peak |',
+           '|---|' + '---:|' * (len(CONTRACT_COLUMNS) + 4)]
+    for r in rows:
+        if 'cpu_s' in r:
+            ns = 1e9 * r['cpu_s'] / (n * r['span_s'] / DEFAULT_H)
+            speed = f"{r['rtf_cpu']:.1f}x | {r['cpu_s']:.2f} | {ns:.0f}"
+        else:
+            speed = ' | | '
+        m = r.get('robust', {})
+        cells = ' | '.join(
+            (f'{100 * m[key]:+.2f}' if key == 'cycles_above_10pct' else f'{100 * m[key]:.3f}')
+            if key in m else '' for key, _ in CONTRACT_COLUMNS)
+        peak = f"{100 * r['peak_err']:+.3f} %" if 'peak_err' in r else ''
+        out.append(f"| {r['label']} | {speed} | {cells} | {peak} |")
+    return '\n'.join(out)
+
+
 def run(ref_max_n: int = 100, sizes=SIZES, models=MODELS, steps=STEP_VARIANTS,
         baseline_sizes=BASELINE_SIZES, log=print, default_overrides: dict | None = None,
         target_ref_max_n: int = 1000) -> dict:
@@ -1145,6 +1181,8 @@ def main(argv=None) -> int:
                            log=lambda m: print(m, file=sys.stderr, flush=True),
                            bdf=args.bdf, floor=args.floor)
         print(json.dumps(rows, indent=1))
+        for n in sorted({r['n'] for r in rows}):
+            print(contract_table([r for r in rows if r['n'] == n]) + '\n', file=sys.stderr)
         return 0
     if args.adaptive:
         rows = []
