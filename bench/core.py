@@ -388,40 +388,59 @@ def default_config(n: int, **overrides):
     return cfg
 
 
-#: the scipy row of the target table: what a user with a stiff solver would write, on the
-#: reference's equations with its analytical sparse Jacobian (solve_ivp's default atol)
+#: the scipy rows of the target table: what a user with a stiff solver would write, at a
+#: user's tolerance (solve_ivp's default atol), in two formulations (:func:`bdf_run`)
 BDF_RTOL = 1e-6
 BDF_ATOL = 1e-6
-BDF_LABEL = (f'scipy BDF, analytical sparse Jacobian, rtol {BDF_RTOL:g} '
-             f'(atol {BDF_ATOL:g})')
+BDF_LABELS = {
+    'reference': f'scipy BDF, reference equations (x, v), analytical sparse Jacobian, '
+                 f'rtol {BDF_RTOL:g}',
+    'relative': f'scipy BDF, relative equations (y, ydot), jac_sparsity, rtol {BDF_RTOL:g}'}
 
 
-def bdf_run(cfg, t_span: float) -> dict:
+def bdf_run(cfg, t_span: float, formulation: str = 'reference') -> dict:
     """
     Return one timed scipy BDF run of ``cfg`` over [0, t_span], sampled every 10 ms.
 
-    ``scipy.integrate.solve_ivp`` (method 'BDF', rtol BDF_RTOL, atol BDF_ATOL) on the
-    reference's equations (:func:`train_dynamics.physics.reference.reference_solution`:
-    eqs. 5-7 with the tanh law, state [x, v], its analytical sparse Jacobian) with the same
-    brake forces (:func:`brake_formula`). Every coupler's force and displacement on the 10 ms
-    samples (:func:`coupler_samples`) are part of the timed run, as the simulator's read-out
-    is. Returns wall and CPU time [s], the solver's counters and 'F', 'y' (samples x
-    couplers, float32).
+    ``scipy.integrate.solve_ivp`` (method 'BDF', rtol BDF_RTOL, atol BDF_ATOL) with the
+    reference's brake forces (:func:`brake_formula`), on
+
+    - 'reference': the reference's equations
+      (:func:`train_dynamics.physics.reference.reference_solution`: eqs. 5-7 with the tanh
+      law, state [x, v] of the coaches, its analytical sparse Jacobian): the tolerance
+      scales with the distance travelled (hundreds of m), not with the coupler
+      displacements (tens of mm);
+    - 'relative': the paper's relative equations (17)-(18) (:func:`relative_equations`,
+      state [y, ydot] of the couplers), the Jacobian by finite differences on its sparsity
+      pattern (``jac_sparsity``).
+
+    Every coupler's force and displacement on the 10 ms samples are part of the timed run,
+    as the simulator's read-out is. Returns wall and CPU time [s], the solver's counters and
+    'F' [N], 'y' [m] (samples x couplers, float32).
     """
+    import numpy as np
+    from scipy.integrate import solve_ivp
     from train_dynamics.physics.reference import reference_solution
     grid = _grid(t_span)
     n = cfg.n_coaches
     c0 = time.process_time()
     t0 = time.perf_counter()
-    res = reference_solution(cfg.mass_array, cfg.buffer_stiffness, cfg.buffer_friction,
-                             cfg.draw_gear_stiffness, cfg.draw_gear_friction,
-                             float(cfg.values['scale_factor']), cfg.initial_speed,
-                             brake_formula(cfg), float(grid[-1]), t_eval=grid,
-                             rtol=BDF_RTOL, atol=BDF_ATOL, method='BDF')
-    if res.status != 0:
-        raise RuntimeError(f'scipy BDF failed: {res.message}')
-    F, Y = coupler_samples(cfg, res.y[:n], res.y[n:], grid.size)
+    if formulation == 'reference':
+        res = reference_solution(cfg.mass_array, cfg.buffer_stiffness, cfg.buffer_friction,
+                                 cfg.draw_gear_stiffness, cfg.draw_gear_friction,
+                                 float(cfg.values['scale_factor']), cfg.initial_speed,
+                                 brake_formula(cfg), float(grid[-1]), t_eval=grid,
+                                 rtol=BDF_RTOL, atol=BDF_ATOL, method='BDF')
+        F, Y = coupler_samples(cfg, res.y[:n], res.y[n:], grid.size)
+    else:
+        rhs, force, sparsity = relative_equations(cfg)
+        res = solve_ivp(rhs, (0.0, float(grid[-1])), np.zeros(2 * (n - 1)), method='BDF',
+                        rtol=BDF_RTOL, atol=BDF_ATOL, jac_sparsity=sparsity, t_eval=grid)
+        Y = res.y[:n - 1].T.astype(np.float32)
+        F = force(res.y[:n - 1], res.y[n - 1:]).T.astype(np.float32)
     wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    if res.status != 0:
+        raise RuntimeError(f'scipy BDF ({formulation}) failed: {res.message}')
     return {'wall_s': wall, 'cpu_s': cpu, 'nfev': int(res.nfev), 'njev': int(res.njev),
             'nlu': int(res.nlu), 'F': F, 'y': Y}
 
@@ -490,13 +509,16 @@ def target_case(n: int, settings: list, repeats: int, bdf: bool = False,
                      'brake_mismatch': run['brake_mismatch'], '_run': run})
     span = min(moving_span(r['t_first_stop'], ref) for r in rows)
     times = [[] for _ in rows]
-    bdf_runs = []
+    bdf_runs = {key: [] for key in (BDF_LABELS if bdf else ())}
     cal = calibration_s()
     for _ in range(repeats):
         for k, cfg in enumerate(cfgs):
             times[k].append(timed_run(cfg, span))
-        if bdf:
-            bdf_runs.append(bdf_run(default_config(n), span))
+        for key, runs in bdf_runs.items():
+            for earlier in runs:        # the samples of the last run only (deterministic)
+                earlier.pop('F', None)
+                earlier.pop('y', None)
+            runs.append(bdf_run(default_config(n), span, key))
     cal = min(cal, calibration_s())
     for r, t in zip(rows, times):
         run = r.pop('_run')
@@ -509,14 +531,14 @@ def target_case(n: int, settings: list, repeats: int, bdf: bool = False,
                  ref_note='' if ref is not None else 'no cached reference')
         if keep:
             r['robust'] = robust_metrics(run['F'], ref, span)
-    if bdf_runs:
-        last = bdf_runs[-1]
-        w = [b['wall_s'] for b in bdf_runs]
-        c = [b['cpu_s'] for b in bdf_runs]
-        row = {'n': n, 'u': u, 'label': BDF_LABEL, 'bdf': True, 'nfev': last['nfev'],
+    for key, runs in bdf_runs.items():
+        last = runs[-1]
+        w = [b['wall_s'] for b in runs]
+        c = [b['cpu_s'] for b in runs]
+        row = {'n': n, 'u': u, 'label': BDF_LABELS[key], 'bdf': key, 'nfev': last['nfev'],
                'njev': last['njev'], 'nlu': last['nlu'], 'span_s': span, 'walls_s': w,
                'wall_s': min(w), 'rtf': span / min(w), 'cpus_s': c, 'cpu_s': min(c),
-               'rtf_cpu': span / min(c), 'calibration_s': cal, 'repeats': len(bdf_runs),
+               'rtf_cpu': span / min(c), 'calibration_s': cal, 'repeats': len(runs),
                'ref_samples': keep}
         if keep:
             row.update(sample_errors(samples_run(last['F'], last['y'], ref), ref, span),
@@ -765,16 +787,24 @@ def comparison_window(t_first_stop_sim: float | None, ref: dict | None) -> float
 
 
 # --------------------------------------------------------------------------- baseline
-def baseline_case(n: int, t_end: float = T_END, u: float = 1000.0) -> dict:
-    """Run the user's script: solve_ivp RK45 on the paper's eqs. (17)-(18) for N coaches."""
+def relative_equations(cfg):
+    """
+    Return the paper's relative equations of motion (17)-(18) of ``cfg``'s train.
+
+    (rhs(t, z), force(y, ydot), sparsity): state z = [y, ydot] (N-1 coupler displacements
+    [m] and rates [m/s]); the tanh law (u the configuration's scale factor) with the paper's
+    (1 -+ sgn y)/2 branch selection, a plain vectorised numpy right-hand side; the braking
+    forces of :func:`brake_formula`; ``sparsity`` the pattern of its Jacobian (ydd_i depends
+    on couplers i-1 .. i+1), for ``solve_ivp``'s ``jac_sparsity``.
+    """
     import numpy as np
-    from scipy.integrate import solve_ivp
-    cfg = make_config(n, 'tanh', u)
+    import scipy.sparse as sp
     fb_of_t = brake_formula(cfg)
+    u = float(cfg.values['scale_factor'])
     m = np.asarray(cfg.mass_array, float)
     kt, ct = cfg.buffer_stiffness, cfg.buffer_friction        # compression (buffers)
     kc, cc = cfg.draw_gear_stiffness, cfg.draw_gear_friction  # extension (draw gear)
-    nc = n - 1
+    nc = cfg.n_coaches - 1
 
     def force(y, yd):
         th = np.tanh(u * yd)
@@ -789,6 +819,18 @@ def baseline_case(n: int, t_end: float = T_END, u: float = 1000.0) -> dict:
         a = (Fp[:-1] - Fp[1:] - Fb) / m              # eqs. (5)-(7)
         return np.concatenate((yd, a[:-1] - a[1:]))  # eqs. (17)-(18): ydd_i = a_i - a_{i+1}
 
+    band = sp.diags([np.ones(nc - 1), np.ones(nc), np.ones(nc - 1)], [-1, 0, 1])
+    sparsity = sp.bmat([[None, sp.identity(nc)], [band, band]], format='csc')
+    return rhs, force, sparsity
+
+
+def baseline_case(n: int, t_end: float = T_END, u: float = 1000.0) -> dict:
+    """Run the user's script: solve_ivp RK45 on the paper's eqs. (17)-(18) for N coaches."""
+    import numpy as np
+    from scipy.integrate import solve_ivp
+    cfg = make_config(n, 'tanh', u)
+    rhs, force, _ = relative_equations(cfg)
+    nc = n - 1
     grid = _grid(t_end)
     t0 = time.perf_counter()
     res = solve_ivp(rhs, (0.0, float(grid[-1])), np.zeros(2 * nc), method='RK45', rtol=1e-6,
