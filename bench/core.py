@@ -47,7 +47,15 @@ u = 1000, the configuration sets only the train and the paper's idealisation), w
 sample accuracy beside the speed, and the plain fixed step (``multirate_tolerance`` 0) the
 same way for comparison. The settings are timed interleaved (A B A B ...) in whole runs over
 the same moving span; ``--default-overrides JSON`` applies settings on top of the defaults
-(to try a planned default; the rows name them).
+(to try a planned default; the rows name them). Where the reference's per-coupler samples
+are cached, each row carries the accuracy contract's metrics too (:func:`robust_metrics`:
+``physics/comparison.all_metrics`` on every coupler's 10 ms samples). ``--bdf`` adds two
+scipy BDF rows timed in the same rounds (:func:`bdf_run`: rtol 1e-6 on the reference's
+equations with its analytical sparse Jacobian, and on the paper's relative equations with
+``jac_sparsity``); ``--floor`` the sensitivity floor (the reference of the same train with the
+middle coach's mass x (1 + 1e-3), :func:`floor_inertia`; ``--refs --samples --floor``
+computes and caches it like the other references); the markdown table
+(:func:`contract_table`) goes to stderr after the JSON rows.
 
 The baseline is what a user would write: ``scipy.integrate.solve_ivp`` (RK45, rtol 1e-6,
 default atol 1e-6) on the paper's relative equations of motion (17)-(18) generalised to N
