@@ -1203,7 +1203,7 @@ def main(argv=None) -> int:
     ap.add_argument('--samples', action='store_true',
                     help='with --refs: the per-coupler samples too (SAMPLES_DIR)')
     ap.add_argument('--bdf', action='store_true',
-                    help='with --targets: the scipy BDF row (timed in the same rounds)')
+                    help='with --targets: the scipy BDF rows (timed in the same rounds)')
     ap.add_argument('--floor', action='store_true',
                     help='with --refs: the sensitivity floor (one coach heavier); with '
                          '--targets: its row')
