@@ -129,7 +129,7 @@ def braking_force_trapezoid(coach, sc, ws):
         fb_avail[i] = fb_next[i]
 
 
-@jit(inline=True)
+@jit
 def external_step(coach, sc, iv, gprof, cprof, ws):
     """
     Add the static resistance to the friction of the step; ramp the traction command.
@@ -249,7 +249,7 @@ def accept_step(coach, held, extra_work, ws, ext):
     return wb
 
 
-@jit(inline=True)
+@jit
 def accept_external(h, coach, sc, held, ws):
     """
     Book the external forces of the accepted step; return the brakes' work [J].
