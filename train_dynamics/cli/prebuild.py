@@ -113,10 +113,8 @@ def part_calls(names=None) -> list:
 
 def compile_parts(names) -> None:
     """Compile the driver's parts ``names`` for their arguments' types (or load them)."""
-    from numba import typeof
     for _, _, function, args in part_calls(names):
-        if hasattr(function, 'compile'):        # not under NUMBA_DISABLE_JIT
-            function.compile(tuple(typeof(a) for a in args))
+        compiler.compile_for(function, args)
 
 
 def share_parts(jobs: int) -> list[list[str]]:

@@ -384,6 +384,19 @@ def jit(func=None, *, inline: bool = False):
     return dispatcher
 
 
+def compile_for(function, args) -> bool:
+    """
+    Compile ``function`` (a :func:`jit` kernel) for the types of ``args``, or load it; say if.
+
+    What its first call with ``args`` would compile, without the call (``cli/prebuild.py``
+    compiles the fixed-step driver's parts so, in parallel processes). False without numba.
+    """
+    if not HAVE_NUMBA or not isinstance(function, _Dispatcher):
+        return False
+    function.compile(tuple(_numba.typeof(a) for a in args))
+    return True
+
+
 def _skip_blas_probe() -> bool:
     """
     Import numba's array functions without their probe for scipy's BLAS; return True if done.
