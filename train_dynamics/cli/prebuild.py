@@ -24,9 +24,10 @@ Two processes. numba compiles in one thread. The fixed-step driver's large parts
 compiled functions of their own (``physics/kernel/fixed_step.py``, :func:`fixed_step.parts`);
 when the driver of this code version is not in the cache yet, ``paper`` first compiles them
 in ``--jobs`` processes (default: 2 where there are 2 CPUs; a helper process ``--parts``
-takes its share), then the driver, which loads them. Measured, empty cache, idle 2-core
-machine: the ``paper`` group in 57 s of CPU time one after another, XX s of wall time with
-two processes.
+takes its share), then the driver, which loads them. Measured, empty cache, this 2-core
+machine with about one core busy elsewhere (load 1.7-3.2): the ``paper`` group in 58 s of
+wall time with two processes (56 s of CPU), 111 s with one (73 s of CPU); the parts make two
+shares of ~24 s of CPU (:func:`share_parts`), the driver then 7 s.
 """
 from __future__ import annotations
 
