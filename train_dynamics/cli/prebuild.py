@@ -58,7 +58,7 @@ JOBS_MAX = 2
 #: ``TRAIN_DYNAMICS_PREBUILD`` (build time): what ``setup.py build`` / ``develop`` compile
 PREBUILD_ENV = 'TRAIN_DYNAMICS_PREBUILD'
 #: compiled at build time unless the variable says otherwise: what every scenario without
-#: ``integration_tolerance`` or the pneumatic brake runs (cold: ~70 s of one core)
+#: ``integration_tolerance`` or the pneumatic brake runs (cold: ~57 s of CPU, two processes)
 BUILD_DEFAULT = 'paper'
 
 
@@ -243,7 +243,7 @@ def main(argv: list[str] | None = None) -> int:
                   'compiled now; the first start compiles what it runs', flush=True)
             return 0
         print(f'train_dynamics: compiling the numba kernels ({", ".join(args.variants)}) '
-              f'into {args.into or "the user cache"}: ~70 s of one core per group when nothing '
+              f'into {args.into or "the user cache"}: ~1 min of CPU per group when nothing '
               f'is cached ({PREBUILD_ENV}=0 skips, =all compiles every group; the others '
               'compile at their first use)', flush=True)
     if not compiler.HAVE_NUMBA:
@@ -255,7 +255,9 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     t0 = time.perf_counter()
     jobs = args.jobs if args.jobs is not None else default_jobs()
-    if 'paper' in args.variants and jobs > 1 and not driver_cached():
+    # in parallel only through the cache (a helper's kernels reach this process there)
+    if ('paper' in args.variants and jobs > 1 and compiler.kernel_cache_dir()
+            and not driver_cached()):
         compile_in_parallel(jobs)
     warm(args.variants)
     stats = compiler.cache_stats()
