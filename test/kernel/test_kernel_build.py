@@ -151,3 +151,27 @@ def test_a_cold_build_compiles_the_parts_in_a_helper_process_too(monkeypatch, ca
     monkeypatch.setattr(prebuild, 'driver_cached', lambda: True)
     assert prebuild.main(['--variants', 'paper', '--jobs', '2']) == 0
     assert started == []
+
+
+def test_an_interrupted_build_stops_its_helper_process(monkeypatch):
+    stopped = []
+
+    class Helper:
+
+        def __init__(self, cmd, **kwargs):
+            pass
+
+        def terminate(self):
+            stopped.append('terminated')
+
+        def wait(self):
+            stopped.append('waited')
+
+    def interrupted(names):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(prebuild.subprocess, 'Popen', Helper)
+    monkeypatch.setattr(prebuild, 'compile_parts', interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        prebuild.compile_in_parallel(2)
+    assert stopped == ['terminated', 'waited']

@@ -146,9 +146,15 @@ def compile_in_parallel(jobs: int) -> None:
                for names in shares[1:] if names]
     print(f'train_dynamics: compiling the parts of the fixed-step driver in {len(helpers) + 1} '
           'processes', flush=True)
-    compile_parts(shares[0])
-    for helper in helpers:
-        helper.wait()
+    try:
+        compile_parts(shares[0])
+    except BaseException:       # interrupted (Ctrl-C) or failed: the helpers stop too
+        for helper in helpers:
+            helper.terminate()
+        raise
+    finally:
+        for helper in helpers:
+            helper.wait()
 
 
 def driver_cached() -> bool:
