@@ -25,9 +25,10 @@ compiled functions of their own (``physics/kernel/fixed_step.py``, :func:`fixed_
 when the driver of this code version is not in the cache yet, ``paper`` first compiles them
 in ``--jobs`` processes (default: 2 where there are 2 CPUs; a helper process ``--parts``
 takes its share), then the driver, which loads them. Measured, empty cache, this 2-core
-machine with about one core busy elsewhere (load 1.7-3.2): the ``paper`` group in 58 s of
-wall time with two processes (56 s of CPU), 111 s with one (73 s of CPU); the parts make two
-shares of ~24 s of CPU (:func:`share_parts`), the driver then 7 s.
+machine: the ``paper`` group in 31 s of wall time with two processes when idle (first
+``colcon build``); with about one core busy elsewhere (load 1.7-3.2) 58 s with two processes
+(56 s of CPU), 111 s with one (73 s of CPU). The parts make two shares of ~24 s of CPU
+(:func:`share_parts`), the driver then 7 s.
 """
 from __future__ import annotations
 
