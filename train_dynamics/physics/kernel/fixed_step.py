@@ -16,9 +16,9 @@ on: the skipped steps cost ~30 ns per vehicle instead of ~100.
 Compiled apart. The large pieces of a step are compiled functions of their own, called by
 the driver, not inlined into it (numba's ``inline='always'`` copies a function's IR into
 every caller and compiles the result as one; the compilation grows faster than the code):
-the active-set step, the multirate refinement (:func:`_refine`), the first call's set-up,
-the wheelsets' (and bogies') pieces and the external forces' (the last two run only with
-their options). Measured with an empty kernel cache, one core, the paper group
+the active-set step, the multirate refinement (:func:`.multirate.refine`), the first
+call's set-up, the wheelsets' (and bogies') pieces and the external forces' (the last two
+run only with their options). Measured with an empty kernel cache, one core, the paper group
 (``cli/prebuild.py``): 119 s of CPU time with them inlined (``advance_chain`` alone 85-90 %),
 57 s apart (the refinement 19 s, the active-set step 12 s, the wheelsets and bogies 12 s,
 the driver itself 7 s), and :func:`parts` lets two processes compile them side by side. A
@@ -113,12 +113,6 @@ def _first_call(coach, cpl, sc, iv, ws, gh):
 
 
 @jit
-def _refine(h, coach, cpl, sc, iv, held, ws, gprof, scratch, sheld):
-    """:func:`.multirate.refine`, compiled apart from the driver (see the module)."""
-    return refine(h, coach, cpl, sc, iv, held, ws, gprof, scratch, sheld)
-
-
-@jit
 def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof, aprof):
     """
     Advance brakes and chain ``n_steps`` fixed steps, in place; return (steps, status).
@@ -182,8 +176,8 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
             # multirate: events re-integrated in sub-steps; the tanh law only (the sign law
             # jumps at zero relative speed: no local error estimate converges there)
             if multirate:
-                work_fix = _refine(sc[PARAM.H], coach, cpl, sc, iv, held, ws, gprof,
-                                   mr_scratch, mr_held)
+                work_fix = refine(sc[PARAM.H], coach, cpl, sc, iv, held, ws, gprof,
+                                  mr_scratch, mr_held)
         status = fault_check(ws, sc[PARAM.YLIM])
         if status != OK:
             return step, status
@@ -218,7 +212,7 @@ def parts(coach, cpl, sc, iv, ws, gprof, cprof):
     held = np.zeros(n, dtype=np.bool_)
     scratch = np.zeros(1)
     return [
-        ('refine', 19.0, _refine, (h, coach, cpl, sc, iv, held, ws, gprof, scratch, held)),
+        ('refine', 19.0, refine, (h, coach, cpl, sc, iv, held, ws, gprof, scratch, held)),
         ('wheelsets', 12.0, wheelset.wheelset_substep, (coach, sc, ws)),
         ('active_set', 12.0, active_set_step, (h, coach, cpl, sc, iv, held, ws, gprof)),
         ('first_call', 2.0, _first_call, (coach, cpl, sc, iv, ws, GAMMA * h)),
