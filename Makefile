@@ -61,17 +61,22 @@ $(STAMP): requirements.txt requirements-lock.txt setup.py setup.cfg package.xml 
 	fi
 	$(VPY) -m pip install --no-compile -r requirements.txt
 	$(VPY) -m pip install --no-deps --no-build-isolation --use-pep517 -e .
-	# the typed messages: colcon + rosidl into the venv's own prefix (~1 min; needs cmake and a
-	# C/C++ compiler; docs/install.md), where the venv's Python finds them without any setup
-	tools/build_msgs.sh "$(VENV)"
-	# byte-compile every installed module, on both cores (~30 s): where PYTHONDONTWRITEBYTECODE
+	# byte-compile every installed module, on both cores (~15 s): where PYTHONDONTWRITEBYTECODE
 	# is set Python never writes a .pyc itself (why and what it costs: docs/development.md,
 	# "Python bytecode")
 	$(VPY) -m compileall -q -j 0 "$$($(VPY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')" >/dev/null \
 	  || echo "note: some installed modules did not byte-compile (their imports stay slower)"
-	# compile the numba kernels that `make run` needs now into the user cache
-	# (~/.cache/train_dynamics/numba-<code version>, keyed by the sources' content)
-	$(VPY) -m train_dynamics.cli.prebuild --variants paper
+	# two things at once (docs/install.md, "First build and first run"): the numba kernels that
+	# `make run` needs compile into the user cache (~/.cache/train_dynamics/numba-<code
+	# version>, keyed by the sources' content; ~30 s on two cores, once per code version) while
+	# the typed messages build: colcon + rosidl into the venv's own prefix (~40 s, mostly
+	# waiting on cmake; needs cmake and a C/C++ compiler), where the venv's Python finds them
+	# without any setup
+	$(VPY) -m train_dynamics.cli.prebuild --variants paper & prebuild=$$!; \
+	  trap 'kill $$prebuild 2>/dev/null || true' EXIT; \
+	  tools/build_msgs.sh "$(VENV)"; \
+	  wait $$prebuild
+	$(VPY) -m compileall -q "$$($(VPY) -c 'import sysconfig; print(sysconfig.get_paths()["purelib"])')/train_dynamics_msgs" >/dev/null
 	@touch "$@"
 
 # every kernel variant compiled (or loaded) before the tests, in this process: no test

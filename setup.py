@@ -2,7 +2,8 @@
 ament_python build of train_dynamics (colcon build) and pip editable install (make venv).
 
 ``build`` also compiles the numba kernels of the default configuration (the variant group
-``paper``: fixed step, brake pipe, run metrics; ~70 s of one core when nothing is cached)
+``paper``: fixed step, brake pipe, run metrics; ~57 s of CPU, in two processes, when nothing
+is cached)
 into the built package (``train_dynamics/physics/kernel/_prebuilt/numba-<code version>``, see
 ``physics/kernel/compiler.py``), so that the first ``ros2 run`` of such a scenario loads
 machine code instead of compiling; the others (``integration_tolerance`` > 0, the pneumatic

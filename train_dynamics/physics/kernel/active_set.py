@@ -198,7 +198,7 @@ def _blocked_solve(h, coach, cpl, model, u, held, ws, iv, gprof):
         iv[COUNT.BLOCK_SOLVES] += 1
 
 
-@jit(inline=True)
+@jit
 def active_set_step(h, coach, cpl, sc, iv, held, ws, gprof):
     """
     Do one ROS2 step of the chain with the active set of held coaches; return work [J].

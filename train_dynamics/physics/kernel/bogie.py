@@ -135,7 +135,7 @@ def _paper_half(p, sc, bmass):
     return 0.5 * (sc[PARAM.MU] * bmass * sc[PARAM.G] * ratio)
 
 
-@jit(inline=True)
+@jit
 def bogie_substep(coach, sc, ws):
     """
     Advance both wheelsets of every vehicle over the step (module docstring, 2).

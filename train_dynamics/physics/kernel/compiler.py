@@ -360,8 +360,11 @@ def jit(func=None, *, inline: bool = False):
     Compile ``func`` with numba, cached by content (see the module); without numba keep it.
 
     ``@jit(inline=True)``: numba inlines the function into its compiled callers (at its IR
-    level), for the named steps of a kernel that run once per step: a call costs the
-    reference counting of every array argument, which a 3-coach step would notice.
+    level), for the small named pieces of a kernel: a call costs the reference counting of
+    every array argument, which a 3-coach step would notice for many small calls. Not for
+    large pieces: an inlined function is compiled again inside each caller, and numba's
+    compilation of one large function grows faster than its code (the fixed-step driver with
+    everything inlined: 85-90 % of the default kernels' compilation; see ``fixed_step.py``).
     """
     if func is None:
         return lambda f: jit(f, inline=inline)
@@ -379,6 +382,19 @@ def jit(func=None, *, inline: bool = False):
         dispatcher._cache = KernelCache(func)       # what Dispatcher.enable_caching sets
         _dispatchers.append(dispatcher)
     return dispatcher
+
+
+def compile_for(function, args) -> bool:
+    """
+    Compile ``function`` (a :func:`jit` kernel) for the types of ``args``, or load it; say if.
+
+    What its first call with ``args`` would compile, without the call (``cli/prebuild.py``
+    compiles the fixed-step driver's parts so, in parallel processes). False without numba.
+    """
+    if not HAVE_NUMBA or not isinstance(function, _Dispatcher):
+        return False
+    function.compile(tuple(_numba.typeof(a) for a in args))
+    return True
 
 
 def _skip_blas_probe() -> bool:

@@ -12,6 +12,18 @@ active-set step would repeat the last one exactly (:func:`_repeats_standstill`);
 skipped and the step booked from the rows the last one left in ``ws`` (CACHE.STEADY,
 WORK.FBPREV, TEPREV). In a 120 s freight run (47 vehicles) the train stands still from 53 s
 on: the skipped steps cost ~30 ns per vehicle instead of ~100.
+
+Compiled apart. The large pieces of a step are compiled functions of their own, called by
+the driver, not inlined into it (numba's ``inline='always'`` copies a function's IR into
+every caller and compiles the result as one; the compilation grows faster than the code):
+the active-set step, the multirate refinement (:func:`.multirate.refine`), the first
+call's set-up, the wheelsets' (and bogies') pieces and the external forces' (the last two
+run only with their options). Measured with an empty kernel cache, one core, the paper group
+(``cli/prebuild.py``): 119 s of CPU time with them inlined (``advance_chain`` alone 85-90 %),
+57 s apart (the refinement 19 s, the active-set step 12 s, the wheelsets and bogies 12 s,
+the driver itself 7 s), and :func:`parts` lets two processes compile them side by side. A
+call passes its arrays (reference counting each): the paper's 3-coach step and the 100-coach
+step ran as fast within the host's noise (1-2 %), and the results are bit for bit the same.
 """
 from __future__ import annotations
 
@@ -91,6 +103,16 @@ def _note_standstill(started_held, coach, iv, ws):
 
 
 @jit
+def _first_call(coach, cpl, sc, iv, ws, gh):
+    """Split the pipe delays and evaluate the couplers at (x, v) into ``ws``; mark it valid."""
+    brakes.delay_split(coach[VEHICLE.DELAY], ws[WORK.K0], ws[WORK.FRAC])
+    eval_couplers(coach[STATE.X], coach[STATE.V], cpl, iv[OPTION.MODEL], sc[PARAM.U], gh, ws)
+    invalidate_caches(ws)
+    iv[CACHE.STEADY] = 0
+    iv[CACHE.WS_VALID] = 1
+
+
+@jit
 def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof, aprof):
     """
     Advance brakes and chain ``n_steps`` fixed steps, in place; return (steps, status).
@@ -123,14 +145,8 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
     held = np.empty(coach.shape[1], dtype=np.bool_)
     tables = brakes.make_tables(fill, rel)
     if iv[CACHE.WS_VALID] == 0:
-        # first call after reset()/set_model(): pipe delays and the couplers at (x, v); later
-        # calls find them in ws, left there by the last step of the previous call
-        brakes.delay_split(coach[VEHICLE.DELAY], ws[WORK.K0], ws[WORK.FRAC])
-        eval_couplers(coach[STATE.X], coach[STATE.V], cpl, iv[OPTION.MODEL], sc[PARAM.U], gh,
-                      ws)
-        invalidate_caches(ws)
-        iv[CACHE.STEADY] = 0
-        iv[CACHE.WS_VALID] = 1
+        # first call after reset()/set_model(); later calls find ws as the last step left it
+        _first_call(coach, cpl, sc, iv, ws, gh)
     wheels = iv[OPTION.WHEELS]
     multirate = sc[PARAM.MRTOL] > 0.0 and iv[OPTION.MODEL] == TANH
     # the refinement's memory, once per call (its groups allocate nothing)
@@ -177,3 +193,31 @@ def advance_chain(n_steps, coach, cpl, sc, iv, fill, rel, ring, ws, gprof, cprof
                                            ws) + work_fix
         _note_standstill(started_held, coach, iv, ws)
     return n_steps, OK
+
+
+def parts(coach, cpl, sc, iv, ws, gprof, cprof):
+    """
+    Return the functions :func:`advance_chain` calls compiled apart, with arguments of its types.
+
+    A list of (name, seconds, function, arguments), the arguments built from a train's arrays
+    as the driver passes them (what counts is their types: numba compiles a function for the
+    types of its arguments). ``cli/prebuild.py`` compiles them in parallel processes before the
+    driver (``function.compile(types)``), whose compilation then loads them from the kernel
+    cache; a list that no longer matches the calls costs only time (the driver compiles what
+    it does not find). Plain Python. The seconds: each one's compilation alone (one core,
+    measured), to share them out between the processes.
+    """
+    n = coach.shape[1]
+    h = sc[PARAM.H]
+    held = np.zeros(n, dtype=np.bool_)
+    scratch = np.zeros(1)
+    return [
+        ('refine', 19.0, refine, (h, coach, cpl, sc, iv, held, ws, gprof, scratch, held)),
+        ('wheelsets', 12.0, wheelset.wheelset_substep, (coach, sc, ws)),
+        ('active_set', 12.0, active_set_step, (h, coach, cpl, sc, iv, held, ws, gprof)),
+        ('first_call', 2.0, _first_call, (coach, cpl, sc, iv, ws, GAMMA * h)),
+        ('wsp_valves', 0.9, wheelset.wsp_valves, (coach, sc, iv, ws)),
+        ('external', 0.8, external_step, (coach, sc, iv, gprof, cprof, ws)),
+        ('book_wheelsets', 0.7, wheelset.book_wheelsets, (coach, sc, ws)),
+        ('accept_external', 0.3, accept_external, (h, coach, sc, held, ws)),
+    ]

@@ -167,9 +167,9 @@ def _in_band(j, u, tol_f, cpl, ws):
 
     True when |u ydot_j| < EDGE_BAND at the long step's start (WORK.VSTART) or end
     (WORK.VNEW), or ydot_j changes sign within it (u [s/m], the tanh law's scale, eq. 14),
-    and the friction's full swing 2 k |y| (k = k_f in compression, k_fc in tension, |y| the
-    at the step's end, WORK.XNEW, with the free play: an upper bound) exceeds tol_f: a coupler carrying
-    less cannot jump by more, whatever its relative velocity.
+    and the friction's full swing 2 k |y| exceeds tol_f (k = k_f in compression, k_fc in
+    tension; |y| at the step's end, WORK.XNEW, with the free play: an upper bound): a
+    coupler carrying less cannot jump by more, whatever its relative velocity.
     """
     v0 = ws[WORK.VSTART]
     v1 = ws[WORK.VNEW]
@@ -327,7 +327,7 @@ def _refine_group(a, b, h, tol_f, err0, coach, cpl, sc, iv, ws, gprof, scratch, 
     return True, corr
 
 
-@jit(inline=True)
+@jit
 def refine(h, coach, cpl, sc, iv, held, ws, gprof, scratch, sheld):
     """
     Re-integrate in sub-steps the groups around couplers over tolerance; return work [J].

@@ -28,7 +28,10 @@ Speed: the steps take the packed arrays and are inlined into the drivers by numb
 (``@jit(inline=True)``, as are the brake-system functions they call). A compiled function
 that takes arrays, or makes row views, pays their reference counting at every call, and
 a call left inside an inlined step stops LLVM from removing that counting: split into
-ordinary calls, a 3-coach step ran 1.5-2 times slower.
+ordinary calls, a 3-coach step ran 1.5-2 times slower. Large pieces called once per step are
+ordinary calls all the same (:func:`external_step`, :func:`accept_external`, the active-set
+step, the wheelsets' pieces): inlined, they made the driver one function that took minutes
+to compile, and a few calls per step cost nothing measurable (``fixed_step.py``).
 """
 from __future__ import annotations
 
@@ -129,7 +132,7 @@ def braking_force_trapezoid(coach, sc, ws):
         fb_avail[i] = fb_next[i]
 
 
-@jit(inline=True)
+@jit
 def external_step(coach, sc, iv, gprof, cprof, ws):
     """
     Add the static resistance to the friction of the step; ramp the traction command.
@@ -249,7 +252,7 @@ def accept_step(coach, held, extra_work, ws, ext):
     return wb
 
 
-@jit(inline=True)
+@jit
 def accept_external(h, coach, sc, held, ws):
     """
     Book the external forces of the accepted step; return the brakes' work [J].

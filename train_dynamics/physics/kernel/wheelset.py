@@ -43,7 +43,7 @@ from train_dynamics.physics.kernel.track import profile_mean
 from train_dynamics.physics.kernel.traction import adhesion
 
 
-@jit(inline=True)
+@jit
 def track_adhesion(coach, aprof):
     """
     Write each vehicle's available adhesion at low speed [-] to OUTPUT.ADH_LOW.
@@ -61,7 +61,7 @@ def track_adhesion(coach, aprof):
         out[i] = DRY_ADHESION + profile_mean(hi - coach[VEHICLE.LENGTH, i], hi, ax, av, ac)
 
 
-@jit(inline=True)
+@jit
 def wsp_valves(coach, sc, iv, ws):
     """
     Apply each vehicle's slide-protection valve to its brake cylinder (module docstring).
@@ -110,7 +110,7 @@ def wsp_valves(coach, sc, iv, ws):
                 cut[i] = 0.0
 
 
-@jit(inline=True)
+@jit
 def wheelset_substep(coach, sc, ws):
     """
     Advance every wheelset over the step; make its creep force the vehicle's friction.
@@ -167,7 +167,7 @@ def wheelset_substep(coach, sc, ws):
     sc[TOTAL.WWB] += wwb
 
 
-@jit(inline=True)
+@jit
 def book_wheelsets(coach, sc, ws):
     """
     Book the creep work and the sliding of the accepted step.
