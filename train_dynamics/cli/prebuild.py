@@ -160,14 +160,7 @@ def compile_in_parallel(jobs: int) -> None:
 
 def driver_cached() -> bool:
     """Tell whether this code version's fixed-step driver was compiled (a cache entry exists)."""
-    for folder in (compiler.prebuilt_dir(), compiler.kernel_cache_dir()):
-        try:
-            if folder and any(name.startswith('fixed_step.advance_chain')
-                              for name in os.listdir(folder)):
-                return True
-        except OSError:
-            continue
-    return False
+    return compiler.is_cached(fixed_step.advance_chain)
 
 
 def default_jobs() -> int:

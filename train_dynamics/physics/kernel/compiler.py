@@ -201,6 +201,27 @@ def _prune(root: str, keep: str) -> None:
             continue
 
 
+def _file_stem(py_func) -> str:
+    """Return the start of a kernel's cache file names: ``<module file>.<qualified name>``."""
+    modname = os.path.splitext(os.path.basename(py_func.__code__.co_filename))[0]
+    return f'{modname}.{py_func.__qualname__}'
+
+
+def is_cached(function) -> bool:
+    """Tell whether a :func:`jit` kernel of this code version has a file in the kernel cache."""
+    py_func = getattr(function, 'py_func', None)
+    if py_func is None:
+        return False
+    stem = _file_stem(py_func)
+    for folder in (prebuilt_dir(), kernel_cache_dir()):
+        try:
+            if folder and any(name.startswith(stem) for name in os.listdir(folder)):
+                return True
+        except OSError:
+            continue
+    return False
+
+
 if _CACHE_API:
     class _KernelLocator(_caching._CacheLocator):
         """File a kernel under the code version (:func:`source_digest`), not its path."""
@@ -237,9 +258,8 @@ if _CACHE_API:
         def __init__(self, py_func):  # numba's __init__ less its locator search
             self._lineno = py_func.__code__.co_firstlineno
             self._locator = _KernelLocator(py_func, py_func.__code__.co_filename)
-            modname = os.path.splitext(os.path.basename(py_func.__code__.co_filename))[0]
-            self._filename_base = self.get_filename_base(
-                f'{modname}.{py_func.__qualname__}', getattr(sys, 'abiflags', ''))
+            self._filename_base = self.get_filename_base(_file_stem(py_func),
+                                                         getattr(sys, 'abiflags', ''))
 
     class KernelCache(_caching.FunctionCache):
         """
